@@ -1,0 +1,38 @@
+//! The `cdlab` command line. Each subcommand lives in its own file with an `Args` struct
+//! (clap) and a `run` function; this file only dispatches.
+
+use clap::{Parser, Subcommand};
+
+/// cdlab: contact dynamics laboratory for granular materials of rigid frictional disks.
+#[derive(Parser, Debug)]
+#[command(name = "cdlab", version, about, long_about = None)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Print the version and build information.
+    Version,
+}
+
+/// Parses the command line, runs the subcommand and returns the process exit code.
+pub fn main() -> i32 {
+    let cli = Cli::parse();
+    let result: crate::Result<()> = match cli.command {
+        Command::Version => {
+            println!("cdlab {}", env!("CARGO_PKG_VERSION"));
+            Ok(())
+        }
+    };
+    match result {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {e}");
+            1
+        }
+    }
+}

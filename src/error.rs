@@ -1,0 +1,104 @@
+//! The crate's error type: every failure a user can cause names the field or file at fault.
+
+use std::path::PathBuf;
+
+/// Errors reported by cdlab. None of them is a panic: bad input, numerical blow-ups and
+/// missing adapters all come back here with a message that says what to change.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A parameter outside its allowed range (names the field, the value and the range).
+    #[error("invalid parameter `{field}` = {value}: {allowed}")]
+    Invalid {
+        /// Name of the field, as it appears in the configuration.
+        field: String,
+        /// The offending value, printed.
+        value: String,
+        /// The allowed range or form.
+        allowed: String,
+    },
+    /// A file that cannot be parsed.
+    #[error("{path}: line {line}: {message}")]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number (0 when unknown).
+        line: usize,
+        /// What was wrong.
+        message: String,
+    },
+    /// A time step that produced a non-finite value or an overlap above the limit.
+    #[error("step {step} failed: {message}")]
+    Numerical {
+        /// The step index at which the failure happened.
+        step: u64,
+        /// Which contact or body, and what went wrong.
+        message: String,
+    },
+    /// A GPU adapter or device problem.
+    #[error("GPU: {0}")]
+    Gpu(String),
+    /// Input/output error with the path involved.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file or directory.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// Any other failure, with its message.
+    #[error("{0}")]
+    Other(String),
+}
+
+/// The crate's result type.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+impl Error {
+    /// Builds an [`Error::Invalid`].
+    pub fn invalid(field: &str, value: impl std::fmt::Display, allowed: &str) -> Self {
+        Error::Invalid {
+            field: field.to_string(),
+            value: value.to_string(),
+            allowed: allowed.to_string(),
+        }
+    }
+
+    /// Wraps an I/O error with the path it concerns.
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+}
+
+/// Checks that `value` is finite and strictly positive.
+pub fn check_positive(field: &str, value: f64) -> Result<()> {
+    if value.is_finite() && value > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::invalid(field, value, "must be a finite number > 0"))
+    }
+}
+
+/// Checks that `value` is finite and non-negative.
+pub fn check_non_negative(field: &str, value: f64) -> Result<()> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(())
+    } else {
+        Err(Error::invalid(field, value, "must be a finite number >= 0"))
+    }
+}
+
+/// Checks that `value` lies in the closed interval `[lo, hi]` (and is not NaN).
+pub fn check_range(field: &str, value: f64, lo: f64, hi: f64) -> Result<()> {
+    if value >= lo && value <= hi {
+        Ok(())
+    } else {
+        Err(Error::invalid(
+            field,
+            value,
+            &format!("must lie in [{lo}, {hi}]"),
+        ))
+    }
+}
