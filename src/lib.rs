@@ -6,11 +6,17 @@
 //!
 //! Module map (dependencies point down the list):
 //! - [`cli`]: the `cdlab` command line;
+//! - [`engine`]: the CPU reference time stepper;
+//! - [`solver`]: local law, coloring, Gauss-Seidel and Jacobi sweeps;
+//! - [`contact`]: contact frame, cell grid and detection;
 //! - [`model`]: disks, walls, material (the state a backend steps);
 //! - [`error`]: the error type.
 
 pub mod cli;
+pub mod contact;
+pub mod engine;
 pub mod error;
 pub mod model;
+pub mod solver;
 
 pub use error::{Error, Result};

@@ -1,0 +1,255 @@
+//! Contact detection on a uniform cell grid (count, prefix sum, scatter; the same three
+//! passes the GPU kernels run), and the construction of the contact records.
+
+use glam::DVec2;
+
+use super::Contact;
+use crate::error::{Error, Result};
+use crate::model::{BodyKind, NOT_GLUED, Scene, WallDrive};
+
+/// A uniform grid of square cells holding disk indices, built by counting sort so that the
+/// order of disks inside a cell is their index order (deterministic).
+#[derive(Clone, Debug, Default)]
+pub struct CellGrid {
+    /// Lower-left corner of the grid (m).
+    pub origin: DVec2,
+    /// Cell side (m), at least the largest diameter plus the alert distance.
+    pub cell: f64,
+    /// Cells along x and y.
+    pub dims: (usize, usize),
+    /// `start[c]..start[c+1]` indexes `items` for cell `c`.
+    pub start: Vec<u32>,
+    /// Disk indices sorted by cell.
+    pub items: Vec<u32>,
+    /// Cell of each disk.
+    pub cell_of: Vec<u32>,
+}
+
+impl CellGrid {
+    /// Builds the grid for the given centres. `min_cell` must be at least the largest
+    /// diameter plus the alert distance so that every candidate pair lies in adjacent cells.
+    /// The cell is enlarged when needed to keep the number of cells proportional to the
+    /// number of disks (a stray disk far away must not allocate a huge grid).
+    pub fn build(&mut self, pos: &[DVec2], min_cell: f64) -> Result<()> {
+        let n = pos.len();
+        let mut lo = DVec2::splat(f64::INFINITY);
+        let mut hi = DVec2::splat(f64::NEG_INFINITY);
+        for (k, p) in pos.iter().enumerate() {
+            if !p.is_finite() {
+                return Err(Error::Numerical {
+                    step: 0,
+                    message: format!("disk {k} has a non-finite position {p}"),
+                });
+            }
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+        if n == 0 {
+            lo = DVec2::ZERO;
+            hi = DVec2::ZERO;
+        }
+        let ext = hi - lo;
+        let max_cells = 4.0 * n as f64 + 1024.0;
+        let mut cell = min_cell;
+        if (ext.x / cell + 1.0) * (ext.y / cell + 1.0) > max_cells {
+            cell = ((ext.x * ext.y) / max_cells).sqrt().max(min_cell) * 1.5;
+        }
+        let nx = (ext.x / cell) as usize + 1;
+        let ny = (ext.y / cell) as usize + 1;
+        self.origin = lo;
+        self.cell = cell;
+        self.dims = (nx, ny);
+        let nc = nx * ny;
+        self.start.clear();
+        self.start.resize(nc + 1, 0);
+        self.cell_of.clear();
+        for p in pos {
+            let cx = (((p.x - lo.x) / cell) as usize).min(nx - 1);
+            let cy = (((p.y - lo.y) / cell) as usize).min(ny - 1);
+            let c = cy * nx + cx;
+            self.cell_of.push(c as u32);
+            self.start[c + 1] += 1;
+        }
+        for c in 0..nc {
+            self.start[c + 1] += self.start[c];
+        }
+        self.items.clear();
+        self.items.resize(n, 0);
+        let mut fill = self.start.clone();
+        for (k, &c) in self.cell_of.iter().enumerate() {
+            let slot = &mut fill[c as usize];
+            self.items[*slot as usize] = k as u32;
+            *slot += 1;
+        }
+        Ok(())
+    }
+
+    /// Calls `f(q)` for every disk `q` in the 3x3 block of cells around disk `p`'s cell.
+    #[inline]
+    pub fn for_neighbours(&self, p: usize, mut f: impl FnMut(usize)) {
+        let (nx, ny) = self.dims;
+        let c = self.cell_of[p] as usize;
+        let (cx, cy) = (c % nx, c / nx);
+        for y in cy.saturating_sub(1)..(cy + 2).min(ny) {
+            let row = y * nx;
+            for x in cx.saturating_sub(1)..(cx + 2).min(nx) {
+                let cc = row + x;
+                for &q in &self.items[self.start[cc] as usize..self.start[cc + 1] as usize] {
+                    f(q as usize);
+                }
+            }
+        }
+    }
+}
+
+/// The dynamic side of a disk in a contact: which generalized body carries its motion and
+/// how an impulse moves it.
+struct Side {
+    body: u32,
+    lever: f64,
+    inv_mass: f64,
+    axial: f64,
+    axis: DVec2,
+    k: f64,
+}
+
+fn disk_side(scene: &Scene, k: usize) -> Side {
+    let d = &scene.disks;
+    let g = d.glued_to[k];
+    if g != NOT_GLUED {
+        let w = &scene.walls[g as usize];
+        // A glued disk moves rigidly with its wall and does not spin: its contacts act on
+        // the wall's single degree of freedom (along the wall normal) when the wall is
+        // force-driven.
+        Side {
+            body: (d.len() + g as usize) as u32,
+            lever: 0.0,
+            inv_mass: 0.0,
+            axial: w.inv_mass(),
+            axis: w.normal,
+            k: 0.0,
+        }
+    } else {
+        Side {
+            body: k as u32,
+            lever: d.radius[k],
+            inv_mass: d.inv_mass[k],
+            axial: 0.0,
+            axis: DVec2::ZERO,
+            k: d.radius[k] * d.inv_inertia[k],
+        }
+    }
+}
+
+/// Finds every disk-disk and disk-wall pair whose gap is below `alert` (m) and returns the
+/// contact records sorted by key, with frames, inverse masses, Delassus blocks and friction
+/// filled in and impulses at zero. Pairs in which neither disk is free are skipped: no
+/// impulse can change their motion.
+pub fn detect(
+    scene: &Scene,
+    alert: f64,
+    grid: &mut CellGrid,
+    out: &mut Vec<Contact>,
+) -> Result<()> {
+    let d = &scene.disks;
+    let nd = d.len();
+    let r_max = d.radius.iter().cloned().fold(0.0, f64::max);
+    grid.build(&d.pos, 2.0 * r_max + alert)?;
+    out.clear();
+    let mu_disk = scene.material.mu_disk;
+    for p in 0..nd {
+        let free_p = d.kind[p] == BodyKind::Free;
+        let xp = d.pos[p];
+        let rp = d.radius[p];
+        grid.for_neighbours(p, |q| {
+            if q <= p {
+                return;
+            }
+            let free_q = d.kind[q] == BodyKind::Free;
+            if !free_p && !free_q {
+                return;
+            }
+            let delta = xp - d.pos[q];
+            let reach = rp + d.radius[q] + alert;
+            let dist2 = delta.length_squared();
+            if dist2 >= reach * reach || dist2 == 0.0 {
+                return;
+            }
+            let dist = dist2.sqrt();
+            let (a, b, n) = if free_p {
+                (p, q, delta / dist)
+            } else {
+                (q, p, -delta / dist)
+            };
+            out.push(make_contact(
+                scene,
+                a,
+                b,
+                n,
+                dist - rp - d.radius[q],
+                mu_disk,
+            ));
+        });
+    }
+    for (w, wall) in scene.walls.iter().enumerate() {
+        if !wall.active {
+            continue;
+        }
+        let body = (nd + w) as u32;
+        for k in 0..nd {
+            if d.kind[k] != BodyKind::Free {
+                continue;
+            }
+            let gap = wall.distance(d.pos[k]) - d.radius[k];
+            if gap < alert {
+                let si = disk_side(scene, k);
+                let mut c = Contact {
+                    i: si.body,
+                    j: body,
+                    disk_j: body,
+                    n: wall.normal,
+                    gap,
+                    ri: si.lever,
+                    mi: si.inv_mass,
+                    ki: si.k,
+                    ma: if matches!(wall.drive, WallDrive::Force { .. }) {
+                        wall.inv_mass()
+                    } else {
+                        0.0
+                    },
+                    a: wall.normal,
+                    mu: scene.material.mu_wall,
+                    ..Default::default()
+                };
+                c.compute_delassus();
+                out.push(c);
+            }
+        }
+    }
+    out.sort_unstable_by_key(Contact::key);
+    Ok(())
+}
+
+fn make_contact(scene: &Scene, a: usize, b: usize, n: DVec2, gap: f64, mu: f64) -> Contact {
+    let si = disk_side(scene, a);
+    let sj = disk_side(scene, b);
+    let mut c = Contact {
+        i: si.body,
+        j: sj.body,
+        disk_j: b as u32,
+        n,
+        gap,
+        ri: si.lever,
+        rj: sj.lever,
+        mi: si.inv_mass,
+        mj: sj.inv_mass,
+        ma: sj.axial,
+        a: sj.axis,
+        ki: si.k,
+        kj: sj.k,
+        mu,
+        ..Default::default()
+    };
+    c.compute_delassus();
+    c
+}

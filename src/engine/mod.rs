@@ -1,0 +1,331 @@
+//! The CPU reference time stepper (Moreau-Jean theta scheme), phase by phase:
+//! free velocities, cell grid and contact detection with warm start, coloring, sweeps,
+//! integration. Every phase has a twin kernel in `shaders/`.
+
+use glam::{DVec2, DVec3};
+
+use crate::contact::Contact;
+use crate::contact::detect::{CellGrid, detect};
+use crate::error::{Error, Result, check_non_negative, check_positive, check_range};
+use crate::model::{BodyKind, NOT_GLUED, Scene, WallDrive};
+use crate::solver::{Method, SolveStats, SolverParams, color::color_contacts, sweep};
+
+/// Parameters of the time stepping.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct StepParams {
+    /// Time step (s).
+    pub dt: f64,
+    /// Theta of the scheme, in [0.5, 1].
+    pub theta: f64,
+    /// Alert distance (m): pairs closer than this become candidate contacts.
+    pub alert: f64,
+    /// Largest overlap tolerated (m) before the run stops with a diagnostic.
+    pub overlap_limit: f64,
+    /// The contact solver.
+    pub solver: SolverParams,
+}
+
+impl StepParams {
+    /// Rejects dt <= 0, theta outside [0.5, 1], negative distances and bad solver settings.
+    pub fn validate(&self) -> Result<()> {
+        check_positive("solver.dt", self.dt)?;
+        check_range("solver.theta", self.theta, 0.5, 1.0)?;
+        check_non_negative("solver.alert", self.alert)?;
+        check_positive("solver.overlap_limit", self.overlap_limit)?;
+        self.solver.validate()
+    }
+}
+
+/// What one step did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StepStats {
+    /// The solver's iterations, convergence and colors.
+    pub solve: SolveStats,
+    /// Candidate contacts (within the alert distance).
+    pub contacts: usize,
+    /// Largest overlap at the start of the step (m, >= 0).
+    pub max_overlap: f64,
+}
+
+/// The CPU backend's stepper. It owns the contact list between steps (warm start) and the
+/// scratch buffers, so a step allocates nothing once sizes settle.
+#[derive(Clone, Debug)]
+pub struct CpuEngine {
+    /// Time stepping parameters.
+    pub params: StepParams,
+    contacts: Vec<Contact>,
+    previous: Vec<(u64, f64, f64)>,
+    grid: CellGrid,
+    gv_minus: Vec<DVec3>,
+    gv0: Vec<DVec3>,
+    gv: Vec<DVec3>,
+    masks: Vec<u64>,
+    ranges: Vec<u32>,
+}
+
+impl CpuEngine {
+    /// A stepper with validated parameters.
+    pub fn new(params: StepParams) -> Result<Self> {
+        params.validate()?;
+        Ok(CpuEngine {
+            params,
+            contacts: Vec::new(),
+            previous: Vec::new(),
+            grid: CellGrid::default(),
+            gv_minus: Vec::new(),
+            gv0: Vec::new(),
+            gv: Vec::new(),
+            masks: Vec::new(),
+            ranges: Vec::new(),
+        })
+    }
+
+    /// The contacts of the last step, with their impulses (in color order when colored).
+    pub fn contacts(&self) -> &[Contact] {
+        &self.contacts
+    }
+
+    /// Color ranges of the last step (`ranges[c]..ranges[c+1]`), empty unless colored.
+    pub fn color_ranges(&self) -> &[u32] {
+        &self.ranges
+    }
+
+    /// Forgets the warm-start impulses (e.g. after the scene was edited by hand).
+    pub fn reset_warm_start(&mut self) {
+        self.previous.clear();
+    }
+
+    /// Advances `scene` by one step.
+    pub fn step(&mut self, scene: &mut Scene) -> Result<StepStats> {
+        let p = self.params;
+        let (dt, theta) = (p.dt, p.theta);
+        follow_walls(scene);
+        detect(scene, p.alert, &mut self.grid, &mut self.contacts)
+            .map_err(|e| at_step(e, scene.step))?;
+        let max_overlap = self.check_overlaps(scene)?;
+        self.velocities(scene);
+        self.prepare_contacts(scene);
+        self.ranges.clear();
+        if p.solver.method == Method::ColoredGs {
+            self.ranges = color_contacts(&mut self.contacts, scene.n_bodies(), &mut self.masks);
+        }
+        let solve = sweep::solve(
+            &p.solver,
+            &mut self.contacts,
+            &self.ranges,
+            &self.gv0,
+            &mut self.gv,
+        );
+        self.check_finite(scene)?;
+        self.integrate(scene, dt, theta);
+        self.remember_impulses();
+        scene.time += dt;
+        scene.step += 1;
+        Ok(StepStats {
+            solve,
+            contacts: self.contacts.len(),
+            max_overlap,
+        })
+    }
+
+    fn check_overlaps(&self, scene: &Scene) -> Result<f64> {
+        let mut worst: Option<&Contact> = None;
+        for c in &self.contacts {
+            if c.gap < worst.map_or(0.0, |w| w.gap) {
+                worst = Some(c);
+            }
+        }
+        let Some(w) = worst else { return Ok(0.0) };
+        if -w.gap > self.params.overlap_limit {
+            return Err(Error::Numerical {
+                step: scene.step,
+                message: format!(
+                    "overlap {:.3e} m between disk {} and {} exceeds the limit {:.3e} m \
+                     (reduce the time step or the loading rate, or tighten the solver tolerance)",
+                    -w.gap,
+                    w.i,
+                    body_name(scene, w.disk_j as usize),
+                    self.params.overlap_limit
+                ),
+            });
+        }
+        Ok(-w.gap)
+    }
+
+    /// Fills `gv_minus` (start-of-step velocities), `gv0` (free velocities) for every body.
+    fn velocities(&mut self, scene: &Scene) {
+        let d = &scene.disks;
+        let dt = self.params.dt;
+        self.gv_minus.clear();
+        self.gv0.clear();
+        for k in 0..d.len() {
+            let v = DVec3::new(d.vel[k].x, d.vel[k].y, d.spin[k]);
+            self.gv_minus.push(v);
+            let free = if d.kind[k] == BodyKind::Free {
+                let acc = d.force[k] * d.inv_mass[k] + scene.gravity;
+                v + dt * DVec3::new(acc.x, acc.y, d.torque[k] * d.inv_inertia[k])
+            } else {
+                v
+            };
+            self.gv0.push(free);
+        }
+        for w in &scene.walls {
+            self.gv_minus.push(w.vel.extend(0.0));
+            let free = match w.drive {
+                WallDrive::Kinematic => w.vel,
+                WallDrive::Force { mass, force } => w.vel + w.normal * (dt * force / mass),
+            };
+            self.gv0.push(free.extend(0.0));
+        }
+    }
+
+    /// Start-of-step velocities, law offsets and warm start for every contact; leaves in
+    /// `gv` the free velocities plus the warm-start impulses.
+    fn prepare_contacts(&mut self, scene: &Scene) {
+        let (dt, theta) = (self.params.dt, self.params.theta);
+        let m = &scene.material;
+        let mut prev = self.previous.iter().peekable();
+        self.gv.clone_from(&self.gv0);
+        for c in self.contacts.iter_mut() {
+            let (un, ut) = c.relative_velocity(&self.gv_minus);
+            c.un0 = un;
+            c.ut0 = ut;
+            c.bias_n = if c.gap > 0.0 {
+                // Open gap: the law lets it close during the step but not beyond. A gap the
+                // start velocity alone would already close gets no negative shift (that
+                // would push the disks apart and inject energy).
+                ((c.gap + (1.0 - theta) * dt * un) / (theta * dt)).max(0.0)
+            } else {
+                m.e_n * un.min(0.0)
+            };
+            c.bias_t = m.e_t * ut;
+            // Both lists are sorted by key: a merge finds the previous impulses.
+            let key = c.key();
+            while prev.peek().is_some_and(|q| q.0 < key) {
+                prev.next();
+            }
+            if let Some(&&(k, rn, rt)) = prev.peek()
+                && k == key
+            {
+                c.rn = rn;
+                c.rt = rt.clamp(-c.mu * rn, c.mu * rn);
+                c.apply(&mut self.gv, c.rn, c.rt);
+            }
+        }
+    }
+
+    fn check_finite(&self, scene: &Scene) -> Result<()> {
+        if let Some(k) = self.gv.iter().position(|v| !v.is_finite()) {
+            let culprit = self
+                .contacts
+                .iter()
+                .find(|c| c.i as usize == k || c.j as usize == k);
+            return Err(Error::Numerical {
+                step: scene.step,
+                message: format!(
+                    "non-finite velocity {} of {}{}",
+                    self.gv[k],
+                    body_name(scene, k),
+                    culprit.map_or(String::new(), |c| format!(
+                        " (contact between disk {} and {}, R_n {:e}, R_t {:e})",
+                        c.i,
+                        body_name(scene, c.disk_j as usize),
+                        c.rn,
+                        c.rt
+                    ))
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    fn integrate(&mut self, scene: &mut Scene, dt: f64, theta: f64) {
+        let nd = scene.disks.len();
+        let d = &mut scene.disks;
+        for k in 0..nd {
+            let (vm, vp) = (self.gv_minus[k], self.gv[k]);
+            match d.kind[k] {
+                BodyKind::Fixed => {}
+                BodyKind::Kinematic if d.glued_to[k] != NOT_GLUED => {
+                    // Glued disks move exactly as their wall does (a force-driven wall's
+                    // velocity changes during the step), so they never drift from it.
+                    let w = nd + d.glued_to[k] as usize;
+                    let (wm, wp) = (self.gv_minus[w], self.gv[w]);
+                    d.pos[k] += dt * ((1.0 - theta) * wm + theta * wp).truncate();
+                    d.vel[k] = wp.truncate();
+                }
+                BodyKind::Kinematic => {
+                    d.pos[k] += dt * vm.truncate();
+                    d.theta[k] += dt * vm.z;
+                }
+                BodyKind::Free => {
+                    let v = (1.0 - theta) * vm + theta * vp;
+                    d.pos[k] += dt * v.truncate();
+                    d.theta[k] += dt * v.z;
+                    d.vel[k] = vp.truncate();
+                    d.spin[k] = vp.z;
+                }
+            }
+        }
+        for (w, wall) in scene.walls.iter_mut().enumerate() {
+            let (vm, vp) = (self.gv_minus[nd + w].truncate(), self.gv[nd + w].truncate());
+            wall.point += dt * ((1.0 - theta) * vm + theta * vp);
+            wall.vel = vp;
+        }
+    }
+
+    fn remember_impulses(&mut self) {
+        self.previous.clear();
+        self.previous.extend(
+            self.contacts
+                .iter()
+                .filter(|c| c.rn > 0.0)
+                .map(|c| (c.key(), c.rn, c.rt)),
+        );
+        self.previous.sort_unstable_by_key(|e| e.0);
+    }
+
+    /// Total impulse exerted on each wall by the contacts of the last step (N s/m),
+    /// including the contacts of the disks glued to it. Divide by dt for the force.
+    pub fn wall_impulses(&self, scene: &Scene) -> Vec<DVec2> {
+        let nd = scene.disks.len();
+        let mut out = vec![DVec2::ZERO; scene.walls.len()];
+        for c in &self.contacts {
+            let j = c.j as usize;
+            if j >= nd {
+                let t = crate::contact::tangent(c.n);
+                out[j - nd] -= c.rn * c.n + c.rt * t;
+            }
+        }
+        out
+    }
+}
+
+/// Glued disks take their wall's velocity and stop spinning before the step.
+fn follow_walls(scene: &mut Scene) {
+    let d = &mut scene.disks;
+    for k in 0..d.len() {
+        let g = d.glued_to[k];
+        if g != NOT_GLUED {
+            d.vel[k] = scene.walls[g as usize].vel;
+            d.spin[k] = 0.0;
+        }
+    }
+}
+
+fn at_step(e: Error, step: u64) -> Error {
+    match e {
+        Error::Numerical { message, .. } => Error::Numerical { step, message },
+        other => other,
+    }
+}
+
+/// "disk 12" or "wall 3" for a generalized body index.
+pub fn body_name(scene: &Scene, k: usize) -> String {
+    let nd = scene.disks.len();
+    if k < nd {
+        format!("disk {k}")
+    } else {
+        format!("wall {}", k - nd)
+    }
+}

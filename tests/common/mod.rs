@@ -1,0 +1,116 @@
+//! Scene builders shared by the integration tests.
+#![allow(dead_code)]
+
+use cdlab::engine::{CpuEngine, StepParams};
+use cdlab::model::{Material, Scene, Wall};
+use cdlab::solver::{Method, SolverParams};
+use glam::DVec2;
+
+/// Density of the paper's grains (kg/m^3).
+pub const RHO: f64 = 2600.0;
+
+/// Step parameters with a tight tolerance, so closed-form checks see round-off, not the
+/// solver's stopping error.
+pub fn tight(method: Method) -> StepParams {
+    StepParams {
+        dt: 5e-4,
+        theta: 0.5,
+        alert: 0.01,
+        overlap_limit: 0.05,
+        solver: SolverParams {
+            method,
+            tol: 1e-12,
+            max_iter: 20_000,
+            relax: 0.5,
+            parallel: true,
+        },
+    }
+}
+
+/// An engine with `tight` parameters.
+pub fn engine(method: Method) -> CpuEngine {
+    CpuEngine::new(tight(method)).expect("valid parameters")
+}
+
+/// An empty scene with the given friction between disks and with walls.
+pub fn scene(mu: f64) -> Scene {
+    Scene {
+        material: Material {
+            mu_disk: mu,
+            mu_wall: mu,
+            e_n: 0.0,
+            e_t: 0.0,
+        },
+        ..Default::default()
+    }
+}
+
+/// A floor at y = 0 (inward normal +y).
+pub fn floor() -> Wall {
+    Wall::fixed(DVec2::ZERO, DVec2::Y)
+}
+
+/// A small deterministic generator (SplitMix64) so tests need no external crate.
+pub struct Rng(pub u64);
+
+impl Rng {
+    /// Next value uniform in [0, 1).
+    pub fn uniform(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Uniform in [lo, hi).
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.uniform()
+    }
+}
+
+/// A loose random cloud of `nx * ny` disks on a jittered lattice (no overlaps), radii in
+/// [0.5, 1] m, random velocities up to `speed` m/s and spins up to `speed` rad/s.
+pub fn cloud(nx: usize, ny: usize, speed: f64, seed: u64) -> Scene {
+    let mut rng = Rng(seed);
+    let mut s = scene(0.3);
+    let pitch = 2.2;
+    for a in 0..nx {
+        for b in 0..ny {
+            let r = rng.range(0.5, 1.0);
+            let jitter = (pitch / 2.0 - r).max(0.0);
+            let x = a as f64 * pitch + rng.range(-jitter, jitter);
+            let y = b as f64 * pitch + rng.range(-jitter, jitter);
+            let k = s.disks.push(DVec2::new(x, y), r, RHO).expect("valid disk");
+            s.disks.vel[k] = DVec2::new(rng.range(-speed, speed), rng.range(-speed, speed));
+            s.disks.spin[k] = rng.range(-speed, speed);
+        }
+    }
+    s
+}
+
+/// Adds four fixed walls around the box [x0, x1] x [y0, y1].
+pub fn add_box(s: &mut Scene, x0: f64, x1: f64, y0: f64, y1: f64) {
+    s.walls.push(Wall::fixed(DVec2::new(0.0, y0), DVec2::Y));
+    s.walls.push(Wall::fixed(DVec2::new(0.0, y1), -DVec2::Y));
+    s.walls.push(Wall::fixed(DVec2::new(x0, 0.0), DVec2::X));
+    s.walls.push(Wall::fixed(DVec2::new(x1, 0.0), -DVec2::X));
+}
+
+/// Total linear momentum of the free disks (kg m/s per m).
+pub fn momentum(s: &Scene) -> DVec2 {
+    let d = &s.disks;
+    (0..d.len()).map(|k| d.mass[k] * d.vel[k]).sum()
+}
+
+/// Total angular momentum about the origin (kg m^2/s per m): orbital plus spin.
+pub fn angular_momentum(s: &Scene) -> f64 {
+    let d = &s.disks;
+    (0..d.len())
+        .map(|k| {
+            let m = d.mass[k];
+            let r = d.radius[k];
+            m * d.pos[k].perp_dot(d.vel[k]) + 0.5 * m * r * r * d.spin[k]
+        })
+        .sum()
+}
