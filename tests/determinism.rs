@@ -1,0 +1,143 @@
+//! Bit-reproducibility of the CPU path (validation.md, protocol-level checks).
+
+mod common;
+
+use cdlab::model::Scene;
+use cdlab::solver::Method;
+use common::*;
+use glam::DVec2;
+
+/// A dense 50 x 50 lattice of slightly polydisperse disks with random velocities in a box,
+/// under gravity: about 5000 candidate contacts, so each color is large enough to be swept
+/// on several threads.
+fn dense(seed: u64) -> Scene {
+    let mut rng = Rng(seed);
+    let mut s = scene(0.4);
+    s.gravity = DVec2::new(0.0, -9.81);
+    for a in 0..50 {
+        for b in 0..50 {
+            let r = rng.range(0.95, 1.0);
+            let k = s
+                .disks
+                .push(DVec2::new(2.0 * a as f64, 2.0 * b as f64), r, RHO)
+                .unwrap();
+            s.disks.vel[k] = DVec2::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+        }
+    }
+    add_box(&mut s, -1.0, 99.0, -1.0, 99.0);
+    s
+}
+
+fn run(seed: u64, method: Method, parallel: bool) -> (Scene, usize) {
+    let mut s = dense(seed);
+    let mut p = tight(method);
+    p.alert = 0.2;
+    p.solver.tol = 1e-6;
+    p.solver.parallel = parallel;
+    let mut e = cdlab::engine::CpuEngine::new(p).unwrap();
+    let mut largest_color = 0;
+    for _ in 0..15 {
+        e.step(&mut s).unwrap();
+        largest_color = largest_color.max(
+            e.color_ranges()
+                .windows(2)
+                .map(|w| w[1] - w[0])
+                .max()
+                .unwrap_or(0),
+        );
+    }
+    (s, largest_color as usize)
+}
+
+fn bits(s: &Scene) -> Vec<u64> {
+    let d = &s.disks;
+    (0..d.len())
+        .flat_map(|k| {
+            [
+                d.pos[k].x, d.pos[k].y, d.vel[k].x, d.vel[k].y, d.spin[k], d.theta[k],
+            ]
+        })
+        .map(f64::to_bits)
+        .collect()
+}
+
+#[test]
+fn same_configuration_and_seed_give_bit_identical_states() {
+    for method in [Method::Gs, Method::ColoredGs, Method::Jacobi] {
+        let (a, _) = run(1, method, true);
+        let (b, _) = run(1, method, true);
+        assert_eq!(bits(&a), bits(&b), "{method:?}");
+        let (c, _) = run(2, method, true);
+        assert_ne!(bits(&a), bits(&c), "{method:?}: another seed must differ");
+    }
+}
+
+#[test]
+fn parallel_colored_sweeps_equal_sequential_ones_bit_for_bit() {
+    let (par, largest) = run(1, Method::ColoredGs, true);
+    // The parallel path only engages on colors of 1024+ contacts: make sure it did.
+    assert!(largest >= 1024, "largest color has {largest} contacts");
+    let (seq, _) = run(1, Method::ColoredGs, false);
+    assert_eq!(bits(&par), bits(&seq));
+    let (jp, _) = run(1, Method::Jacobi, true);
+    let (js, _) = run(1, Method::Jacobi, false);
+    assert_eq!(bits(&jp), bits(&js));
+}
+
+#[test]
+fn bad_parameters_are_rejected_with_the_field_named() {
+    let mut p = tight(Method::Gs);
+    p.dt = 0.0;
+    let e = cdlab::engine::CpuEngine::new(p).unwrap_err().to_string();
+    assert!(e.contains("solver.dt"), "{e}");
+    let mut p = tight(Method::Gs);
+    p.theta = 0.3;
+    let e = cdlab::engine::CpuEngine::new(p).unwrap_err().to_string();
+    assert!(e.contains("solver.theta") && e.contains("[0.5, 1]"), "{e}");
+    let mut p = tight(Method::Gs);
+    p.solver.tol = f64::NAN;
+    assert!(
+        cdlab::engine::CpuEngine::new(p)
+            .unwrap_err()
+            .to_string()
+            .contains("solver.tol")
+    );
+    let mut d = cdlab::model::Disks::default();
+    assert!(
+        d.push(DVec2::ZERO, -1.0, RHO)
+            .unwrap_err()
+            .to_string()
+            .contains("radius")
+    );
+    assert!(d.push(DVec2::new(f64::NAN, 0.0), 1.0, RHO).is_err());
+    let mut s = scene(-0.1);
+    s.disks.push(DVec2::ZERO, 1.0, RHO).unwrap();
+    assert!(s.validate().unwrap_err().to_string().contains("mu_disk"));
+}
+
+#[test]
+fn an_overlap_above_the_limit_stops_the_run_naming_the_bodies() {
+    let mut s = scene(0.0);
+    s.disks.push(DVec2::new(0.0, 0.0), 1.0, RHO).unwrap();
+    s.disks.push(DVec2::new(1.9, 0.0), 1.0, RHO).unwrap();
+    let mut e = engine(Method::Gs);
+    let msg = e.step(&mut s).unwrap_err().to_string();
+    assert!(
+        msg.contains("overlap") && msg.contains("disk 0") && msg.contains("disk 1"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn a_non_finite_state_stops_the_run() {
+    let mut s = scene(0.0);
+    s.disks.push(DVec2::new(0.0, 0.0), 1.0, RHO).unwrap();
+    s.disks.vel[0] = DVec2::new(f64::NAN, 0.0);
+    s.disks.push(DVec2::new(2.0, 0.0), 1.0, RHO).unwrap();
+    let mut e = engine(Method::Gs);
+    let msg = e.step(&mut s).unwrap_err().to_string();
+    assert!(
+        msg.contains("non-finite") && msg.contains("disk 0"),
+        "{msg}"
+    );
+}

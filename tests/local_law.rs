@@ -1,0 +1,83 @@
+//! The exact local Signorini-Coulomb solution (validation.md case 1).
+
+mod common;
+
+use cdlab::solver::law::{solve_block, solve_diagonal};
+use common::Rng;
+
+/// Checks Signorini and Coulomb on the post-solve velocity u = W r + u_free; returns the
+/// case hit: 0 separating, 1 sticking, 2 sliding.
+fn check(w: [[f64; 2]; 2], uf: [f64; 2], mu: f64, r: [f64; 2]) -> usize {
+    let u = [
+        w[0][0] * r[0] + w[0][1] * r[1] + uf[0],
+        w[1][0] * r[0] + w[1][1] * r[1] + uf[1],
+    ];
+    let scale = 1e-12 * (1.0 + uf[0].abs() + uf[1].abs());
+    let rscale = 1e-12 * (1.0 + r[0].abs() + r[1].abs());
+    // Signorini: u_n >= 0, r_n >= 0, u_n r_n = 0.
+    assert!(r[0] >= 0.0 && u[0] >= -scale, "signorini {r:?} {u:?}");
+    assert!(
+        (u[0] * r[0]).abs() <= scale * rscale * 1e12,
+        "complementarity {r:?} {u:?}"
+    );
+    // Coulomb: |r_t| <= mu r_n, and r_t = -mu r_n sign(u_t) when u_t != 0.
+    assert!(r[1].abs() <= mu * r[0] + rscale, "cone {r:?}");
+    if r[0] == 0.0 {
+        return 0;
+    }
+    if u[1].abs() <= scale {
+        1
+    } else {
+        assert!(
+            (r[1] + mu * r[0] * u[1].signum()).abs() <= rscale,
+            "slide {r:?} {u:?}"
+        );
+        2
+    }
+}
+
+#[test]
+fn diagonal_local_solution_satisfies_signorini_and_coulomb_in_all_three_cases() {
+    let mut rng = Rng(3);
+    let mut hits = [0; 3];
+    for _ in 0..20_000 {
+        let (wnn, wtt) = (rng.range(0.1, 10.0), rng.range(0.1, 30.0));
+        let uf = [rng.range(-5.0, 5.0), rng.range(-5.0, 5.0)];
+        let mu = rng.range(0.0, 2.0);
+        let (rn, rt) = solve_diagonal(wnn, wtt, uf[0], uf[1], mu);
+        hits[check([[wnn, 0.0], [0.0, wtt]], uf, mu, [rn, rt])] += 1;
+    }
+    assert!(
+        hits.iter().all(|&h| h > 1000),
+        "each case must be exercised: {hits:?}"
+    );
+}
+
+#[test]
+fn diagonal_local_solution_matches_hand_computed_cases() {
+    // Separating: u_free_n = +1 gives no impulse.
+    assert_eq!(solve_diagonal(2.0, 6.0, 1.0, -3.0, 0.5), (0.0, 0.0));
+    // Sticking: r_n = 4/2 = 2, r_t = 3/6 = 0.5 <= 0.5 * 2.
+    assert_eq!(solve_diagonal(2.0, 6.0, -4.0, -3.0, 0.5), (2.0, 0.5));
+    // Sliding: r_n = 2, the stick value 12/6 = 2 exceeds mu r_n = 1, so r_t = 1.
+    assert_eq!(solve_diagonal(2.0, 6.0, -4.0, -12.0, 0.5), (2.0, 1.0));
+}
+
+#[test]
+fn coupled_block_solution_satisfies_signorini_and_coulomb() {
+    let mut rng = Rng(5);
+    let mut hits = [0; 3];
+    for _ in 0..20_000 {
+        let (a, b) = (rng.range(0.1, 10.0), rng.range(0.1, 10.0));
+        // |W_nt| up to 0.9 sqrt(W_nn W_tt): positive definite.
+        let c = rng.range(-0.9, 0.9) * (a * b).sqrt();
+        let uf = [rng.range(-5.0, 5.0), rng.range(-5.0, 5.0)];
+        let mu = rng.range(0.0, 2.0);
+        let (rn, rt) = solve_block(a, b, c, uf[0], uf[1], mu);
+        hits[check([[a, c], [c, b]], uf, mu, [rn, rt])] += 1;
+    }
+    assert!(
+        hits.iter().all(|&h| h > 1000),
+        "each case must be exercised: {hits:?}"
+    );
+}
