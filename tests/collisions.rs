@@ -69,9 +69,9 @@ fn newtons_cradle_gives_the_simultaneous_impact_outcome() {
         e.step(&mut s).unwrap();
     }
     let expected = [-1.0 / 3.0, 2.0 / 3.0, 2.0 / 3.0];
-    for k in 0..3 {
+    for (k, want) in expected.iter().enumerate() {
         assert!(
-            (s.disks.vel[k].x - expected[k]).abs() < 1e-9,
+            (s.disks.vel[k].x - want).abs() < 1e-9,
             "v{k} = {}",
             s.disks.vel[k]
         );
