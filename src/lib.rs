@@ -6,12 +6,14 @@
 //!
 //! Module map (dependencies point down the list):
 //! - [`cli`]: the `cdlab` command line;
+//! - [`backend`]: the interface the protocol drives, and the CPU backend;
 //! - [`engine`]: the CPU reference time stepper;
 //! - [`solver`]: local law, coloring, Gauss-Seidel and Jacobi sweeps;
 //! - [`contact`]: contact frame, cell grid and detection;
 //! - [`model`]: disks, walls, material (the state a backend steps);
 //! - [`error`]: the error type.
 
+pub mod backend;
 pub mod cli;
 pub mod contact;
 pub mod engine;

@@ -1,0 +1,100 @@
+//! The CPU reference backend: a [`CpuEngine`] and the scene it steps.
+
+use super::reduce::{Accumulator, classify};
+use super::{Backend, ContactRecord, Loading, Reductions};
+use crate::engine::{CpuEngine, StepParams};
+use crate::error::Result;
+use crate::model::Scene;
+
+/// The CPU backend (f64, bit-reproducible).
+#[derive(Clone, Debug)]
+pub struct CpuBackend {
+    engine: CpuEngine,
+    scene: Scene,
+}
+
+impl CpuBackend {
+    /// A backend holding `scene`, stepping with `params`.
+    pub fn new(scene: Scene, params: StepParams) -> Result<Self> {
+        scene.validate()?;
+        Ok(CpuBackend {
+            engine: CpuEngine::new(params)?,
+            scene,
+        })
+    }
+
+    /// The scene, without copying it.
+    pub fn scene_ref(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// The engine (contacts of the last step, color ranges).
+    pub fn engine(&self) -> &CpuEngine {
+        &self.engine
+    }
+}
+
+impl Backend for CpuBackend {
+    fn name(&self) -> String {
+        format!("cpu ({} threads)", rayon::current_num_threads())
+    }
+
+    fn params(&self) -> StepParams {
+        self.engine.params
+    }
+
+    fn set_params(&mut self, params: StepParams) -> Result<()> {
+        params.validate()?;
+        self.engine.params = params;
+        Ok(())
+    }
+
+    fn set_scene(&mut self, scene: &Scene) -> Result<()> {
+        scene.validate()?;
+        if scene.disks.len() != self.scene.disks.len()
+            || scene.walls.len() != self.scene.walls.len()
+        {
+            self.engine.reset_warm_start();
+        }
+        self.scene = scene.clone();
+        Ok(())
+    }
+
+    fn scene(&mut self) -> Result<Scene> {
+        Ok(self.scene.clone())
+    }
+
+    fn contacts(&mut self) -> Result<Vec<ContactRecord>> {
+        let dt = self.engine.params.dt;
+        let gap_tol = super::reduce::zero_gap_tolerance(&self.scene);
+        Ok(self
+            .engine
+            .contacts()
+            .iter()
+            .map(|c| ContactRecord {
+                i: c.i,
+                j: c.disk_j,
+                n: c.n,
+                gap: c.gap,
+                f_n: c.rn / dt,
+                f_t: c.rt / dt,
+                class: classify(c, gap_tol),
+            })
+            .collect())
+    }
+
+    fn run(&mut self, steps: u32, loading: &Loading) -> Result<Reductions> {
+        let mut acc = Accumulator::new(&self.scene);
+        for _ in 0..steps {
+            loading.apply(&mut self.scene);
+            let stats = self.engine.step(&mut self.scene)?;
+            acc.add_step(&stats, self.engine.wall_impulses(&self.scene));
+        }
+        Ok(acc.finish(
+            &self.scene,
+            self.engine.contacts(),
+            self.engine.params.dt,
+            loading,
+        ))
+    }
+}

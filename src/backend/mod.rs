@@ -1,0 +1,96 @@
+//! The interface the loading protocol talks to. A backend holds a scene, advances it by
+//! steps under a [`Loading`], and hands back only reduced quantities ([`Reductions`]);
+//! full states and contact lists are downloaded on demand (snapshots, checkpoints).
+//! The protocol never knows which backend runs.
+
+pub mod cpu;
+pub mod reduce;
+
+use glam::DVec2;
+
+use crate::engine::StepParams;
+use crate::error::Result;
+use crate::model::Scene;
+
+pub use cpu::CpuBackend;
+pub use reduce::{ContactClass, Reductions};
+
+/// External loads recomputed by the backend at every step.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Loading {
+    /// Confining stress carried by each deformable-wall strip (Pa); 0 disables the strips.
+    pub sigma3: f64,
+    /// Strip of each disk: -1 left strip (pushed towards +x), +1 right strip (pushed towards
+    /// -x), 0 none. Empty when there are no strips.
+    pub strip: Vec<i8>,
+    /// Index of the top wall (the sample height is its distance to the bottom wall).
+    pub top: usize,
+    /// Index of the bottom wall.
+    pub bottom: usize,
+}
+
+impl Loading {
+    /// Sets the strip forces of `scene` for the current height: each strip carries
+    /// `sigma3 * H` (N/m), shared among its disks in proportion to their radius (so that
+    /// large and small disks carry the same pressure over their diameter), applied at the
+    /// centres, horizontally, towards the sample. Forces of other disks are left alone.
+    pub fn apply(&self, scene: &mut Scene) {
+        if self.strip.is_empty() || self.sigma3 == 0.0 {
+            return;
+        }
+        let h = scene.walls[self.top].point.y - scene.walls[self.bottom].point.y;
+        let total = self.sigma3 * h;
+        let d = &mut scene.disks;
+        let mut sum_r = [0.0f64; 2];
+        for (k, &s) in self.strip.iter().enumerate() {
+            if s != 0 {
+                sum_r[(s > 0) as usize] += d.radius[k];
+            }
+        }
+        for (k, &s) in self.strip.iter().enumerate() {
+            if s != 0 {
+                let side = (s > 0) as usize;
+                d.force[k] = DVec2::new(-(s as f64) * total * d.radius[k] / sum_r[side], 0.0);
+            }
+        }
+    }
+}
+
+/// One contact as downloaded for a snapshot (forces in N/m).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ContactRecord {
+    /// Disk i.
+    pub i: u32,
+    /// Partner: a disk index, or `n_disks + wall`.
+    pub j: u32,
+    /// Normal, from j to i.
+    pub n: DVec2,
+    /// Gap at the start of the step (m).
+    pub gap: f64,
+    /// Normal force `R_n / dt` (N/m).
+    pub f_n: f64,
+    /// Tangential force `R_t / dt` (N/m).
+    pub f_t: f64,
+    /// Class (force-carrying rolling or sliding, zero-force, open).
+    pub class: ContactClass,
+}
+
+/// A time stepper the protocol can drive.
+pub trait Backend {
+    /// Human-readable name (backend and adapter).
+    fn name(&self) -> String;
+    /// The time stepping parameters in force.
+    fn params(&self) -> StepParams;
+    /// Changes the time stepping parameters (validated).
+    fn set_params(&mut self, params: StepParams) -> Result<()>;
+    /// Replaces the state (an upload on a device). Warm-start impulses are kept when the
+    /// bodies are the same.
+    fn set_scene(&mut self, scene: &Scene) -> Result<()>;
+    /// Downloads the full state.
+    fn scene(&mut self) -> Result<Scene>;
+    /// Downloads the contacts of the last step.
+    fn contacts(&mut self) -> Result<Vec<ContactRecord>>;
+    /// Advances `steps` steps, recomputing the loads each step, and returns the reductions
+    /// (wall forces averaged over the steps; counts and energies of the last step).
+    fn run(&mut self, steps: u32, loading: &Loading) -> Result<Reductions>;
+}
