@@ -6,6 +6,8 @@
 //!
 //! Module map (dependencies point down the list):
 //! - [`cli`]: the `cdlab` command line;
+//! - [`protocol`]: the biaxial test's phases (preparation, confinement, compression);
+//! - [`measure`]: series rows and derived strength;
 //! - [`backend`]: the interface the protocol drives, and the CPU backend;
 //! - [`engine`]: the CPU reference time stepper;
 //! - [`solver`]: local law, coloring, Gauss-Seidel and Jacobi sweeps;
@@ -18,7 +20,9 @@ pub mod cli;
 pub mod contact;
 pub mod engine;
 pub mod error;
+pub mod measure;
 pub mod model;
+pub mod protocol;
 pub mod solver;
 
 pub use error::{Error, Result};

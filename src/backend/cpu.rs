@@ -76,11 +76,19 @@ impl Backend for CpuBackend {
                 j: c.disk_j,
                 n: c.n,
                 gap: c.gap,
+                rn: c.rn,
+                rt: c.rt,
                 f_n: c.rn / dt,
                 f_t: c.rt / dt,
                 class: classify(c, gap_tol),
             })
             .collect())
+    }
+
+    fn set_warm_start(&mut self, contacts: &[ContactRecord]) -> Result<()> {
+        self.engine
+            .set_warm_start(contacts.iter().map(|c| (((c.i as u64) << 32) | c.j as u64, c.rn, c.rt)));
+        Ok(())
     }
 
     fn run(&mut self, steps: u32, loading: &Loading) -> Result<Reductions> {

@@ -16,7 +16,7 @@ pub use cpu::CpuBackend;
 pub use reduce::{ContactClass, Reductions};
 
 /// External loads recomputed by the backend at every step.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Loading {
     /// Confining stress carried by each deformable-wall strip (Pa); 0 disables the strips.
     pub sigma3: f64,
@@ -27,6 +27,9 @@ pub struct Loading {
     pub top: usize,
     /// Index of the bottom wall.
     pub bottom: usize,
+    /// Force (N/m) applied along its normal to every force-driven wall listed here, as
+    /// `(wall, force)`; set by the protocol from the current sample width.
+    pub wall_forces: Vec<(usize, f64)>,
 }
 
 impl Loading {
@@ -35,6 +38,11 @@ impl Loading {
     /// large and small disks carry the same pressure over their diameter), applied at the
     /// centres, horizontally, towards the sample. Forces of other disks are left alone.
     pub fn apply(&self, scene: &mut Scene) {
+        for &(w, f) in &self.wall_forces {
+            if let crate::model::WallDrive::Force { force, .. } = &mut scene.walls[w].drive {
+                *force = f;
+            }
+        }
         if self.strip.is_empty() || self.sigma3 == 0.0 {
             return;
         }
@@ -67,6 +75,10 @@ pub struct ContactRecord {
     pub n: DVec2,
     /// Gap at the start of the step (m).
     pub gap: f64,
+    /// Normal impulse (N s/m), kept exactly for warm starts after a resume.
+    pub rn: f64,
+    /// Tangential impulse (N s/m).
+    pub rt: f64,
     /// Normal force `R_n / dt` (N/m).
     pub f_n: f64,
     /// Tangential force `R_t / dt` (N/m).
@@ -90,6 +102,9 @@ pub trait Backend {
     fn scene(&mut self) -> Result<Scene>;
     /// Downloads the contacts of the last step.
     fn contacts(&mut self) -> Result<Vec<ContactRecord>>;
+    /// Replaces the warm-start impulses by those of `contacts` (as downloaded by
+    /// [`Backend::contacts`]): with the scene, this restores a checkpoint exactly.
+    fn set_warm_start(&mut self, contacts: &[ContactRecord]) -> Result<()>;
     /// Advances `steps` steps, recomputing the loads each step, and returns the reductions
     /// (wall forces averaged over the steps; counts and energies of the last step).
     fn run(&mut self, steps: u32, loading: &Loading) -> Result<Reductions>;

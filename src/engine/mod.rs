@@ -90,6 +90,13 @@ impl CpuEngine {
         &self.ranges
     }
 
+    /// Replaces the warm-start impulses by `(key, R_n, R_t)` triples (see [`Contact::key`]).
+    pub fn set_warm_start(&mut self, impulses: impl Iterator<Item = (u64, f64, f64)>) {
+        self.previous.clear();
+        self.previous.extend(impulses.filter(|e| e.1 > 0.0));
+        self.previous.sort_unstable_by_key(|e| e.0);
+    }
+
     /// Forgets the warm-start impulses (e.g. after the scene was edited by hand).
     pub fn reset_warm_start(&mut self) {
         self.previous.clear();

@@ -1,0 +1,115 @@
+//! Results derived from a test's stress-strain curve (protocol.md, "Derived results").
+
+use super::SeriesRow;
+
+/// The strength figures of one test.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Strength {
+    /// Peak of sigma_1 averaged over a moving strain window (Pa).
+    pub sigma1_peak_pa: f64,
+    /// Axial strain at the centre of the peak window.
+    pub strain_peak: f64,
+    /// Mean sigma_1 over the residual strain range (Pa); NaN if the test stopped before it.
+    pub sigma1_residual_pa: f64,
+    /// Confining stress (Pa).
+    pub sigma3_pa: f64,
+    /// Mohr-Coulomb friction angle at the peak, through the origin (degrees):
+    /// `sin(phi) = (s1 - s3) / (s1 + s3)`.
+    pub phi_peak_deg: f64,
+    /// The same at the residual (degrees).
+    pub phi_residual_deg: f64,
+    /// Volumetric strain at the end (positive = dilation).
+    pub volumetric_strain_final: f64,
+}
+
+/// Mean of `sigma1` over every strain window `[e, e + window]` of the compression rows, and
+/// the largest such mean with its window centre. Rows must be in increasing strain.
+pub fn moving_peak(rows: &[SeriesRow], window: f64) -> (f64, f64) {
+    let mut best = (f64::NAN, f64::NAN);
+    let mut end = 0;
+    let mut sum = 0.0;
+    for start in 0..rows.len() {
+        while end < rows.len() && rows[end].strain_axial <= rows[start].strain_axial + window {
+            sum += rows[end].sigma1_pa;
+            end += 1;
+        }
+        let n = (end - start) as f64;
+        let mean = sum / n;
+        if !(mean <= best.0) {
+            best = (mean, 0.5 * (rows[start].strain_axial + rows[end - 1].strain_axial));
+        }
+        sum -= rows[start].sigma1_pa;
+    }
+    best
+}
+
+/// Mean sigma_1 over rows with strain in `[lo, hi]` (NaN when none).
+pub fn mean_in(rows: &[SeriesRow], lo: f64, hi: f64) -> f64 {
+    let sel: Vec<f64> = rows
+        .iter()
+        .filter(|r| r.strain_axial >= lo && r.strain_axial <= hi)
+        .map(|r| r.sigma1_pa)
+        .collect();
+    if sel.is_empty() { f64::NAN } else { sel.iter().sum::<f64>() / sel.len() as f64 }
+}
+
+/// Mohr-Coulomb angle through the origin for principal stresses s1 >= s3 (degrees).
+pub fn friction_angle_deg(s1: f64, s3: f64) -> f64 {
+    ((s1 - s3) / (s1 + s3)).asin().to_degrees()
+}
+
+/// Derives the strength of a test from its compression rows (protocol.md: peak over a
+/// moving window of 0.002 strain; residual as the mean over strain 0.05-0.10).
+pub fn strength(rows: &[SeriesRow], sigma3: f64) -> Strength {
+    let comp: Vec<SeriesRow> = rows.iter().filter(|r| r.phase == "compression").cloned().collect();
+    let (peak, at) = moving_peak(&comp, 0.002);
+    let residual = mean_in(&comp, 0.05, 0.10);
+    Strength {
+        sigma1_peak_pa: peak,
+        strain_peak: at,
+        sigma1_residual_pa: residual,
+        sigma3_pa: sigma3,
+        phi_peak_deg: friction_angle_deg(peak, sigma3),
+        phi_residual_deg: friction_angle_deg(residual, sigma3),
+        volumetric_strain_final: comp.last().map_or(f64::NAN, |r| r.volumetric_strain),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rows(points: &[(f64, f64)]) -> Vec<SeriesRow> {
+        points
+            .iter()
+            .map(|&(e, s)| SeriesRow {
+                strain_axial: e,
+                sigma1_pa: s,
+                phase: "compression".into(),
+                ..Default::default()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn moving_window_peak_averages_over_the_window() {
+        // A spike of one row is averaged with its neighbours inside 0.002 strain.
+        let r = rows(&[(0.0, 1.0), (0.001, 1.0), (0.002, 10.0), (0.003, 1.0), (0.004, 1.0), (0.005, 1.0)]);
+        let (peak, at) = moving_peak(&r, 0.002);
+        // Windows of three rows contain the spike: (1 + 1 + 10) / 3 = 4.
+        assert!((peak - 4.0).abs() < 1e-12, "{peak}");
+        assert!((at - 0.001).abs() < 1e-12, "{at}");
+    }
+
+    #[test]
+    fn friction_angle_of_a_known_stress_ratio() {
+        // s1 = 3 s3 gives sin(phi) = 1/2, phi = 30 degrees.
+        assert!((friction_angle_deg(3.0, 1.0) - 30.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn residual_is_the_mean_over_the_range() {
+        let r = rows(&[(0.04, 100.0), (0.05, 2.0), (0.07, 4.0), (0.1, 6.0), (0.11, 100.0)]);
+        assert!((mean_in(&r, 0.05, 0.10) - 4.0).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,294 @@
+//! The driver of a biaxial test: compaction, confinement, compression, with series rows,
+//! snapshots and checkpoints handed to an [`Observer`].
+
+use glam::DVec2;
+
+use super::checkpoint::{Checkpoint, encode};
+use super::{LabState, Observer, Phase, PhaseEnd, ProtocolParams, walls};
+use crate::backend::{Backend, Loading, Reductions};
+use crate::error::{Error, Result};
+use crate::measure::{Gauge, SeriesRow};
+use crate::model::{BodyKind, NOT_GLUED, Scene, WallDrive};
+
+/// A biaxial test in progress on a backend.
+pub struct Lab<B: Backend> {
+    /// The backend that steps the sample.
+    pub backend: B,
+    /// The protocol state.
+    pub state: LabState,
+    reference: Vec<DVec2>,
+}
+
+impl<B: Backend> Lab<B> {
+    /// Starts at compaction from a freshly deposited scene (see
+    /// [`super::prepare::deposit_scene`]), or at confinement from a compacted one.
+    pub fn new(mut backend: B, params: ProtocolParams, scene: &Scene, compacted: bool) -> Result<Self> {
+        params.validate()?;
+        backend.set_scene(scene)?;
+        let r_min = scene.disks.radius.iter().cloned().fold(f64::INFINITY, f64::min);
+        let mean_mass = scene.disks.mass.iter().sum::<f64>() / scene.disks.len().max(1) as f64;
+        let state = LabState {
+            phase: Phase::Compaction,
+            loading: Loading {
+                top: walls::TOP,
+                bottom: walls::BOTTOM,
+                ..Default::default()
+            },
+            gauge: Gauge {
+                top: walls::TOP,
+                bottom: walls::BOTTOM,
+                r_min,
+                mean_mass,
+                ..Default::default()
+            },
+            phase_start: scene.time,
+            next_snapshot: 0.0,
+            since_checkpoint: 0,
+            ends: Vec::new(),
+            params,
+        };
+        let mut lab = Lab {
+            backend,
+            state,
+            reference: Vec::new(),
+        };
+        if compacted {
+            lab.enter_confinement()?;
+        } else {
+            let mut s = lab.backend.scene()?;
+            s.material.mu_disk = 0.0;
+            s.material.mu_wall = 0.0;
+            lab.backend.set_scene(&s)?;
+        }
+        Ok(lab)
+    }
+
+    /// Continues from a checkpoint.
+    pub fn resume(mut backend: B, ck: Checkpoint) -> Result<Self> {
+        ck.state.params.validate()?;
+        backend.set_scene(&ck.scene)?;
+        backend.set_warm_start(&ck.warm)?;
+        Ok(Lab {
+            backend,
+            state: ck.state,
+            reference: ck.reference,
+        })
+    }
+
+    /// Runs every remaining phase.
+    pub fn run(&mut self, obs: &mut dyn Observer) -> Result<()> {
+        while self.state.phase != Phase::Done {
+            self.advance(obs)?;
+        }
+        Ok(())
+    }
+
+    /// Runs one window of steps of the current phase and handles its outcome (a series row,
+    /// maybe a phase change, a snapshot, a checkpoint).
+    pub fn advance(&mut self, obs: &mut dyn Observer) -> Result<()> {
+        let p = self.state.params.clone();
+        let steps = match self.state.phase {
+            Phase::Compression => p.series_every,
+            _ => p.equilibrium.window,
+        };
+        let red = self.backend.run(steps, &self.state.loading)?;
+        self.state.since_checkpoint += steps;
+        match self.state.phase {
+            Phase::Compaction => {
+                let h = self.state.gauge.height(&red);
+                let applied = p.sigma_c * h;
+                let pushed = red.wall_force[walls::RIGHT].x;
+                let mut row = self.row(&red, 0.0, 0.0);
+                row.width_m = red.wall_point[walls::RIGHT].x - red.wall_point[walls::LEFT].x;
+                row.sigma1_pa = red.wall_force[walls::TOP].y / row.width_m;
+                obs.series(&row)?;
+                self.state.loading.wall_forces = vec![(walls::RIGHT, applied)];
+                if self.settle(&red, applied, pushed, obs)? {
+                    self.enter_confinement()?;
+                }
+            }
+            Phase::Confinement => {
+                let w = self.state.gauge.width(&red);
+                let applied = p.sigma3 * w;
+                let row = self.row(&red, p.sigma3, 0.0);
+                obs.series(&row)?;
+                let pushed = red.wall_force[walls::TOP].y;
+                self.state.loading.wall_forces = vec![(walls::TOP, applied)];
+                if self.settle(&red, applied, pushed, obs)? {
+                    self.enter_compression(&red)?;
+                }
+            }
+            Phase::Compression => {
+                let row = self.row(&red, p.sigma3, p.axial_velocity);
+                obs.series(&row)?;
+                if p.snapshot_every > 0.0 && row.strain_axial >= self.state.next_snapshot {
+                    let scene = self.backend.scene()?;
+                    let contacts = self.backend.contacts()?;
+                    obs.snapshot(row.strain_axial, &scene, &contacts, &self.reference)?;
+                    while self.state.next_snapshot <= row.strain_axial {
+                        self.state.next_snapshot += p.snapshot_every;
+                    }
+                }
+                if row.strain_axial >= p.strain_end {
+                    self.end_phase(&red, true, 0.0, obs)?;
+                    self.state.phase = Phase::Done;
+                }
+            }
+            Phase::Done => {}
+        }
+        if self.state.since_checkpoint >= p.checkpoint_every || self.state.phase == Phase::Done {
+            self.checkpoint(obs)?;
+        }
+        Ok(())
+    }
+
+    fn row(&self, red: &Reductions, sigma3: f64, v: f64) -> SeriesRow {
+        self.state.gauge.row(red, self.state.phase.name(), sigma3, v)
+    }
+
+    /// Checks the equilibrium criteria after a window; ends the phase when they hold or
+    /// when the phase has lasted `max_time`.
+    fn settle(&mut self, red: &Reductions, applied: f64, pushed: f64, obs: &mut dyn Observer) -> Result<bool> {
+        let eq = self.state.params.equilibrium;
+        let imbalance = (pushed - applied).abs() / applied;
+        let settled = v_rms(red) < eq.v_rms && imbalance < eq.force_imbalance;
+        let timeout = red.time - self.state.phase_start >= eq.max_time;
+        if settled || timeout {
+            self.end_phase(red, settled, imbalance, obs)?;
+            return Ok(true);
+        }
+        Ok(false)
+    }
+
+    fn end_phase(&mut self, red: &Reductions, settled: bool, imbalance: f64, obs: &mut dyn Observer) -> Result<()> {
+        let end = PhaseEnd {
+            phase: self.state.phase,
+            time_s: red.time,
+            step: red.step,
+            settled,
+            v_rms: v_rms(red),
+            force_imbalance: imbalance,
+        };
+        obs.phase_end(&end)?;
+        self.state.ends.push(end);
+        self.state.phase_start = red.time;
+        Ok(())
+    }
+
+    /// Removes the side walls, forms the strips and the bumpy walls, sets friction and the
+    /// force-driven top wall.
+    fn enter_confinement(&mut self) -> Result<()> {
+        let p = self.state.params.clone();
+        let mut s = self.backend.scene()?;
+        s.walls[walls::LEFT].active = false;
+        s.walls[walls::RIGHT].active = false;
+        s.walls[walls::RIGHT].drive = WallDrive::Kinematic;
+        s.walls[walls::RIGHT].vel = DVec2::ZERO;
+        s.material.mu_disk = p.mu;
+        s.material.mu_wall = p.mu_wall;
+        s.material.e_n = p.e_n;
+        s.material.e_t = p.e_t;
+        let n = s.disks.len();
+        let r_min = self.state.gauge.r_min;
+        // Bumpy walls: the first layer of disks touching the top and the bottom wall.
+        let touch = 0.01 * r_min;
+        let mut top_mass = 0.0;
+        for k in 0..n {
+            let (x, r) = (s.disks.pos[k], s.disks.radius[k]);
+            for w in [walls::BOTTOM, walls::TOP] {
+                if s.disks.glued_to[k] == NOT_GLUED && s.walls[w].distance(x) - r <= touch {
+                    s.disks.glue(k, w);
+                    if w == walls::TOP {
+                        top_mass += s.disks.mass[k];
+                    }
+                }
+            }
+        }
+        if top_mass == 0.0 || !s.disks.glued_to.iter().any(|&g| g == walls::BOTTOM as u32) {
+            return Err(Error::Other(
+                "no disk touches the top or bottom wall after compaction: the sample is not confined".into(),
+            ));
+        }
+        // Strips: free disks whose centre lies within the strip thickness of the sample's
+        // outer edge on either side.
+        let x_l = (0..n).map(|k| s.disks.pos[k].x - s.disks.radius[k]).fold(f64::INFINITY, f64::min);
+        let x_r = (0..n).map(|k| s.disks.pos[k].x + s.disks.radius[k]).fold(f64::NEG_INFINITY, f64::max);
+        let t = p.strip_thickness;
+        if x_r - x_l <= 2.0 * t + 2.0 * p.r_max {
+            return Err(Error::invalid(
+                "test.strip_thickness",
+                t,
+                &format!("two strips must leave a core between them: the sample is {:.2} m wide", x_r - x_l),
+            ));
+        }
+        let strip: Vec<i8> = (0..n)
+            .map(|k| {
+                let x = s.disks.pos[k].x;
+                match s.disks.kind[k] {
+                    BodyKind::Free if x < x_l + t => -1,
+                    BodyKind::Free if x > x_r - t => 1,
+                    _ => 0,
+                }
+            })
+            .collect();
+        let mean_x = |side: i8| {
+            let xs: Vec<f64> = (0..n).filter(|&k| strip[k] == side).map(|k| s.disks.pos[k].x).collect();
+            xs.iter().sum::<f64>() / xs.len() as f64
+        };
+        let g = &mut self.state.gauge;
+        g.w_ref = x_r - x_l;
+        g.strips_ref = mean_x(1) - mean_x(-1);
+        let height = s.walls[walls::TOP].point.y - s.walls[walls::BOTTOM].point.y;
+        let applied = p.sigma3 * g.w_ref;
+        s.walls[walls::TOP].drive = WallDrive::Force {
+            mass: top_mass,
+            force: applied,
+        };
+        s.walls[walls::TOP].vel = DVec2::ZERO;
+        s.walls[walls::BOTTOM].vel = DVec2::ZERO;
+        self.state.loading = Loading {
+            sigma3: p.sigma3,
+            strip,
+            top: walls::TOP,
+            bottom: walls::BOTTOM,
+            wall_forces: vec![(walls::TOP, applied)],
+        };
+        debug_assert!(height > 0.0);
+        self.backend.set_scene(&s)?;
+        self.state.phase = Phase::Confinement;
+        self.state.phase_start = s.time;
+        Ok(())
+    }
+
+    /// Switches the top wall to displacement control and records the reference state.
+    fn enter_compression(&mut self, red: &Reductions) -> Result<()> {
+        let p = &self.state.params;
+        let mut s = self.backend.scene()?;
+        s.walls[walls::TOP].drive = WallDrive::Kinematic;
+        s.walls[walls::TOP].vel = DVec2::new(0.0, -p.axial_velocity);
+        let g = &mut self.state.gauge;
+        g.h0 = g.height(red);
+        g.w0 = g.width(red);
+        self.reference = s.disks.pos.clone();
+        self.state.loading.wall_forces.clear();
+        self.backend.set_scene(&s)?;
+        self.state.phase = Phase::Compression;
+        self.state.phase_start = s.time;
+        self.state.next_snapshot = 0.0;
+        Ok(())
+    }
+
+    fn checkpoint(&mut self, obs: &mut dyn Observer) -> Result<()> {
+        let scene = self.backend.scene()?;
+        let warm = self.backend.contacts()?;
+        let bytes = encode(&self.state, &scene, &self.reference, &warm);
+        obs.checkpoint(scene.step, &bytes)?;
+        self.state.since_checkpoint = 0;
+        Ok(())
+    }
+}
+
+/// Root-mean-square velocity of the free disks (m/s), from the kinetic energy.
+fn v_rms(red: &Reductions) -> f64 {
+    (2.0 * red.kinetic_energy / red.free_mass.max(f64::MIN_POSITIVE)).sqrt()
+}

@@ -1,0 +1,204 @@
+//! Checkpoints: the protocol state (JSON) and the backend state (binary, exact f64 bits)
+//! in one byte string, so that a resumed CPU run continues bit-identically.
+//!
+//! Layout (little endian): magic `CDLABCK1`, u64 JSON length, JSON of [`LabState`], then
+//! the scene (disks, walls, material, clock), the reference positions, and the warm-start
+//! impulses.
+
+use glam::DVec2;
+
+use super::LabState;
+use crate::backend::{ContactClass, ContactRecord};
+use crate::error::{Error, Result};
+use crate::model::{BodyKind, Disks, Material, Scene, Wall, WallDrive};
+
+const MAGIC: &[u8; 8] = b"CDLABCK1";
+
+/// The decoded content of a checkpoint.
+#[derive(Clone, Debug)]
+pub struct Checkpoint {
+    /// Protocol state.
+    pub state: LabState,
+    /// Mechanical state.
+    pub scene: Scene,
+    /// Disk positions at the start of compression (empty before), for displacements.
+    pub reference: Vec<DVec2>,
+    /// Impulses of the last step, for the warm start.
+    pub warm: Vec<ContactRecord>,
+}
+
+struct W(Vec<u8>);
+impl W {
+    fn f(&mut self, x: f64) {
+        self.0.extend_from_slice(&x.to_le_bytes());
+    }
+    fn v(&mut self, x: DVec2) {
+        self.f(x.x);
+        self.f(x.y);
+    }
+    fn u(&mut self, x: u64) {
+        self.0.extend_from_slice(&x.to_le_bytes());
+    }
+}
+
+struct R<'a>(&'a [u8]);
+impl R<'_> {
+    fn take(&mut self, n: usize) -> Result<&[u8]> {
+        if self.0.len() < n {
+            return Err(Error::Other("checkpoint is truncated".into()));
+        }
+        let (a, b) = self.0.split_at(n);
+        self.0 = b;
+        Ok(a)
+    }
+    fn u(&mut self) -> Result<u64> {
+        Ok(u64::from_le_bytes(self.take(8)?.try_into().expect("8 bytes")))
+    }
+    fn f(&mut self) -> Result<f64> {
+        Ok(f64::from_bits(self.u()?))
+    }
+    fn v(&mut self) -> Result<DVec2> {
+        Ok(DVec2::new(self.f()?, self.f()?))
+    }
+    fn count(&mut self, what: &str) -> Result<usize> {
+        let n = self.u()?;
+        // Each element takes at least 8 bytes: a larger count is corruption, not a request
+        // to allocate terabytes.
+        if n > (self.0.len() / 8) as u64 {
+            return Err(Error::Other(format!("checkpoint: corrupt {what} count {n}")));
+        }
+        Ok(n as usize)
+    }
+}
+
+/// Encodes a checkpoint.
+pub fn encode(state: &LabState, scene: &Scene, reference: &[DVec2], warm: &[ContactRecord]) -> Vec<u8> {
+    let mut w = W(MAGIC.to_vec());
+    let json = serde_json::to_vec(state).expect("the protocol state serializes");
+    w.u(json.len() as u64);
+    w.0.extend_from_slice(&json);
+    let d = &scene.disks;
+    w.u(d.len() as u64);
+    for k in 0..d.len() {
+        w.v(d.pos[k]);
+        w.f(d.theta[k]);
+        w.v(d.vel[k]);
+        w.f(d.spin[k]);
+        w.f(d.radius[k]);
+        w.f(d.inv_mass[k]);
+        w.f(d.inv_inertia[k]);
+        w.f(d.mass[k]);
+        w.u(d.kind[k] as u64);
+        w.v(d.force[k]);
+        w.f(d.torque[k]);
+        w.u(d.glued_to[k] as u64);
+    }
+    w.u(scene.walls.len() as u64);
+    for wall in &scene.walls {
+        w.v(wall.normal);
+        w.v(wall.point);
+        w.v(wall.vel);
+        match wall.drive {
+            WallDrive::Kinematic => {
+                w.u(0);
+                w.f(0.0);
+                w.f(0.0);
+            }
+            WallDrive::Force { mass, force } => {
+                w.u(1);
+                w.f(mass);
+                w.f(force);
+            }
+        }
+        w.u(wall.active as u64);
+    }
+    w.v(scene.gravity);
+    let m = &scene.material;
+    for x in [m.mu_disk, m.mu_wall, m.e_n, m.e_t, scene.time] {
+        w.f(x);
+    }
+    w.u(scene.step);
+    w.u(reference.len() as u64);
+    for p in reference {
+        w.v(*p);
+    }
+    w.u(warm.len() as u64);
+    for c in warm {
+        w.u(((c.i as u64) << 32) | c.j as u64);
+        w.f(c.rn);
+        w.f(c.rt);
+    }
+    w.0
+}
+
+/// Decodes a checkpoint; a foreign or damaged byte string is an error, never a panic.
+pub fn decode(bytes: &[u8]) -> Result<Checkpoint> {
+    let mut r = R(bytes);
+    if r.take(8)? != MAGIC {
+        return Err(Error::Other("not a cdlab checkpoint (bad magic)".into()));
+    }
+    let n = r.count("state")?;
+    let state: LabState = serde_json::from_slice(r.take(n)?)
+        .map_err(|e| Error::Other(format!("checkpoint state: {e}")))?;
+    let nd = r.count("disk")?;
+    let mut d = Disks::default();
+    for _ in 0..nd {
+        d.pos.push(r.v()?);
+        d.theta.push(r.f()?);
+        d.vel.push(r.v()?);
+        d.spin.push(r.f()?);
+        d.radius.push(r.f()?);
+        d.inv_mass.push(r.f()?);
+        d.inv_inertia.push(r.f()?);
+        d.mass.push(r.f()?);
+        d.kind.push(match r.u()? {
+            0 => BodyKind::Free,
+            1 => BodyKind::Kinematic,
+            2 => BodyKind::Fixed,
+            k => return Err(Error::Other(format!("checkpoint: bad body kind {k}"))),
+        });
+        d.force.push(r.v()?);
+        d.torque.push(r.f()?);
+        d.glued_to.push(r.u()? as u32);
+    }
+    let nw = r.count("wall")?;
+    let mut walls = Vec::with_capacity(nw);
+    for _ in 0..nw {
+        let (normal, point, vel) = (r.v()?, r.v()?, r.v()?);
+        let tag = r.u()?;
+        let (mass, force) = (r.f()?, r.f()?);
+        let drive = if tag == 0 { WallDrive::Kinematic } else { WallDrive::Force { mass, force } };
+        let active = r.u()? != 0;
+        walls.push(Wall { normal, point, vel, drive, active });
+    }
+    let gravity = r.v()?;
+    let material = Material {
+        mu_disk: r.f()?,
+        mu_wall: r.f()?,
+        e_n: r.f()?,
+        e_t: r.f()?,
+    };
+    let time = r.f()?;
+    let step = r.u()?;
+    let scene = Scene { disks: d, walls, gravity, material, time, step };
+    let nr = r.count("reference")?;
+    let reference = (0..nr).map(|_| r.v()).collect::<Result<Vec<_>>>()?;
+    let nwarm = r.count("warm-start")?;
+    let mut warm = Vec::with_capacity(nwarm);
+    for _ in 0..nwarm {
+        let key = r.u()?;
+        warm.push(ContactRecord {
+            i: (key >> 32) as u32,
+            j: key as u32,
+            n: DVec2::ZERO,
+            gap: 0.0,
+            rn: r.f()?,
+            rt: r.f()?,
+            f_n: 0.0,
+            f_t: 0.0,
+            class: ContactClass::Open,
+        });
+    }
+    scene.validate()?;
+    Ok(Checkpoint { state, scene, reference, warm })
+}

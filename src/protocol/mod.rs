@@ -1,0 +1,233 @@
+//! The biaxial test of Taboada et al. (2005) as a sequence of phases driven through the
+//! [`Backend`] interface: deposition and compaction (sample preparation), confinement
+//! through deformable walls, and compression at constant axial velocity.
+//!
+//! The protocol holds only host-side state ([`LabState`]): the phase, the strips, the gauge
+//! and counters. A checkpoint is that state plus the backend's scene and warm-start
+//! impulses, so every phase can resume from a saved state.
+
+pub mod biaxial;
+pub mod checkpoint;
+pub mod prepare;
+
+use crate::backend::ContactRecord;
+use crate::engine::StepParams;
+use crate::error::{Error, Result, check_positive, check_range};
+use crate::measure::SeriesRow;
+use crate::model::Scene;
+
+/// When a phase counts as settled (stated in the README; recorded with each phase end).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Equilibrium {
+    /// Root-mean-square disk velocity below which the sample is at rest (m/s).
+    pub v_rms: f64,
+    /// Relative imbalance between the force the contacts exert on a force-driven wall and
+    /// the force applied to it, `|F_contacts - F_applied| / F_applied`, averaged over a check
+    /// window (dimensionless).
+    pub force_imbalance: f64,
+    /// Steps per check window (forces are averaged over it).
+    pub window: u32,
+    /// Simulated time after which a phase ends even if not settled (s); recorded.
+    pub max_time: f64,
+}
+
+/// Everything the protocol needs, in SI units.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ProtocolParams {
+    /// Number of disks.
+    pub disks: usize,
+    /// Smallest and largest radius (m).
+    pub r_min: f64,
+    /// See `r_min`.
+    pub r_max: f64,
+    /// Grain density (kg/m^3).
+    pub density: f64,
+    /// Seed of the grain sizes (deposition is deterministic given the sizes).
+    pub seed: u64,
+    /// Height / width of the compacted sample.
+    pub aspect: f64,
+    /// Stress on the right wall during compaction (Pa).
+    pub sigma_c: f64,
+    /// Time stepping and solver.
+    pub step: StepParams,
+    /// Disk-disk friction during the test.
+    pub mu: f64,
+    /// Friction between disks and the plane walls during the test.
+    pub mu_wall: f64,
+    /// Normal and tangential restitution.
+    pub e_n: f64,
+    /// See `e_n`.
+    pub e_t: f64,
+    /// Confining stress (Pa).
+    pub sigma3: f64,
+    /// Thickness of the deformable-wall strips (m).
+    pub strip_thickness: f64,
+    /// Downward velocity of the top wall during compression (m/s).
+    pub axial_velocity: f64,
+    /// Axial strain at which compression ends.
+    pub strain_end: f64,
+    /// Equilibrium criteria for compaction and confinement.
+    pub equilibrium: Equilibrium,
+    /// Steps between two rows of the time series during compression.
+    pub series_every: u32,
+    /// Axial strain between two snapshots (0 disables them).
+    pub snapshot_every: f64,
+    /// Steps between two checkpoints (rounded up to whole series intervals).
+    pub checkpoint_every: u32,
+}
+
+impl ProtocolParams {
+    /// Rejects values the protocol cannot run with, naming the field.
+    pub fn validate(&self) -> Result<()> {
+        if self.disks < 50 {
+            return Err(Error::invalid("sample.disks", self.disks, "must be >= 50 (the strips and glued walls need disks)"));
+        }
+        check_positive("sample.r_min", self.r_min)?;
+        if !(self.r_max >= self.r_min) || !self.r_max.is_finite() {
+            return Err(Error::invalid("sample.r_max", self.r_max, &format!("must be finite and >= sample.r_min = {}", self.r_min)));
+        }
+        check_positive("sample.density", self.density)?;
+        check_positive("sample.aspect", self.aspect)?;
+        check_positive("compaction.sigma_c", self.sigma_c)?;
+        self.step.validate()?;
+        crate::error::check_non_negative("test.mu", self.mu)?;
+        crate::error::check_non_negative("test.mu_wall", self.mu_wall)?;
+        check_range("test.e_n", self.e_n, 0.0, 1.0)?;
+        check_range("test.e_t", self.e_t, -1.0, 1.0)?;
+        check_positive("test.sigma3", self.sigma3)?;
+        check_positive("test.strip_thickness", self.strip_thickness)?;
+        check_positive("test.axial_velocity", self.axial_velocity)?;
+        if !(self.strain_end > 0.0 && self.strain_end < 1.0) {
+            return Err(Error::invalid("test.strain_end", self.strain_end, "must lie in (0, 1)"));
+        }
+        check_positive("equilibrium.v_rms", self.equilibrium.v_rms)?;
+        check_positive("equilibrium.force_imbalance", self.equilibrium.force_imbalance)?;
+        check_positive("equilibrium.max_time", self.equilibrium.max_time)?;
+        if self.equilibrium.window == 0 || self.series_every == 0 || self.checkpoint_every == 0 {
+            return Err(Error::invalid("equilibrium.window / output.series_every / output.checkpoint_every", 0, "must be >= 1"));
+        }
+        crate::error::check_non_negative("output.snapshot_every", self.snapshot_every)?;
+        Ok(())
+    }
+}
+
+/// The phases, in order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Phase {
+    /// Frictionless uniaxial compaction by the right wall.
+    Compaction,
+    /// Strips and bumpy walls set up, sample brought to sigma3.
+    Confinement,
+    /// Top wall moving down at constant velocity.
+    Compression,
+    /// Finished.
+    Done,
+}
+
+impl Phase {
+    /// Lower-case name used in records.
+    pub fn name(self) -> &'static str {
+        match self {
+            Phase::Compaction => "compaction",
+            Phase::Confinement => "confinement",
+            Phase::Compression => "compression",
+            Phase::Done => "done",
+        }
+    }
+}
+
+/// How a phase ended (recorded).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PhaseEnd {
+    /// The phase.
+    pub phase: Phase,
+    /// Simulated time at its end (s).
+    pub time_s: f64,
+    /// Step at its end.
+    pub step: u64,
+    /// True when the equilibrium criteria were met (false: stopped at `max_time`).
+    pub settled: bool,
+    /// RMS velocity at the end (m/s).
+    pub v_rms: f64,
+    /// Force imbalance at the end (dimensionless).
+    pub force_imbalance: f64,
+}
+
+/// What a run reports as it goes; the CLI shows progress and records, tests collect.
+pub trait Observer {
+    /// A row of the time series.
+    fn series(&mut self, row: &SeriesRow) -> Result<()>;
+    /// A phase ended.
+    fn phase_end(&mut self, end: &PhaseEnd) -> Result<()>;
+    /// A snapshot of the state and contacts (at the requested strain interval).
+    fn snapshot(&mut self, strain: f64, scene: &Scene, contacts: &[ContactRecord], reference: &[glam::DVec2]) -> Result<()>;
+    /// A checkpoint: `bytes` restore the run exactly ([`checkpoint::decode`]).
+    fn checkpoint(&mut self, step: u64, bytes: &[u8]) -> Result<()>;
+}
+
+/// An observer that keeps everything in memory (tests, reports).
+#[derive(Clone, Debug, Default)]
+pub struct Collect {
+    /// Rows received.
+    pub rows: Vec<SeriesRow>,
+    /// Phase ends received.
+    pub ends: Vec<PhaseEnd>,
+    /// Strain of each snapshot received.
+    pub snapshots: Vec<f64>,
+    /// Last checkpoint received.
+    pub last_checkpoint: Option<(u64, Vec<u8>)>,
+}
+
+impl Observer for Collect {
+    fn series(&mut self, row: &SeriesRow) -> Result<()> {
+        self.rows.push(row.clone());
+        Ok(())
+    }
+    fn phase_end(&mut self, end: &PhaseEnd) -> Result<()> {
+        self.ends.push(end.clone());
+        Ok(())
+    }
+    fn snapshot(&mut self, strain: f64, _: &Scene, _: &[ContactRecord], _: &[glam::DVec2]) -> Result<()> {
+        self.snapshots.push(strain);
+        Ok(())
+    }
+    fn checkpoint(&mut self, step: u64, bytes: &[u8]) -> Result<()> {
+        self.last_checkpoint = Some((step, bytes.to_vec()));
+        Ok(())
+    }
+}
+
+/// The protocol's own state: small, serializable, everything a resume needs besides the
+/// backend's scene and warm start.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LabState {
+    /// The parameters of the run.
+    pub params: ProtocolParams,
+    /// Current phase.
+    pub phase: Phase,
+    /// Loads the backend applies every step.
+    pub loading: crate::backend::Loading,
+    /// Geometry for stresses and strains.
+    pub gauge: crate::measure::Gauge,
+    /// Simulated time at which the current phase started (s).
+    pub phase_start: f64,
+    /// Axial strain of the next snapshot.
+    pub next_snapshot: f64,
+    /// Steps since the last checkpoint.
+    pub since_checkpoint: u32,
+    /// Phases finished so far.
+    pub ends: Vec<PhaseEnd>,
+}
+
+/// Wall indices of the biaxial scene.
+pub mod walls {
+    /// Bottom wall (inward normal +y).
+    pub const BOTTOM: usize = 0;
+    /// Top wall (inward normal -y).
+    pub const TOP: usize = 1;
+    /// Left wall (inward normal +x), removed at confinement.
+    pub const LEFT: usize = 2;
+    /// Right wall (inward normal -x), pushes during compaction, removed at confinement.
+    pub const RIGHT: usize = 3;
+}
