@@ -7,6 +7,7 @@
 //! Module map (dependencies point down the list):
 //! - [`cli`]: the `cdlab` command line;
 //! - [`protocol`]: the biaxial test's phases (preparation, confinement, compression);
+//! - [`sample`]: grain sizes and geometric deposition;
 //! - [`measure`]: series rows and derived strength;
 //! - [`backend`]: the interface the protocol drives, and the CPU backend;
 //! - [`engine`]: the CPU reference time stepper;
@@ -23,6 +24,7 @@ pub mod error;
 pub mod measure;
 pub mod model;
 pub mod protocol;
+pub mod sample;
 pub mod solver;
 
 pub use error::{Error, Result};

@@ -86,8 +86,11 @@ impl Backend for CpuBackend {
     }
 
     fn set_warm_start(&mut self, contacts: &[ContactRecord]) -> Result<()> {
-        self.engine
-            .set_warm_start(contacts.iter().map(|c| (((c.i as u64) << 32) | c.j as u64, c.rn, c.rt)));
+        self.engine.set_warm_start(
+            contacts
+                .iter()
+                .map(|c| (((c.i as u64) << 32) | c.j as u64, c.rn, c.rt)),
+        );
         Ok(())
     }
 

@@ -157,56 +157,58 @@ pub fn detect(
     grid.build(&d.pos, 2.0 * r_max + alert)?;
     out.clear();
     let mu_disk = scene.material.mu_disk;
+    let active: Vec<(usize, &crate::model::Wall)> = scene
+        .walls
+        .iter()
+        .enumerate()
+        .filter(|(_, w)| w.active)
+        .collect();
+    // Contacts come out sorted by key without sorting the (large) records: for each disk p
+    // in order, its partners q > p sorted by index, then its walls (keys n_disks + w are
+    // larger than any disk index). Pairs whose disk p cannot move are keyed by their free
+    // disk q instead and merged in at the end.
+    let mut partners: Vec<(u32, f64, DVec2)> = Vec::with_capacity(32);
+    let mut swapped: Vec<Contact> = Vec::new();
     for p in 0..nd {
         let free_p = d.kind[p] == BodyKind::Free;
         let xp = d.pos[p];
         let rp = d.radius[p];
+        partners.clear();
         grid.for_neighbours(p, |q| {
             if q <= p {
                 return;
             }
-            let free_q = d.kind[q] == BodyKind::Free;
-            if !free_p && !free_q {
+            if !free_p && d.kind[q] != BodyKind::Free {
                 return;
             }
             let delta = xp - d.pos[q];
             let reach = rp + d.radius[q] + alert;
             let dist2 = delta.length_squared();
-            if dist2 >= reach * reach || dist2 == 0.0 {
-                return;
+            if dist2 < reach * reach && dist2 > 0.0 {
+                let dist = dist2.sqrt();
+                partners.push((q as u32, dist - rp - d.radius[q], delta / dist));
             }
-            let dist = dist2.sqrt();
-            let (a, b, n) = if free_p {
-                (p, q, delta / dist)
-            } else {
-                (q, p, -delta / dist)
-            };
-            out.push(make_contact(
-                scene,
-                a,
-                b,
-                n,
-                dist - rp - d.radius[q],
-                mu_disk,
-            ));
         });
-    }
-    for (w, wall) in scene.walls.iter().enumerate() {
-        if !wall.active {
+        partners.sort_unstable_by_key(|e| e.0);
+        for &(q, gap, n) in &partners {
+            let q = q as usize;
+            if free_p {
+                out.push(make_contact(scene, p, q, n, gap, mu_disk));
+            } else {
+                swapped.push(make_contact(scene, q, p, -n, gap, mu_disk));
+            }
+        }
+        if !free_p {
             continue;
         }
-        let body = (nd + w) as u32;
-        for k in 0..nd {
-            if d.kind[k] != BodyKind::Free {
-                continue;
-            }
-            let gap = wall.distance(d.pos[k]) - d.radius[k];
+        for &(w, wall) in &active {
+            let gap = wall.distance(xp) - rp;
             if gap < alert {
-                let si = disk_side(scene, k);
+                let si = disk_side(scene, p);
                 let mut c = Contact {
                     i: si.body,
-                    j: body,
-                    disk_j: body,
+                    j: (nd + w) as u32,
+                    disk_j: (nd + w) as u32,
                     n: wall.normal,
                     gap,
                     ri: si.lever,
@@ -226,7 +228,22 @@ pub fn detect(
             }
         }
     }
-    out.sort_unstable_by_key(Contact::key);
+    if !swapped.is_empty() {
+        swapped.sort_unstable_by_key(Contact::key);
+        let main = std::mem::take(out);
+        out.reserve(main.len() + swapped.len());
+        let (mut a, mut b) = (main.into_iter().peekable(), swapped.into_iter().peekable());
+        while let (Some(x), Some(y)) = (a.peek(), b.peek()) {
+            if x.key() < y.key() {
+                out.push(a.next().expect("peeked"));
+            } else {
+                out.push(b.next().expect("peeked"));
+            }
+        }
+        out.extend(a);
+        out.extend(b);
+    }
+    debug_assert!(out.windows(2).all(|w| w[0].key() < w[1].key()));
     Ok(())
 }
 

@@ -45,6 +45,10 @@ pub struct StepStats {
     pub contacts: usize,
     /// Largest overlap at the start of the step (m, >= 0).
     pub max_overlap: f64,
+    /// Wall time of the sweeps alone (s), for the cost per contact update.
+    pub solve_seconds: f64,
+    /// Wall time of the whole step (s).
+    pub step_seconds: f64,
 }
 
 /// The CPU backend's stepper. It owns the contact list between steps (warm start) and the
@@ -106,6 +110,7 @@ impl CpuEngine {
     pub fn step(&mut self, scene: &mut Scene) -> Result<StepStats> {
         let p = self.params;
         let (dt, theta) = (p.dt, p.theta);
+        let t0 = std::time::Instant::now();
         follow_walls(scene);
         detect(scene, p.alert, &mut self.grid, &mut self.contacts)
             .map_err(|e| at_step(e, scene.step))?;
@@ -116,6 +121,7 @@ impl CpuEngine {
         if p.solver.method == Method::ColoredGs {
             self.ranges = color_contacts(&mut self.contacts, scene.n_bodies(), &mut self.masks);
         }
+        let t_solve = std::time::Instant::now();
         let solve = sweep::solve(
             &p.solver,
             &mut self.contacts,
@@ -123,6 +129,7 @@ impl CpuEngine {
             &self.gv0,
             &mut self.gv,
         );
+        let solve_seconds = t_solve.elapsed().as_secs_f64();
         self.check_finite(scene)?;
         self.integrate(scene, dt, theta);
         self.remember_impulses();
@@ -132,6 +139,8 @@ impl CpuEngine {
             solve,
             contacts: self.contacts.len(),
             max_overlap,
+            solve_seconds,
+            step_seconds: t0.elapsed().as_secs_f64(),
         })
     }
 

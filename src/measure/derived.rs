@@ -36,7 +36,10 @@ pub fn moving_peak(rows: &[SeriesRow], window: f64) -> (f64, f64) {
         let n = (end - start) as f64;
         let mean = sum / n;
         if !(mean <= best.0) {
-            best = (mean, 0.5 * (rows[start].strain_axial + rows[end - 1].strain_axial));
+            best = (
+                mean,
+                0.5 * (rows[start].strain_axial + rows[end - 1].strain_axial),
+            );
         }
         sum -= rows[start].sigma1_pa;
     }
@@ -50,7 +53,11 @@ pub fn mean_in(rows: &[SeriesRow], lo: f64, hi: f64) -> f64 {
         .filter(|r| r.strain_axial >= lo && r.strain_axial <= hi)
         .map(|r| r.sigma1_pa)
         .collect();
-    if sel.is_empty() { f64::NAN } else { sel.iter().sum::<f64>() / sel.len() as f64 }
+    if sel.is_empty() {
+        f64::NAN
+    } else {
+        sel.iter().sum::<f64>() / sel.len() as f64
+    }
 }
 
 /// Mohr-Coulomb angle through the origin for principal stresses s1 >= s3 (degrees).
@@ -61,7 +68,11 @@ pub fn friction_angle_deg(s1: f64, s3: f64) -> f64 {
 /// Derives the strength of a test from its compression rows (protocol.md: peak over a
 /// moving window of 0.002 strain; residual as the mean over strain 0.05-0.10).
 pub fn strength(rows: &[SeriesRow], sigma3: f64) -> Strength {
-    let comp: Vec<SeriesRow> = rows.iter().filter(|r| r.phase == "compression").cloned().collect();
+    let comp: Vec<SeriesRow> = rows
+        .iter()
+        .filter(|r| r.phase == "compression")
+        .cloned()
+        .collect();
     let (peak, at) = moving_peak(&comp, 0.002);
     let residual = mean_in(&comp, 0.05, 0.10);
     Strength {
@@ -94,7 +105,14 @@ mod tests {
     #[test]
     fn moving_window_peak_averages_over_the_window() {
         // A spike of one row is averaged with its neighbours inside 0.002 strain.
-        let r = rows(&[(0.0, 1.0), (0.001, 1.0), (0.002, 10.0), (0.003, 1.0), (0.004, 1.0), (0.005, 1.0)]);
+        let r = rows(&[
+            (0.0, 1.0),
+            (0.001, 1.0),
+            (0.002, 10.0),
+            (0.003, 1.0),
+            (0.004, 1.0),
+            (0.005, 1.0),
+        ]);
         let (peak, at) = moving_peak(&r, 0.002);
         // Windows of three rows contain the spike: (1 + 1 + 10) / 3 = 4.
         assert!((peak - 4.0).abs() < 1e-12, "{peak}");
@@ -109,7 +127,13 @@ mod tests {
 
     #[test]
     fn residual_is_the_mean_over_the_range() {
-        let r = rows(&[(0.04, 100.0), (0.05, 2.0), (0.07, 4.0), (0.1, 6.0), (0.11, 100.0)]);
+        let r = rows(&[
+            (0.04, 100.0),
+            (0.05, 2.0),
+            (0.07, 4.0),
+            (0.1, 6.0),
+            (0.11, 100.0),
+        ]);
         assert!((mean_in(&r, 0.05, 0.10) - 4.0).abs() < 1e-12);
     }
 }

@@ -88,7 +88,11 @@ impl Gauge {
     /// walls without the noise of the single outermost disk.
     pub fn width(&self, red: &Reductions) -> f64 {
         let d = red.strip_mean_x[1] - red.strip_mean_x[0];
-        if d.is_finite() { self.w_ref + d - self.strips_ref } else { self.w_ref }
+        if d.is_finite() {
+            self.w_ref + d - self.strips_ref
+        } else {
+            self.w_ref
+        }
     }
 
     /// Builds a series row.

@@ -22,10 +22,20 @@ pub struct Lab<B: Backend> {
 impl<B: Backend> Lab<B> {
     /// Starts at compaction from a freshly deposited scene (see
     /// [`super::prepare::deposit_scene`]), or at confinement from a compacted one.
-    pub fn new(mut backend: B, params: ProtocolParams, scene: &Scene, compacted: bool) -> Result<Self> {
+    pub fn new(
+        mut backend: B,
+        params: ProtocolParams,
+        scene: &Scene,
+        compacted: bool,
+    ) -> Result<Self> {
         params.validate()?;
         backend.set_scene(scene)?;
-        let r_min = scene.disks.radius.iter().cloned().fold(f64::INFINITY, f64::min);
+        let r_min = scene
+            .disks
+            .radius
+            .iter()
+            .cloned()
+            .fold(f64::INFINITY, f64::min);
         let mean_mass = scene.disks.mass.iter().sum::<f64>() / scene.disks.len().max(1) as f64;
         let state = LabState {
             phase: Phase::Compaction,
@@ -143,12 +153,20 @@ impl<B: Backend> Lab<B> {
     }
 
     fn row(&self, red: &Reductions, sigma3: f64, v: f64) -> SeriesRow {
-        self.state.gauge.row(red, self.state.phase.name(), sigma3, v)
+        self.state
+            .gauge
+            .row(red, self.state.phase.name(), sigma3, v)
     }
 
     /// Checks the equilibrium criteria after a window; ends the phase when they hold or
     /// when the phase has lasted `max_time`.
-    fn settle(&mut self, red: &Reductions, applied: f64, pushed: f64, obs: &mut dyn Observer) -> Result<bool> {
+    fn settle(
+        &mut self,
+        red: &Reductions,
+        applied: f64,
+        pushed: f64,
+        obs: &mut dyn Observer,
+    ) -> Result<bool> {
         let eq = self.state.params.equilibrium;
         let imbalance = (pushed - applied).abs() / applied;
         let settled = v_rms(red) < eq.v_rms && imbalance < eq.force_imbalance;
@@ -160,7 +178,13 @@ impl<B: Backend> Lab<B> {
         Ok(false)
     }
 
-    fn end_phase(&mut self, red: &Reductions, settled: bool, imbalance: f64, obs: &mut dyn Observer) -> Result<()> {
+    fn end_phase(
+        &mut self,
+        red: &Reductions,
+        settled: bool,
+        imbalance: f64,
+        obs: &mut dyn Observer,
+    ) -> Result<()> {
         let end = PhaseEnd {
             phase: self.state.phase,
             time_s: red.time,
@@ -211,14 +235,21 @@ impl<B: Backend> Lab<B> {
         }
         // Strips: free disks whose centre lies within the strip thickness of the sample's
         // outer edge on either side.
-        let x_l = (0..n).map(|k| s.disks.pos[k].x - s.disks.radius[k]).fold(f64::INFINITY, f64::min);
-        let x_r = (0..n).map(|k| s.disks.pos[k].x + s.disks.radius[k]).fold(f64::NEG_INFINITY, f64::max);
+        let x_l = (0..n)
+            .map(|k| s.disks.pos[k].x - s.disks.radius[k])
+            .fold(f64::INFINITY, f64::min);
+        let x_r = (0..n)
+            .map(|k| s.disks.pos[k].x + s.disks.radius[k])
+            .fold(f64::NEG_INFINITY, f64::max);
         let t = p.strip_thickness;
         if x_r - x_l <= 2.0 * t + 2.0 * p.r_max {
             return Err(Error::invalid(
                 "test.strip_thickness",
                 t,
-                &format!("two strips must leave a core between them: the sample is {:.2} m wide", x_r - x_l),
+                &format!(
+                    "two strips must leave a core between them: the sample is {:.2} m wide",
+                    x_r - x_l
+                ),
             ));
         }
         let strip: Vec<i8> = (0..n)
@@ -232,7 +263,10 @@ impl<B: Backend> Lab<B> {
             })
             .collect();
         let mean_x = |side: i8| {
-            let xs: Vec<f64> = (0..n).filter(|&k| strip[k] == side).map(|k| s.disks.pos[k].x).collect();
+            let xs: Vec<f64> = (0..n)
+                .filter(|&k| strip[k] == side)
+                .map(|k| s.disks.pos[k].x)
+                .collect();
             xs.iter().sum::<f64>() / xs.len() as f64
         };
         let g = &mut self.state.gauge;

@@ -52,7 +52,9 @@ impl R<'_> {
         Ok(a)
     }
     fn u(&mut self) -> Result<u64> {
-        Ok(u64::from_le_bytes(self.take(8)?.try_into().expect("8 bytes")))
+        Ok(u64::from_le_bytes(
+            self.take(8)?.try_into().expect("8 bytes"),
+        ))
     }
     fn f(&mut self) -> Result<f64> {
         Ok(f64::from_bits(self.u()?))
@@ -65,14 +67,21 @@ impl R<'_> {
         // Each element takes at least 8 bytes: a larger count is corruption, not a request
         // to allocate terabytes.
         if n > (self.0.len() / 8) as u64 {
-            return Err(Error::Other(format!("checkpoint: corrupt {what} count {n}")));
+            return Err(Error::Other(format!(
+                "checkpoint: corrupt {what} count {n}"
+            )));
         }
         Ok(n as usize)
     }
 }
 
 /// Encodes a checkpoint.
-pub fn encode(state: &LabState, scene: &Scene, reference: &[DVec2], warm: &[ContactRecord]) -> Vec<u8> {
+pub fn encode(
+    state: &LabState,
+    scene: &Scene,
+    reference: &[DVec2],
+    warm: &[ContactRecord],
+) -> Vec<u8> {
     let mut w = W(MAGIC.to_vec());
     let json = serde_json::to_vec(state).expect("the protocol state serializes");
     w.u(json.len() as u64);
@@ -167,9 +176,19 @@ pub fn decode(bytes: &[u8]) -> Result<Checkpoint> {
         let (normal, point, vel) = (r.v()?, r.v()?, r.v()?);
         let tag = r.u()?;
         let (mass, force) = (r.f()?, r.f()?);
-        let drive = if tag == 0 { WallDrive::Kinematic } else { WallDrive::Force { mass, force } };
+        let drive = if tag == 0 {
+            WallDrive::Kinematic
+        } else {
+            WallDrive::Force { mass, force }
+        };
         let active = r.u()? != 0;
-        walls.push(Wall { normal, point, vel, drive, active });
+        walls.push(Wall {
+            normal,
+            point,
+            vel,
+            drive,
+            active,
+        });
     }
     let gravity = r.v()?;
     let material = Material {
@@ -180,7 +199,14 @@ pub fn decode(bytes: &[u8]) -> Result<Checkpoint> {
     };
     let time = r.f()?;
     let step = r.u()?;
-    let scene = Scene { disks: d, walls, gravity, material, time, step };
+    let scene = Scene {
+        disks: d,
+        walls,
+        gravity,
+        material,
+        time,
+        step,
+    };
     let nr = r.count("reference")?;
     let reference = (0..nr).map(|_| r.v()).collect::<Result<Vec<_>>>()?;
     let nwarm = r.count("warm-start")?;
@@ -200,5 +226,10 @@ pub fn decode(bytes: &[u8]) -> Result<Checkpoint> {
         });
     }
     scene.validate()?;
-    Ok(Checkpoint { state, scene, reference, warm })
+    Ok(Checkpoint {
+        state,
+        scene,
+        reference,
+        warm,
+    })
 }

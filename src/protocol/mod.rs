@@ -77,14 +77,69 @@ pub struct ProtocolParams {
 }
 
 impl ProtocolParams {
+    /// The paper's parameters (protocol.md) for a sample of `disks` disks, with the
+    /// project's choices where the paper is silent (documented in the README):
+    /// compaction at 8 MPa (the campaign's largest sigma3), wall friction equal to the disk
+    /// friction, alert distance 0.1 r_min, overlap hard stop at 0.1 r_min.
+    pub fn paper_defaults(disks: usize) -> Self {
+        use crate::solver::{Method, SolverParams};
+        ProtocolParams {
+            disks,
+            r_min: 0.5,
+            r_max: 2.0,
+            density: 2600.0,
+            seed: 1,
+            aspect: 2.5,
+            sigma_c: 8e6,
+            step: StepParams {
+                dt: 5e-4,
+                theta: 0.5,
+                alert: 0.05,
+                overlap_limit: 0.05,
+                solver: SolverParams {
+                    method: Method::ColoredGs,
+                    tol: 1e-4,
+                    max_iter: 1000,
+                    relax: 0.5,
+                    parallel: true,
+                },
+            },
+            mu: 0.3,
+            mu_wall: 0.3,
+            e_n: 0.0,
+            e_t: 0.0,
+            sigma3: 8e6,
+            strip_thickness: 7.5,
+            axial_velocity: 0.5,
+            strain_end: 0.1,
+            equilibrium: Equilibrium {
+                v_rms: 5e-3,
+                force_imbalance: 0.01,
+                window: 200,
+                max_time: 10.0,
+            },
+            series_every: 20,
+            snapshot_every: 0.01,
+            checkpoint_every: 2000,
+        }
+    }
+
     /// Rejects values the protocol cannot run with, naming the field.
     pub fn validate(&self) -> Result<()> {
         if self.disks < 50 {
-            return Err(Error::invalid("sample.disks", self.disks, "must be >= 50 (the strips and glued walls need disks)"));
+            return Err(Error::invalid(
+                "sample.disks",
+                self.disks,
+                "must be >= 50 (the strips and glued walls need disks)",
+            ));
         }
         check_positive("sample.r_min", self.r_min)?;
         if !(self.r_max >= self.r_min) || !self.r_max.is_finite() {
-            return Err(Error::invalid("sample.r_max", self.r_max, &format!("must be finite and >= sample.r_min = {}", self.r_min)));
+            return Err(Error::invalid(
+                "sample.r_max",
+                self.r_max,
+                &format!("must be finite and >= sample.r_min = {}", self.r_min),
+            ));
         }
         check_positive("sample.density", self.density)?;
         check_positive("sample.aspect", self.aspect)?;
@@ -98,13 +153,24 @@ impl ProtocolParams {
         check_positive("test.strip_thickness", self.strip_thickness)?;
         check_positive("test.axial_velocity", self.axial_velocity)?;
         if !(self.strain_end > 0.0 && self.strain_end < 1.0) {
-            return Err(Error::invalid("test.strain_end", self.strain_end, "must lie in (0, 1)"));
+            return Err(Error::invalid(
+                "test.strain_end",
+                self.strain_end,
+                "must lie in (0, 1)",
+            ));
         }
         check_positive("equilibrium.v_rms", self.equilibrium.v_rms)?;
-        check_positive("equilibrium.force_imbalance", self.equilibrium.force_imbalance)?;
+        check_positive(
+            "equilibrium.force_imbalance",
+            self.equilibrium.force_imbalance,
+        )?;
         check_positive("equilibrium.max_time", self.equilibrium.max_time)?;
         if self.equilibrium.window == 0 || self.series_every == 0 || self.checkpoint_every == 0 {
-            return Err(Error::invalid("equilibrium.window / output.series_every / output.checkpoint_every", 0, "must be >= 1"));
+            return Err(Error::invalid(
+                "equilibrium.window / output.series_every / output.checkpoint_every",
+                0,
+                "must be >= 1",
+            ));
         }
         crate::error::check_non_negative("output.snapshot_every", self.snapshot_every)?;
         Ok(())
@@ -161,7 +227,13 @@ pub trait Observer {
     /// A phase ended.
     fn phase_end(&mut self, end: &PhaseEnd) -> Result<()>;
     /// A snapshot of the state and contacts (at the requested strain interval).
-    fn snapshot(&mut self, strain: f64, scene: &Scene, contacts: &[ContactRecord], reference: &[glam::DVec2]) -> Result<()>;
+    fn snapshot(
+        &mut self,
+        strain: f64,
+        scene: &Scene,
+        contacts: &[ContactRecord],
+        reference: &[glam::DVec2],
+    ) -> Result<()>;
     /// A checkpoint: `bytes` restore the run exactly ([`checkpoint::decode`]).
     fn checkpoint(&mut self, step: u64, bytes: &[u8]) -> Result<()>;
 }
@@ -188,7 +260,13 @@ impl Observer for Collect {
         self.ends.push(end.clone());
         Ok(())
     }
-    fn snapshot(&mut self, strain: f64, _: &Scene, _: &[ContactRecord], _: &[glam::DVec2]) -> Result<()> {
+    fn snapshot(
+        &mut self,
+        strain: f64,
+        _: &Scene,
+        _: &[ContactRecord],
+        _: &[glam::DVec2],
+    ) -> Result<()> {
         self.snapshots.push(strain);
         Ok(())
     }
