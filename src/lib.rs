@@ -6,11 +6,15 @@
 //!
 //! Module map (dependencies point down the list):
 //! - [`cli`]: the `cdlab` command line;
+//! - [`record`]: run records (MCAP + CSV), written during a run and read back;
+//! - [`config`]: the run configuration (TOML with units);
 //! - [`model`]: disks, walls, material (the state a backend steps);
 //! - [`error`]: the error type.
 
 pub mod cli;
+pub mod config;
 pub mod error;
 pub mod model;
+pub mod record;
 
 pub use error::{Error, Result};
