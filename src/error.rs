@@ -95,10 +95,6 @@ pub fn check_range(field: &str, value: f64, lo: f64, hi: f64) -> Result<()> {
     if value >= lo && value <= hi {
         Ok(())
     } else {
-        Err(Error::invalid(
-            field,
-            value,
-            &format!("must lie in [{lo}, {hi}]"),
-        ))
+        Err(Error::invalid(field, value, &format!("must lie in [{lo}, {hi}]")))
     }
 }

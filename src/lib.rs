@@ -6,6 +6,8 @@
 //!
 //! Module map (dependencies point down the list):
 //! - [`cli`]: the `cdlab` command line;
+//! - [`record`]: run records (MCAP + CSV), written during a run and read back;
+//! - [`config`]: the run configuration (TOML with units);
 //! - [`protocol`]: the biaxial test's phases (preparation, confinement, compression);
 //! - [`sample`]: grain sizes and geometric deposition;
 //! - [`measure`]: series rows and derived strength;
@@ -18,12 +20,14 @@
 
 pub mod backend;
 pub mod cli;
+pub mod config;
 pub mod contact;
 pub mod engine;
 pub mod error;
 pub mod measure;
 pub mod model;
 pub mod protocol;
+pub mod record;
 pub mod sample;
 pub mod solver;
 

@@ -59,9 +59,7 @@ fn newtons_cradle_gives_the_simultaneous_impact_outcome() {
     let mut s = scene(0.0);
     s.material.e_n = 1.0;
     for k in 0..3 {
-        s.disks
-            .push(DVec2::new(2.0 * k as f64, 0.0), 1.0, RHO)
-            .unwrap();
+        s.disks.push(DVec2::new(2.0 * k as f64, 0.0), 1.0, RHO).unwrap();
     }
     s.disks.vel[0] = DVec2::new(1.0, 0.0);
     let mut e = engine(Method::Gs);
@@ -120,10 +118,7 @@ fn momentum_of_a_free_cloud_is_conserved_through_collisions() {
     // |dL| <= alert * sum |R_t|.
     let (dp, dl, scale, bound) = cloud_drift(0.5);
     assert!(dp < 1e-12 * scale, "dp = {dp:e}");
-    assert!(
-        dl <= bound,
-        "dL = {dl:e} above alert * sum|R_t| = {bound:e}"
-    );
+    assert!(dl <= bound, "dL = {dl:e} above alert * sum|R_t| = {bound:e}");
 }
 
 #[test]
@@ -142,8 +137,5 @@ fn kinetic_energy_never_increases_without_external_work() {
         assert!(now <= ke * (1.0 + 1e-9), "step {step}: {ke} -> {now} J/m");
         ke = now;
     }
-    assert!(
-        ke < 0.9 * ke0,
-        "collisions must dissipate: {ke0} -> {ke} J/m"
-    );
+    assert!(ke < 0.9 * ke0, "collisions must dissipate: {ke0} -> {ke} J/m");
 }

@@ -136,8 +136,5 @@ fn a_non_finite_state_stops_the_run() {
     s.disks.push(DVec2::new(2.0, 0.0), 1.0, RHO).unwrap();
     let mut e = engine(Method::Gs);
     let msg = e.step(&mut s).unwrap_err().to_string();
-    assert!(
-        msg.contains("non-finite") && msg.contains("disk 0"),
-        "{msg}"
-    );
+    assert!(msg.contains("non-finite") && msg.contains("disk 0"), "{msg}");
 }

@@ -21,11 +21,7 @@ fn incline(angle: f64, mu: f64, r: f64, steps: usize) -> (f64, f64, f64) {
         e.step(&mut s).unwrap();
     }
     let t = steps as f64 * e.params.dt;
-    (
-        s.disks.vel[0].x / t,
-        s.disks.spin[0] / t,
-        s.disks.pos[0].y - r,
-    )
+    (s.disks.vel[0].x / t, s.disks.spin[0] / t, s.disks.pos[0].y - r)
 }
 
 #[test]
@@ -45,10 +41,7 @@ fn disk_on_an_incline_rolls_without_slipping_below_the_friction_limit() {
         (alpha + expected / r).abs() < 1e-9 * expected / r,
         "alpha = {alpha} rad/s^2"
     );
-    assert!(
-        lift.abs() < 1e-12,
-        "the disk must stay on the plane ({lift} m)"
-    );
+    assert!(lift.abs() < 1e-12, "the disk must stay on the plane ({lift} m)");
 }
 
 #[test]

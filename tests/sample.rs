@@ -46,7 +46,9 @@ fn deposition_is_dense_supported_and_free_of_overlaps() {
     for (c, &r) in pk.centers.iter().zip(&pk.radii) {
         assert!(c.x >= r * (1.0 - 1e-9) && c.x <= w - r * (1.0 - 1e-9) && c.y >= r * (1.0 - 1e-9));
     }
-    // Every disk is supported: it touches the floor, or two of (disks, side walls).
+    // Every disk is supported: it touches the floor, or two of (disks, side walls). A support
+    // may stand higher than the disk's centre: a disk slides along a larger one into the
+    // corner it makes with the floor or with a neighbour.
     let tol = 1e-7;
     for (k, (c, &r)) in pk.centers.iter().zip(&pk.radii).enumerate() {
         if c.y - r <= tol {
@@ -57,7 +59,7 @@ fn deposition_is_dense_supported_and_free_of_overlaps() {
             .iter()
             .zip(&pk.radii)
             .enumerate()
-            .filter(|&(j, (cj, &rj))| j != k && (*cj - *c).length() - r - rj <= tol && cj.y < c.y)
+            .filter(|&(j, (cj, &rj))| j < k && (*cj - *c).length() - r - rj <= tol)
             .count();
         supports += (c.x - r <= tol) as usize + (w - c.x - r <= tol) as usize;
         assert!(
@@ -66,10 +68,10 @@ fn deposition_is_dense_supported_and_free_of_overlaps() {
         );
     }
     // Packing fraction of the band 10%-80% of the height, wall zones included: the paper
-    // reports about 0.84; this deposit of 600 disks in a box 12 large diameters wide gives
-    // 0.77 (measured), the walls loosening it. Compaction then densifies it.
+    // reports about 0.84 for its deposit (measured here: 0.83 for 600 disks, 0.845 for
+    // 5000, the side walls loosening small samples more).
     let phi = packing_fraction(&pk, 0.1 * pk.height, 0.8 * pk.height);
-    assert!((0.75..=0.87).contains(&phi), "packing fraction {phi}");
+    assert!((0.80..=0.87).contains(&phi), "packing fraction {phi}");
     // Mean coordination (disk-disk touching pairs): a sequential deposit has each disk on two
     // supports, so about 4 (paper: about 4); edges and the free surface lower it.
     let z = geometric_coordination(&pk, 1e-6);

@@ -14,10 +14,7 @@ fn normal_force(_s: &Scene, e: &cdlab::engine::CpuEngine, i: usize, j: usize) ->
     let c = e
         .contacts()
         .iter()
-        .find(|c| {
-            (c.i as usize, c.disk_j as usize) == (i, j)
-                || (c.i as usize, c.disk_j as usize) == (j, i)
-        })
+        .find(|c| (c.i as usize, c.disk_j as usize) == (i, j) || (c.i as usize, c.disk_j as usize) == (j, i))
         .unwrap_or_else(|| panic!("no contact {i}-{j}"));
     c.rn / e.params.dt
 }

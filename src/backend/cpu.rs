@@ -51,9 +51,7 @@ impl Backend for CpuBackend {
 
     fn set_scene(&mut self, scene: &Scene) -> Result<()> {
         scene.validate()?;
-        if scene.disks.len() != self.scene.disks.len()
-            || scene.walls.len() != self.scene.walls.len()
-        {
+        if scene.disks.len() != self.scene.disks.len() || scene.walls.len() != self.scene.walls.len() {
             self.engine.reset_warm_start();
         }
         self.scene = scene.clone();

@@ -30,16 +30,20 @@ pub enum ContactClass {
     Sliding = 3,
 }
 
+impl ContactClass {
+    /// The class with this code (its `u8` value), if any.
+    pub fn from_u8(code: u8) -> Option<Self> {
+        [Self::Open, Self::ZeroForce, Self::Rolling, Self::Sliding]
+            .into_iter()
+            .find(|c| *c as u8 == code)
+    }
+}
+
 /// Gap below which a contact without force counts as a geometric (zero-force) contact:
 /// 1e-4 of the smallest radius (m), well above the solver's positional round-off and well
 /// below the alert distance.
 pub fn zero_gap_tolerance(scene: &Scene) -> f64 {
-    1e-4 * scene
-        .disks
-        .radius
-        .iter()
-        .cloned()
-        .fold(f64::INFINITY, f64::min)
+    1e-4 * scene.disks.radius.iter().cloned().fold(f64::INFINITY, f64::min)
 }
 
 /// Classifies one contact (force threshold absolute here: `rn > 0`; the relative threshold
@@ -138,13 +142,7 @@ impl Accumulator {
     }
 
     /// Completes the reductions from the final state and contacts.
-    pub fn finish(
-        mut self,
-        scene: &Scene,
-        contacts: &[Contact],
-        dt: f64,
-        loading: &Loading,
-    ) -> Reductions {
+    pub fn finish(mut self, scene: &Scene, contacts: &[Contact], dt: f64, loading: &Loading) -> Reductions {
         let r = &mut self.red;
         let d = &scene.disks;
         let nd = d.len();
@@ -156,11 +154,7 @@ impl Accumulator {
         r.colors_mean = self.colors as f64 / steps;
         r.candidates = contacts.len() as u32;
         let gap_tol = zero_gap_tolerance(scene);
-        let loaded: Vec<f64> = contacts
-            .iter()
-            .filter(|c| c.rn > 0.0)
-            .map(|c| c.rn)
-            .collect();
+        let loaded: Vec<f64> = contacts.iter().filter(|c| c.rn > 0.0).map(|c| c.rn).collect();
         let mean_rn = loaded.iter().sum::<f64>() / loaded.len().max(1) as f64;
         let threshold = FORCE_THRESHOLD * mean_rn;
         let mut per_disk = vec![0u32; nd];

@@ -145,24 +145,15 @@ fn disk_side(scene: &Scene, k: usize) -> Side {
 /// contact records sorted by key, with frames, inverse masses, Delassus blocks and friction
 /// filled in and impulses at zero. Pairs in which neither disk is free are skipped: no
 /// impulse can change their motion.
-pub fn detect(
-    scene: &Scene,
-    alert: f64,
-    grid: &mut CellGrid,
-    out: &mut Vec<Contact>,
-) -> Result<()> {
+pub fn detect(scene: &Scene, alert: f64, grid: &mut CellGrid, out: &mut Vec<Contact>) -> Result<()> {
     let d = &scene.disks;
     let nd = d.len();
     let r_max = d.radius.iter().cloned().fold(0.0, f64::max);
     grid.build(&d.pos, 2.0 * r_max + alert)?;
     out.clear();
     let mu_disk = scene.material.mu_disk;
-    let active: Vec<(usize, &crate::model::Wall)> = scene
-        .walls
-        .iter()
-        .enumerate()
-        .filter(|(_, w)| w.active)
-        .collect();
+    let active: Vec<(usize, &crate::model::Wall)> =
+        scene.walls.iter().enumerate().filter(|(_, w)| w.active).collect();
     // Contacts come out sorted by key without sorting the (large) records: for each disk p
     // in order, its partners q > p sorted by index, then its walls (keys n_disks + w are
     // larger than any disk index). Pairs whose disk p cannot move are keyed by their free

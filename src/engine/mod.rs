@@ -112,8 +112,7 @@ impl CpuEngine {
         let (dt, theta) = (p.dt, p.theta);
         let t0 = std::time::Instant::now();
         follow_walls(scene);
-        detect(scene, p.alert, &mut self.grid, &mut self.contacts)
-            .map_err(|e| at_step(e, scene.step))?;
+        detect(scene, p.alert, &mut self.grid, &mut self.contacts).map_err(|e| at_step(e, scene.step))?;
         let max_overlap = self.check_overlaps(scene)?;
         self.velocities(scene);
         self.prepare_contacts(scene);

@@ -5,55 +5,7 @@ pub mod derived;
 
 use crate::backend::Reductions;
 
-/// One row of the time series (SI units, named in the field).
-#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct SeriesRow {
-    /// Simulated time (s).
-    pub time_s: f64,
-    /// Step index.
-    pub step: u64,
-    /// Phase name: compaction, confinement, compression.
-    pub phase: String,
-    /// Axial strain `(h0 - h) / h0`, h0 the height at the start of compression (0 before).
-    pub strain_axial: f64,
-    /// Axial stress: normal force on the top wall (glued disks included) over the width (Pa).
-    pub sigma1_pa: f64,
-    /// Confining stress applied by the strips (Pa).
-    pub sigma3_pa: f64,
-    /// Volumetric strain `V / V0 - 1`, positive in dilation (V0 at the start of compression).
-    pub volumetric_strain: f64,
-    /// Candidate contacts (within the alert distance).
-    pub n_contacts: u32,
-    /// Force-carrying disk-disk contacts.
-    pub n_force: u32,
-    /// Force-carrying contacts below the Coulomb limit.
-    pub n_rolling: u32,
-    /// Force-carrying contacts at the Coulomb limit.
-    pub n_sliding: u32,
-    /// Geometric disk-disk contacts without force.
-    pub n_zero_force: u32,
-    /// Coordination number `2 N_c / N'`.
-    pub coordination: f64,
-    /// Fraction of free disks with fewer than two force-carrying contacts.
-    pub isolated_fraction: f64,
-    /// Mean overlap over overlapping contacts, relative to the smallest radius.
-    pub overlap_mean_rel: f64,
-    /// Largest overlap relative to the smallest radius.
-    pub overlap_max_rel: f64,
-    /// Mean solver iterations per step over the interval.
-    pub iterations: f64,
-    /// Largest iteration count of a step in the interval.
-    pub iterations_max: u32,
-    /// Kinetic energy of the free disks (J/m).
-    pub kinetic_energy_j: f64,
-    /// Inertial number `I = gamma_dot sqrt(m / p)` with the bulk shear rate
-    /// `gamma_dot = v_axial / h`, m the mean disk mass and p = (sigma1 + sigma3) / 2.
-    pub inertial_number: f64,
-    /// Sample height between the walls (m).
-    pub height_m: f64,
-    /// Sample width from the strip estimator (m).
-    pub width_m: f64,
-}
+pub use crate::record::SeriesRow;
 
 /// Geometry needed to turn reductions into stresses and strains.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -74,6 +26,8 @@ pub struct Gauge {
     pub r_min: f64,
     /// Mean disk mass (kg/m).
     pub mean_mass: f64,
+    /// Total area of the disks (m^2), the scale of the kinetic ratio.
+    pub disk_area: f64,
 }
 
 impl Gauge {
@@ -119,17 +73,17 @@ impl Gauge {
             sigma1_pa: sigma1,
             sigma3_pa: sigma3,
             volumetric_strain: vol,
-            n_contacts: red.candidates,
-            n_force: red.force_carrying,
-            n_rolling: red.rolling,
-            n_sliding: red.sliding,
-            n_zero_force: red.zero_force,
+            n_contacts: red.candidates as u64,
+            n_force: red.force_carrying as u64,
+            n_rolling: red.rolling as u64,
+            n_sliding: red.sliding as u64,
+            n_zero_force: red.zero_force as u64,
             coordination: red.coordination,
             isolated_fraction: red.isolated_fraction,
             overlap_mean_rel: red.overlap_mean / self.r_min,
             overlap_max_rel: red.overlap_max / self.r_min,
             iterations: red.iterations_sum as f64 / red.steps.max(1) as f64,
-            iterations_max: red.iterations_max,
+            iterations_max: red.iterations_max as u64,
             kinetic_energy_j: red.kinetic_energy,
             inertial_number: inertial,
             height_m: h,

@@ -22,20 +22,10 @@ pub struct Lab<B: Backend> {
 impl<B: Backend> Lab<B> {
     /// Starts at compaction from a freshly deposited scene (see
     /// [`super::prepare::deposit_scene`]), or at confinement from a compacted one.
-    pub fn new(
-        mut backend: B,
-        params: ProtocolParams,
-        scene: &Scene,
-        compacted: bool,
-    ) -> Result<Self> {
+    pub fn new(mut backend: B, params: ProtocolParams, scene: &Scene, compacted: bool) -> Result<Self> {
         params.validate()?;
         backend.set_scene(scene)?;
-        let r_min = scene
-            .disks
-            .radius
-            .iter()
-            .cloned()
-            .fold(f64::INFINITY, f64::min);
+        let r_min = scene.disks.radius.iter().cloned().fold(f64::INFINITY, f64::min);
         let mean_mass = scene.disks.mass.iter().sum::<f64>() / scene.disks.len().max(1) as f64;
         let state = LabState {
             phase: Phase::Compaction,
@@ -49,6 +39,12 @@ impl<B: Backend> Lab<B> {
                 bottom: walls::BOTTOM,
                 r_min,
                 mean_mass,
+                disk_area: scene
+                    .disks
+                    .radius
+                    .iter()
+                    .map(|r| std::f64::consts::PI * r * r)
+                    .sum(),
                 ..Default::default()
             },
             phase_start: scene.time,
@@ -66,8 +62,8 @@ impl<B: Backend> Lab<B> {
             lab.enter_confinement()?;
         } else {
             let mut s = lab.backend.scene()?;
-            s.material.mu_disk = 0.0;
-            s.material.mu_wall = 0.0;
+            s.material.mu_disk = lab.state.params.mu_compaction;
+            s.material.mu_wall = lab.state.params.mu_compaction;
             lab.backend.set_scene(&s)?;
         }
         Ok(lab)
@@ -113,7 +109,7 @@ impl<B: Backend> Lab<B> {
                 row.sigma1_pa = red.wall_force[walls::TOP].y / row.width_m;
                 obs.series(&row)?;
                 self.state.loading.wall_forces = vec![(walls::RIGHT, applied)];
-                if self.settle(&red, applied, pushed, obs)? {
+                if self.settle(&red, p.sigma_c, applied, pushed, obs)? {
                     self.enter_confinement()?;
                 }
             }
@@ -124,7 +120,7 @@ impl<B: Backend> Lab<B> {
                 obs.series(&row)?;
                 let pushed = red.wall_force[walls::TOP].y;
                 self.state.loading.wall_forces = vec![(walls::TOP, applied)];
-                if self.settle(&red, applied, pushed, obs)? {
+                if self.settle(&red, p.sigma3, applied, pushed, obs)? {
                     self.enter_compression(&red)?;
                 }
             }
@@ -140,7 +136,8 @@ impl<B: Backend> Lab<B> {
                     }
                 }
                 if row.strain_axial >= p.strain_end {
-                    self.end_phase(&red, true, 0.0, obs)?;
+                    let kinetic = red.kinetic_energy / (p.sigma3 * self.state.gauge.disk_area);
+                    self.end_phase(&red, true, 0.0, kinetic, obs)?;
                     self.state.phase = Phase::Done;
                 }
             }
@@ -153,9 +150,7 @@ impl<B: Backend> Lab<B> {
     }
 
     fn row(&self, red: &Reductions, sigma3: f64, v: f64) -> SeriesRow {
-        self.state
-            .gauge
-            .row(red, self.state.phase.name(), sigma3, v)
+        self.state.gauge.row(red, self.state.phase.name(), sigma3, v)
     }
 
     /// Checks the equilibrium criteria after a window; ends the phase when they hold or
@@ -163,16 +158,18 @@ impl<B: Backend> Lab<B> {
     fn settle(
         &mut self,
         red: &Reductions,
+        sigma: f64,
         applied: f64,
         pushed: f64,
         obs: &mut dyn Observer,
     ) -> Result<bool> {
         let eq = self.state.params.equilibrium;
         let imbalance = (pushed - applied).abs() / applied;
-        let settled = v_rms(red) < eq.v_rms && imbalance < eq.force_imbalance;
+        let kinetic = red.kinetic_energy / (sigma * self.state.gauge.disk_area);
+        let settled = kinetic < eq.kinetic_ratio && imbalance < eq.force_imbalance;
         let timeout = red.time - self.state.phase_start >= eq.max_time;
         if settled || timeout {
-            self.end_phase(red, settled, imbalance, obs)?;
+            self.end_phase(red, settled, imbalance, kinetic, obs)?;
             return Ok(true);
         }
         Ok(false)
@@ -183,6 +180,7 @@ impl<B: Backend> Lab<B> {
         red: &Reductions,
         settled: bool,
         imbalance: f64,
+        kinetic: f64,
         obs: &mut dyn Observer,
     ) -> Result<()> {
         let end = PhaseEnd {
@@ -190,7 +188,7 @@ impl<B: Backend> Lab<B> {
             time_s: red.time,
             step: red.step,
             settled,
-            v_rms: v_rms(red),
+            kinetic_ratio: kinetic,
             force_imbalance: imbalance,
         };
         obs.phase_end(&end)?;
@@ -320,9 +318,4 @@ impl<B: Backend> Lab<B> {
         self.state.since_checkpoint = 0;
         Ok(())
     }
-}
-
-/// Root-mean-square velocity of the free disks (m/s), from the kinetic energy.
-fn v_rms(red: &Reductions) -> f64 {
-    (2.0 * red.kinetic_energy / red.free_mass.max(f64::MIN_POSITIVE)).sqrt()
 }

@@ -52,9 +52,7 @@ impl R<'_> {
         Ok(a)
     }
     fn u(&mut self) -> Result<u64> {
-        Ok(u64::from_le_bytes(
-            self.take(8)?.try_into().expect("8 bytes"),
-        ))
+        Ok(u64::from_le_bytes(self.take(8)?.try_into().expect("8 bytes")))
     }
     fn f(&mut self) -> Result<f64> {
         Ok(f64::from_bits(self.u()?))
@@ -67,21 +65,14 @@ impl R<'_> {
         // Each element takes at least 8 bytes: a larger count is corruption, not a request
         // to allocate terabytes.
         if n > (self.0.len() / 8) as u64 {
-            return Err(Error::Other(format!(
-                "checkpoint: corrupt {what} count {n}"
-            )));
+            return Err(Error::Other(format!("checkpoint: corrupt {what} count {n}")));
         }
         Ok(n as usize)
     }
 }
 
 /// Encodes a checkpoint.
-pub fn encode(
-    state: &LabState,
-    scene: &Scene,
-    reference: &[DVec2],
-    warm: &[ContactRecord],
-) -> Vec<u8> {
+pub fn encode(state: &LabState, scene: &Scene, reference: &[DVec2], warm: &[ContactRecord]) -> Vec<u8> {
     let mut w = W(MAGIC.to_vec());
     let json = serde_json::to_vec(state).expect("the protocol state serializes");
     w.u(json.len() as u64);
@@ -147,8 +138,8 @@ pub fn decode(bytes: &[u8]) -> Result<Checkpoint> {
         return Err(Error::Other("not a cdlab checkpoint (bad magic)".into()));
     }
     let n = r.count("state")?;
-    let state: LabState = serde_json::from_slice(r.take(n)?)
-        .map_err(|e| Error::Other(format!("checkpoint state: {e}")))?;
+    let state: LabState =
+        serde_json::from_slice(r.take(n)?).map_err(|e| Error::Other(format!("checkpoint state: {e}")))?;
     let nd = r.count("disk")?;
     let mut d = Disks::default();
     for _ in 0..nd {

@@ -19,13 +19,15 @@ use crate::model::Scene;
 /// When a phase counts as settled (stated in the README; recorded with each phase end).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Equilibrium {
-    /// Root-mean-square disk velocity below which the sample is at rest (m/s).
-    pub v_rms: f64,
+    /// Threshold on the kinetic ratio `K / (sigma A)`: the kinetic energy of the free
+    /// disks over the phase's applied stress times the total disk area (dimensionless).
+    pub kinetic_ratio: f64,
     /// Relative imbalance between the force the contacts exert on a force-driven wall and
     /// the force applied to it, `|F_contacts - F_applied| / F_applied`, averaged over a check
     /// window (dimensionless).
     pub force_imbalance: f64,
-    /// Steps per check window (forces are averaged over it).
+    /// Steps per check window: both criteria are evaluated at the end of each window, the
+    /// force averaged over it.
     pub window: u32,
     /// Simulated time after which a phase ends even if not settled (s); recorded.
     pub max_time: f64,
@@ -48,6 +50,8 @@ pub struct ProtocolParams {
     pub aspect: f64,
     /// Stress on the right wall during compaction (Pa).
     pub sigma_c: f64,
+    /// Friction during compaction (paper: 0).
+    pub mu_compaction: f64,
     /// Time stepping and solver.
     pub step: StepParams,
     /// Disk-disk friction during the test.
@@ -91,6 +95,7 @@ impl ProtocolParams {
             seed: 1,
             aspect: 2.5,
             sigma_c: 8e6,
+            mu_compaction: 0.0,
             step: StepParams {
                 dt: 5e-4,
                 theta: 0.5,
@@ -113,14 +118,14 @@ impl ProtocolParams {
             axial_velocity: 0.5,
             strain_end: 0.1,
             equilibrium: Equilibrium {
-                v_rms: 5e-3,
+                kinetic_ratio: 1e-8,
                 force_imbalance: 0.01,
                 window: 200,
-                max_time: 10.0,
+                max_time: 60.0,
             },
-            series_every: 20,
+            series_every: 10,
             snapshot_every: 0.01,
-            checkpoint_every: 2000,
+            checkpoint_every: 5000,
         }
     }
 
@@ -159,11 +164,9 @@ impl ProtocolParams {
                 "must lie in (0, 1)",
             ));
         }
-        check_positive("equilibrium.v_rms", self.equilibrium.v_rms)?;
-        check_positive(
-            "equilibrium.force_imbalance",
-            self.equilibrium.force_imbalance,
-        )?;
+        check_positive("equilibrium.kinetic_ratio", self.equilibrium.kinetic_ratio)?;
+        crate::error::check_non_negative("compaction.friction", self.mu_compaction)?;
+        check_positive("equilibrium.force_imbalance", self.equilibrium.force_imbalance)?;
         check_positive("equilibrium.max_time", self.equilibrium.max_time)?;
         if self.equilibrium.window == 0 || self.series_every == 0 || self.checkpoint_every == 0 {
             return Err(Error::invalid(
@@ -214,8 +217,8 @@ pub struct PhaseEnd {
     pub step: u64,
     /// True when the equilibrium criteria were met (false: stopped at `max_time`).
     pub settled: bool,
-    /// RMS velocity at the end (m/s).
-    pub v_rms: f64,
+    /// Kinetic ratio `K / (sigma A)` at the end (dimensionless).
+    pub kinetic_ratio: f64,
     /// Force imbalance at the end (dimensionless).
     pub force_imbalance: f64,
 }
@@ -260,13 +263,7 @@ impl Observer for Collect {
         self.ends.push(end.clone());
         Ok(())
     }
-    fn snapshot(
-        &mut self,
-        strain: f64,
-        _: &Scene,
-        _: &[ContactRecord],
-        _: &[glam::DVec2],
-    ) -> Result<()> {
+    fn snapshot(&mut self, strain: f64, _: &Scene, _: &[ContactRecord], _: &[glam::DVec2]) -> Result<()> {
         self.snapshots.push(strain);
         Ok(())
     }

@@ -54,6 +54,7 @@ pub fn deposit(radii: &[f64], width: f64) -> Result<Packing> {
     // Chain: indices of exposed disks, sorted by centre x.
     let mut chain: Vec<usize> = Vec::new();
     let mut grid = Columns::new(width, 2.0 * r_max);
+    let mut profile = Profile::new(width, 0.5 * r_min);
     for &r in radii {
         let c = best_position(&pk, &chain, &grid, r, r_max);
         let k = pk.centers.len();
@@ -63,7 +64,8 @@ pub fn deposit(radii: &[f64], width: f64) -> Result<Packing> {
         pk.height = pk.height.max(c.y + r);
         let at = chain.partition_point(|&j| pk.centers[j].x < c.x);
         chain.insert(at, k);
-        prune(&pk, &mut chain, k, r_min, r_max);
+        profile.add(c, r);
+        prune(&pk, &mut chain, &profile, k, 3.0 * r_max, r_max);
     }
     Ok(pk)
 }
@@ -90,13 +92,14 @@ fn window<'a>(pk: &Packing, chain: &'a [usize], x: f64, reach: f64) -> &'a [usiz
     &chain[lo..hi]
 }
 
-/// True when a disk of radius `r` at `c` lies on or above the upper envelope of the chain
-/// dilated by `r`: reachable from above, so it neither overlaps a chain disk nor sits in a
-/// cavity under one (where buried disks lie).
+/// True when a disk of radius `r` at `c` overlaps no chain disk (beyond the touch
+/// tolerance). Positions beside a larger disk, below its equator, are allowed: a falling
+/// disk slides along its support into them.
 fn free_at(pk: &Packing, chain: &[usize], c: DVec2, r: f64, r_max: f64) -> bool {
-    window(pk, chain, c.x, r + r_max)
-        .iter()
-        .all(|&k| c.y >= arc(pk, k, r, c.x) - TOUCH * (pk.radii[k] + r))
+    window(pk, chain, c.x, r + r_max).iter().all(|&k| {
+        let d = pk.radii[k] + r;
+        (pk.centers[k] - c).length_squared() >= d * d * (1.0 - 2.0 * TOUCH)
+    })
 }
 
 /// The lowest admissible centre for a disk of radius `r` (ties broken by smaller x).
@@ -104,14 +107,10 @@ fn best_position(pk: &Packing, chain: &[usize], grid: &Columns, r: f64, r_max: f
     let (x_lo, x_hi) = (r, pk.width - r);
     let mut best = DVec2::new(f64::INFINITY, f64::INFINITY);
     let mut consider = |c: DVec2| {
-        if c.y < r - TOUCH * r || c.x < x_lo - TOUCH * r || c.x > x_hi + TOUCH * r || !c.is_finite()
-        {
+        if c.y < r - TOUCH * r || c.x < x_lo - TOUCH * r || c.x > x_hi + TOUCH * r || !c.is_finite() {
             return;
         }
-        if (c.y, c.x) < (best.y, best.x)
-            && free_at(pk, chain, c, r, r_max)
-            && !grid.overlaps(pk, c, r)
-        {
+        if (c.y, c.x) < (best.y, best.x) && free_at(pk, chain, c, r, r_max) && !grid.overlaps(pk, c, r) {
             best = c;
         }
     };
@@ -149,11 +148,7 @@ fn best_position(pk: &Packing, chain: &[usize], grid: &Columns, r: f64, r_max: f
             let u = d / l;
             let perp = DVec2::new(-u.y, u.x);
             let p = ca + along * u;
-            let c = if perp.y >= 0.0 {
-                p + h * perp
-            } else {
-                p - h * perp
-            };
+            let c = if perp.y >= 0.0 { p + h * perp } else { p - h * perp };
             consider(c);
         }
     }
@@ -161,69 +156,59 @@ fn best_position(pk: &Packing, chain: &[usize], grid: &Columns, r: f64, r_max: f
     best
 }
 
-/// Removes from the chain the disks near the new disk `k` that no longer show at the top
-/// for the smallest disk: disk j stays while its arc dilated by r_min is the highest at
-/// some abscissa. The boundaries of the stretch where an arc is highest are crossings with
-/// neighbouring arcs, so testing j's summit, the ends of its span and every crossing of its
-/// arc with a neighbour's decides exactly.
-fn prune(pk: &Packing, chain: &mut Vec<usize>, k: usize, r_min: f64, r_max: f64) {
-    let xk = pk.centers[k].x;
-    let reach = pk.radii[k] + 2.0 * r_max + 2.0 * r_min;
-    let near: Vec<usize> = window(pk, chain, xk, reach)
-        .iter()
-        .copied()
-        .filter(|&j| j != k)
-        .collect();
-    let mut gone: Vec<usize> = Vec::new();
-    for &j in &near {
-        if !exposed(pk, chain, &gone, j, r_min, r_max) {
-            gone.push(j);
-        }
-    }
-    chain.retain(|j| !gone.contains(j));
+/// Surface height profile: the highest disk top over each bin of width `bin` (m).
+struct Profile {
+    bin: f64,
+    top: Vec<f64>,
 }
 
-/// True when disk j's arc dilated by `rho` is the highest of the chain (less `gone`) at
-/// some abscissa.
-fn exposed(
-    pk: &Packing,
-    chain: &[usize],
-    gone: &[usize],
-    j: usize,
-    r_min: f64,
-    r_max: f64,
-) -> bool {
-    {
-        let (cj, rj) = (pk.centers[j], pk.radii[j] + r_min);
-        let others: Vec<usize> = window(pk, chain, cj.x, rj + r_max + r_min)
-            .iter()
-            .copied()
-            .filter(|&m| m != j && !gone.contains(&m))
-            .collect();
-        let mut xs = vec![cj.x, cj.x - 0.999 * rj, cj.x + 0.999 * rj];
-        for &m in &others {
-            let (cm, rm) = (pk.centers[m], pk.radii[m] + r_min);
-            let d = cm - cj;
-            let l2 = d.length_squared();
-            if l2 >= (rj + rm) * (rj + rm) || l2 <= (rj - rm) * (rj - rm) {
-                continue;
-            }
-            let l = l2.sqrt();
-            let along = (rj * rj - rm * rm + l2) / (2.0 * l);
-            let h = (rj * rj - along * along).max(0.0).sqrt();
-            let u = d / l;
-            let p = cj + along * u;
-            xs.push(p.x - h * u.y);
-            xs.push(p.x + h * u.y);
+impl Profile {
+    fn new(width: f64, bin: f64) -> Self {
+        Profile {
+            bin,
+            top: vec![0.0; (width / bin) as usize + 1],
         }
-        xs.iter().any(|&x| {
-            let own = arc(pk, j, r_min, x);
-            own > f64::NEG_INFINITY
-                && others
-                    .iter()
-                    .all(|&m| arc(pk, m, r_min, x) <= own + 1e-9 * rj)
-        })
     }
+
+    fn bins(&self, x0: f64, x1: f64) -> std::ops::Range<usize> {
+        let lo = ((x0 / self.bin).max(0.0) as usize).min(self.top.len() - 1);
+        let hi = ((x1 / self.bin).max(0.0) as usize).min(self.top.len() - 1);
+        lo..hi + 1
+    }
+
+    fn add(&mut self, c: DVec2, r: f64) {
+        for b in self.bins(c.x - r, c.x + r) {
+            let dx = ((b as f64 + 0.5) * self.bin - c.x).clamp(-r, r);
+            let h = c.y + (r * r - dx * dx).sqrt();
+            self.top[b] = self.top[b].max(h);
+        }
+    }
+
+    /// Lowest surface height over `[x0, x1]`.
+    fn lowest(&self, x0: f64, x1: f64) -> f64 {
+        self.bins(x0, x1)
+            .map(|b| self.top[b])
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// Removes from the chain the disks near the new disk `k` that lie deeper than `depth`
+/// below the surface everywhere over their span. Every placement fills the lowest
+/// reachable point, so the surface never holds pockets that deep and such disks can no
+/// longer support anything; shallower disks stay (a member too many only costs time).
+fn prune(pk: &Packing, chain: &mut Vec<usize>, profile: &Profile, k: usize, depth: f64, r_max: f64) {
+    let xk = pk.centers[k].x;
+    let reach = pk.radii[k] + 2.0 * r_max;
+    let lo = chain.partition_point(|&j| pk.centers[j].x < xk - reach);
+    let hi = chain.partition_point(|&j| pk.centers[j].x <= xk + reach);
+    let mut keep = Vec::with_capacity(hi - lo);
+    for &j in &chain[lo..hi] {
+        let (c, r) = (pk.centers[j], pk.radii[j]);
+        if j == k || c.y + r >= profile.lowest(c.x - r, c.x + r) - depth {
+            keep.push(j);
+        }
+    }
+    chain.splice(lo..hi, keep);
 }
 
 /// A uniform grid of all placed disks (square cells of one largest diameter), for the exact

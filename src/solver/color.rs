@@ -11,11 +11,7 @@ use crate::contact::Contact;
 /// Each body keeps a 64-bit mask of the colors used by its contacts in the current pass;
 /// contacts that find all 64 taken (a wall with many contacts) wait for a second pass with
 /// colors 64..128, and so on, so the color count is unbounded without per-body heap lists.
-pub fn color_contacts(
-    contacts: &mut Vec<Contact>,
-    n_bodies: usize,
-    masks: &mut Vec<u64>,
-) -> Vec<u32> {
+pub fn color_contacts(contacts: &mut Vec<Contact>, n_bodies: usize, masks: &mut Vec<u64>) -> Vec<u32> {
     const UNSET: u32 = u32::MAX;
     for c in contacts.iter_mut() {
         c.color = UNSET;

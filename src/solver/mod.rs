@@ -9,7 +9,7 @@ pub mod sweep;
 use crate::error::{Error, Result, check_positive};
 
 /// Order in which contacts are updated.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Method {
     /// Nonlinear Gauss-Seidel in detection order (contacts sorted by body indices).
@@ -72,11 +72,7 @@ impl SolverParams {
             return Err(Error::invalid("solver.max_iter", 0, "must be >= 1"));
         }
         if !(self.relax > 0.0 && self.relax <= 1.0) {
-            return Err(Error::invalid(
-                "solver.relax",
-                self.relax,
-                "must lie in (0, 1]",
-            ));
+            return Err(Error::invalid("solver.relax", self.relax, "must lie in (0, 1]"));
         }
         Ok(())
     }

@@ -84,9 +84,7 @@ fn sweep(contacts: &mut [Contact], ranges: &[u32], gv: &mut [DVec3], parallel: b
                 .map(|ch| sweep_chunk(ch, ptr))
                 .collect()
         } else {
-            part.chunks_mut(CHUNK)
-                .map(|ch| sweep_chunk(ch, ptr))
-                .collect()
+            part.chunks_mut(CHUNK).map(|ch| sweep_chunk(ch, ptr)).collect()
         };
         for (d, r) in sums {
             total.0 += d;
@@ -142,12 +140,7 @@ pub fn solve(
 /// Relaxed Jacobi: every contact is solved from the velocities of the previous iteration,
 /// the impulses are relaxed, and the velocities are rebuilt from the free velocities by a
 /// sequential gather (deterministic, no float atomics).
-fn jacobi(
-    params: &SolverParams,
-    contacts: &mut [Contact],
-    gv0: &[DVec3],
-    gv: &mut [DVec3],
-) -> SolveStats {
+fn jacobi(params: &SolverParams, contacts: &mut [Contact], gv0: &[DVec3], gv: &mut [DVec3]) -> SolveStats {
     let omega = params.relax;
     let mut stats = SolveStats::default();
     let mut fresh = vec![(0.0, 0.0); contacts.len()];
@@ -160,10 +153,7 @@ fn jacobi(
             *out = (c.rn + omega * (rn - c.rn), c.rt + omega * (rt - c.rt));
         };
         if params.parallel && contacts.len() >= PAR_MIN {
-            contacts
-                .par_iter()
-                .zip(fresh.par_iter_mut())
-                .for_each(solve_one);
+            contacts.par_iter().zip(fresh.par_iter_mut()).for_each(solve_one);
         } else {
             contacts.iter().zip(fresh.iter_mut()).for_each(solve_one);
         }

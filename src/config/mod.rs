@@ -1,0 +1,193 @@
+//! Run configuration: a TOML file whose defaults are the paper's values.
+//!
+//! The documented default file is `assets/default.toml` ([`Config::default_toml`]); every
+//! key may be omitted, unknown keys are errors. Quantities carry units ([`units`]).
+//! Reading a file ([`Config::load`], [`Config::from_toml_str`]) also validates it, so a
+//! configuration in hand is always in range; command-line [`Overrides`] are applied on top
+//! and must be followed by [`Config::validate`].
+
+mod sections;
+pub mod units;
+mod validate;
+
+#[cfg(test)]
+mod tests;
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+pub use sections::{Backend, Compaction, Equilibrium, Method, Output, Sample, Solver, Test};
+pub use units::{Density, Dimension, Duration, Length, Pressure, UnitError, Velocity};
+
+use crate::error::{Error, Result};
+
+/// The embedded default file, with comments on every key.
+const DEFAULT_TOML: &str = include_str!("../../assets/default.toml");
+
+/// A complete run configuration (one biaxial test).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Config {
+    /// `[sample]`: disks and sample shape.
+    pub sample: Sample,
+    /// `[solver]`: time stepping and contact solver.
+    pub solver: Solver,
+    /// `[compaction]`: the uniaxial compaction.
+    pub compaction: Compaction,
+    /// `[test]`: confinement and biaxial compression.
+    pub test: Test,
+    /// `[equilibrium]`: end of the preparation phases.
+    pub equilibrium: Equilibrium,
+    /// `[output]`: records.
+    pub output: Output,
+}
+
+/// Command-line values that replace those of the file (`None`: keep the file's value).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Overrides {
+    /// `sample.disks`.
+    pub disks: Option<usize>,
+    /// `test.mu`.
+    pub mu: Option<f64>,
+    /// `test.sigma3`.
+    pub sigma3: Option<Pressure>,
+    /// `test.strain_end`.
+    pub strain: Option<f64>,
+    /// `sample.seed`.
+    pub seed: Option<u64>,
+    /// `solver.backend`: "cpu", "gpu" or "auto".
+    pub backend: Option<String>,
+    /// `output.dir`.
+    pub out: Option<PathBuf>,
+}
+
+impl Config {
+    /// The commented default configuration file (what `cdlab config --print-default` shows).
+    pub fn default_toml() -> &'static str {
+        DEFAULT_TOML
+    }
+
+    /// Parses and validates TOML text. Syntax errors report their line.
+    pub fn from_toml_str(text: &str) -> Result<Self> {
+        Self::parse(text, Path::new("<config>"))
+    }
+
+    /// Reads, parses and validates a TOML file.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Self::parse(&text, path)
+    }
+
+    fn parse(text: &str, path: &Path) -> Result<Self> {
+        let config: Config = toml::from_str(text).map_err(|e| {
+            // toml reports a byte span; users want a line number.
+            let line = e
+                .span()
+                .map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1)
+                .unwrap_or(0);
+            Error::Parse {
+                path: path.to_path_buf(),
+                line,
+                message: e.message().to_string(),
+            }
+        })?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Writes the configuration as TOML (quantities as SI numbers, no comments).
+    pub fn to_toml_string(&self) -> Result<String> {
+        toml::to_string_pretty(self)
+            .map_err(|e| Error::Other(format!("cannot write the configuration as TOML: {e}")))
+    }
+
+    /// Replaces the values given on the command line. Only the backend name can fail here;
+    /// ranges are checked by [`Config::validate`], which the caller runs afterwards.
+    pub fn apply(&mut self, o: &Overrides) -> Result<()> {
+        if let Some(d) = o.disks {
+            self.sample.disks = d;
+        }
+        if let Some(mu) = o.mu {
+            self.test.mu = mu;
+        }
+        if let Some(s) = o.sigma3 {
+            self.test.sigma3 = s;
+        }
+        if let Some(e) = o.strain {
+            self.test.strain_end = e;
+        }
+        if let Some(seed) = o.seed {
+            self.sample.seed = seed;
+        }
+        if let Some(b) = &o.backend {
+            self.solver.backend = b.parse()?;
+        }
+        if let Some(dir) = &o.out {
+            self.output.dir = dir.clone();
+        }
+        Ok(())
+    }
+}
+
+impl Config {
+    /// The protocol parameters of this configuration, in SI units.
+    pub fn protocol(&self) -> crate::protocol::ProtocolParams {
+        use crate::engine::StepParams;
+        use crate::protocol::{Equilibrium, ProtocolParams};
+        use crate::solver::SolverParams;
+        let (s, v, t, e, o) = (
+            &self.sample,
+            &self.solver,
+            &self.test,
+            &self.equilibrium,
+            &self.output,
+        );
+        let r_min = s.r_min.si();
+        ProtocolParams {
+            disks: s.disks,
+            r_min,
+            r_max: s.r_max.si(),
+            density: s.density.si(),
+            seed: s.seed,
+            aspect: s.aspect_ratio,
+            sigma_c: self.compaction.sigma_c.si(),
+            mu_compaction: self.compaction.friction,
+            step: StepParams {
+                dt: v.dt.si(),
+                theta: v.theta,
+                alert: v.alert_distance * r_min,
+                overlap_limit: v.overlap_limit * r_min,
+                solver: SolverParams {
+                    method: v.method,
+                    tol: v.tol,
+                    max_iter: v.max_iter,
+                    relax: v.jacobi_relax,
+                    parallel: true,
+                },
+            },
+            mu: t.mu,
+            mu_wall: t.wall_friction(),
+            e_n: t.e_n,
+            e_t: t.e_t,
+            sigma3: t.sigma3.si(),
+            strip_thickness: t.strip_thickness.si(),
+            axial_velocity: t.axial_velocity.si(),
+            strain_end: t.strain_end,
+            equilibrium: Equilibrium {
+                kinetic_ratio: e.kinetic_ratio,
+                force_imbalance: e.force_imbalance,
+                window: e.hold_steps.clamp(1, u32::MAX as u64) as u32,
+                max_time: e.max_time.si(),
+            },
+            series_every: o.series_every.clamp(1, u32::MAX as u64) as u32,
+            snapshot_every: o.snapshot_every,
+            checkpoint_every: if o.checkpoint_every == 0 {
+                u32::MAX
+            } else {
+                o.checkpoint_every.min(u32::MAX as u64) as u32
+            },
+        }
+    }
+}

@@ -1,0 +1,231 @@
+//! The sections of a run configuration, with the paper's values as defaults.
+//!
+//! The defaults are written here in Rust and again, with comments, in `assets/default.toml`;
+//! a test checks that the two agree. (They cannot be derived from the file at run time:
+//! serde's `#[serde(default)]` builds the whole default value before reading a section, so a
+//! `Default` that parsed the file would recurse.)
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+use super::units::{Density, Duration, Length, Pressure, Velocity};
+
+/// `[sample]`: the disks and the shape of the sample.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Sample {
+    /// Number of disks (paper: 5000; default 1000 for a run of a few minutes).
+    pub disks: usize,
+    /// Smallest radius (m).
+    pub r_min: Length,
+    /// Largest radius (m).
+    pub r_max: Length,
+    /// Density of the disks (kg/m^3).
+    pub density: Density,
+    /// Seed of the random radii and deposition.
+    pub seed: u64,
+    /// Target height / width after compaction.
+    pub aspect_ratio: f64,
+}
+
+impl Default for Sample {
+    fn default() -> Self {
+        Sample {
+            disks: 1000,
+            r_min: Length(0.5),
+            r_max: Length(2.0),
+            density: Density(2600.0),
+            seed: 1,
+            aspect_ratio: 2.5,
+        }
+    }
+}
+
+/// Iteration scheme of the contact solver (`"colored-gs"`, `"gs"`, `"jacobi"`).
+pub use crate::solver::Method;
+
+/// Where the time steps run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Backend {
+    /// CPU reference path.
+    Cpu,
+    /// WGSL compute shaders.
+    Gpu,
+    /// GPU when an adapter exists, otherwise CPU.
+    Auto,
+}
+
+impl std::str::FromStr for Backend {
+    type Err = crate::Error;
+    fn from_str(s: &str) -> crate::Result<Self> {
+        match s {
+            "cpu" => Ok(Backend::Cpu),
+            "gpu" => Ok(Backend::Gpu),
+            "auto" => Ok(Backend::Auto),
+            _ => Err(crate::Error::invalid(
+                "solver.backend",
+                s,
+                "must be one of \"cpu\", \"gpu\", \"auto\"",
+            )),
+        }
+    }
+}
+
+/// `[solver]`: time stepping and the contact solver.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Solver {
+    /// Time step (s).
+    pub dt: Duration,
+    /// Moreau-Jean theta, in [0.5, 1].
+    pub theta: f64,
+    /// Tolerance on the relative quadratic change of the impulses per iteration.
+    pub tol: f64,
+    /// Iteration cap per step.
+    pub max_iter: u32,
+    /// Iteration scheme.
+    pub method: Method,
+    /// Relaxation of the Jacobi update, in (0, 1].
+    pub jacobi_relax: f64,
+    /// Alert distance as a fraction of `sample.r_min`.
+    pub alert_distance: f64,
+    /// Convergence check interval (iterations).
+    pub check_every: u32,
+    /// Overlap, as a fraction of `sample.r_min`, above which the run stops with an error.
+    pub overlap_limit: f64,
+    /// Where the steps run.
+    pub backend: Backend,
+}
+
+impl Default for Solver {
+    fn default() -> Self {
+        Solver {
+            dt: Duration(5e-4),
+            theta: 0.5,
+            tol: 1e-4,
+            max_iter: 1000,
+            method: Method::ColoredGs,
+            jacobi_relax: 0.5,
+            alert_distance: 0.1,
+            check_every: 1,
+            overlap_limit: 0.05,
+            backend: Backend::Auto,
+        }
+    }
+}
+
+/// `[compaction]`: the uniaxial compaction that follows the deposition.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Compaction {
+    /// Stress on the right wall (Pa). The paper is silent; default 8 MPa, the largest sigma3.
+    pub sigma_c: Pressure,
+    /// Friction during compaction (paper: 0).
+    pub friction: f64,
+}
+
+impl Default for Compaction {
+    fn default() -> Self {
+        Compaction {
+            sigma_c: Pressure(8e6),
+            friction: 0.0,
+        }
+    }
+}
+
+/// `[test]`: confinement and biaxial compression.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Test {
+    /// Disk-disk friction coefficient.
+    pub mu: f64,
+    /// Disk-wall friction; `None` means the same as `mu`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub wall_mu: Option<f64>,
+    /// Confining pressure (Pa).
+    pub sigma3: Pressure,
+    /// Thickness of the deformable-wall strips (m).
+    pub strip_thickness: Length,
+    /// Downward velocity of the top wall (m/s).
+    pub axial_velocity: Velocity,
+    /// Axial strain at which the test ends.
+    pub strain_end: f64,
+    /// Normal restitution.
+    pub e_n: f64,
+    /// Tangential restitution.
+    pub e_t: f64,
+}
+
+impl Default for Test {
+    fn default() -> Self {
+        Test {
+            mu: 0.3,
+            wall_mu: None,
+            sigma3: Pressure(8e6),
+            strip_thickness: Length(7.5),
+            axial_velocity: Velocity(0.5),
+            strain_end: 0.1,
+            e_n: 0.0,
+            e_t: 0.0,
+        }
+    }
+}
+
+impl Test {
+    /// The disk-wall friction in force: `wall_mu`, or `mu` when it is not set.
+    pub fn wall_friction(&self) -> f64 {
+        self.wall_mu.unwrap_or(self.mu)
+    }
+}
+
+/// `[equilibrium]`: when a preparation phase is over.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Equilibrium {
+    /// Threshold on K / (sigma A): kinetic energy over applied stress times disk area.
+    pub kinetic_ratio: f64,
+    /// Threshold on |F_contacts - F_target| / F_target of the loaded wall.
+    pub force_imbalance: f64,
+    /// Consecutive steps both criteria must hold.
+    pub hold_steps: u64,
+    /// Simulated-time cap of a phase (s).
+    pub max_time: Duration,
+}
+
+impl Default for Equilibrium {
+    fn default() -> Self {
+        Equilibrium {
+            kinetic_ratio: 1e-8,
+            force_imbalance: 0.01,
+            hold_steps: 200,
+            max_time: Duration(60.0),
+        }
+    }
+}
+
+/// `[output]`: where and how often the run records.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Output {
+    /// Directory of the run's files.
+    pub dir: PathBuf,
+    /// Steps between two measurement rows.
+    pub series_every: u64,
+    /// Axial strain between two snapshots during compression (0: end-of-phase only).
+    pub snapshot_every: f64,
+    /// Steps between two checkpoints (0: end-of-phase only).
+    pub checkpoint_every: u64,
+}
+
+impl Default for Output {
+    fn default() -> Self {
+        Output {
+            dir: PathBuf::from("out/biaxial"),
+            series_every: 10,
+            snapshot_every: 0.01,
+            checkpoint_every: 5000,
+        }
+    }
+}

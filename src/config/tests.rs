@@ -1,0 +1,161 @@
+//! Tests of the configuration: defaults, round trip, rejection of bad values.
+
+use super::*;
+
+#[test]
+fn default_equals_the_embedded_file() {
+    let parsed = Config::from_toml_str(Config::default_toml()).unwrap();
+    assert_eq!(parsed, Config::default());
+    Config::default().validate().unwrap();
+}
+
+#[test]
+fn empty_file_is_the_default() {
+    assert_eq!(Config::from_toml_str("").unwrap(), Config::default());
+}
+
+#[test]
+fn toml_round_trip_is_exact() {
+    let mut c = Config::default();
+    c.test.wall_mu = Some(0.7);
+    c.test.sigma3 = Pressure(0.1 + 0.2); // not exactly representable in decimal
+    c.solver.dt = Duration(1.0 / 3.0 * 1e-3);
+    c.solver.method = Method::Jacobi;
+    c.sample.seed = i64::MAX as u64;
+    for cfg in [Config::default(), c] {
+        let text = cfg.to_toml_string().unwrap();
+        assert_eq!(Config::from_toml_str(&text).unwrap(), cfg, "{text}");
+        let json = serde_json::to_string(&cfg).unwrap();
+        assert_eq!(serde_json::from_str::<Config>(&json).unwrap(), cfg);
+    }
+}
+
+#[test]
+fn units_are_read_in_the_file() {
+    let c = Config::from_toml_str(
+        "[test]\nsigma3 = \"500 kPa\"\naxial_velocity = \"0.5 m/s\"\nstrip_thickness = \"7.5 m\"\n",
+    )
+    .unwrap();
+    assert_eq!(c.test.sigma3, Pressure(5e5));
+    assert_eq!(c.test.axial_velocity, Velocity(0.5));
+    assert_eq!(c.test.strip_thickness, Length(7.5));
+    let e = Config::from_toml_str("[test]\nsigma3 = \"8 m\"\n").unwrap_err();
+    let msg = e.to_string();
+    assert!(msg.contains("MPa") && msg.contains("line 2"), "{msg}");
+}
+
+#[test]
+fn unknown_keys_and_sections_are_rejected() {
+    for text in [
+        "[test]\nsigma_3 = 8e6\n",
+        "[tests]\nmu = 0.3\n",
+        "disks = 10\n",
+        "[solver]\nmethod = \"sor\"\n",
+    ] {
+        let e = Config::from_toml_str(text).unwrap_err();
+        assert!(matches!(e, Error::Parse { line: 1 | 2, .. }), "{text}: {e}");
+    }
+}
+
+#[test]
+fn each_bad_value_is_rejected_naming_its_field() {
+    let cases: &[(&str, &str)] = &[
+        ("[sample]\ndisks = 49", "sample.disks"),
+        ("[sample]\nr_min = 0", "sample.r_min"),
+        ("[sample]\nr_min = -1", "sample.r_min"),
+        ("[sample]\nr_max = \"0.4 m\"", "sample.r_max"),
+        ("[sample]\nr_max = nan", "sample.r_max"),
+        ("[sample]\ndensity = 0", "sample.density"),
+        ("[sample]\naspect_ratio = 0", "sample.aspect_ratio"),
+        ("[sample]\naspect_ratio = nan", "sample.aspect_ratio"),
+        ("[solver]\ndt = 0", "solver.dt"),
+        ("[solver]\ndt = inf", "solver.dt"),
+        ("[solver]\ntheta = 0.4", "solver.theta"),
+        ("[solver]\ntheta = 1.1", "solver.theta"),
+        ("[solver]\ntol = 0", "solver.tol"),
+        ("[solver]\nmax_iter = 0", "solver.max_iter"),
+        ("[solver]\njacobi_relax = 0", "solver.jacobi_relax"),
+        ("[solver]\nalert_distance = -0.1", "solver.alert_distance"),
+        ("[solver]\ncheck_every = 0", "solver.check_every"),
+        ("[solver]\noverlap_limit = 0", "solver.overlap_limit"),
+        ("[compaction]\nsigma_c = \"-1 MPa\"", "compaction.sigma_c"),
+        ("[compaction]\nfriction = -0.1", "compaction.friction"),
+        ("[test]\nmu = -0.3", "test.mu"),
+        ("[test]\nmu = nan", "test.mu"),
+        ("[test]\nwall_mu = -1", "test.wall_mu"),
+        ("[test]\nsigma3 = 0", "test.sigma3"),
+        ("[test]\nsigma3 = nan", "test.sigma3"),
+        ("[test]\nstrip_thickness = 0", "test.strip_thickness"),
+        ("[test]\naxial_velocity = 0", "test.axial_velocity"),
+        ("[test]\nstrain_end = 0", "test.strain_end"),
+        ("[test]\nstrain_end = 1", "test.strain_end"),
+        ("[test]\ne_n = 1.5", "test.e_n"),
+        ("[test]\ne_t = -2", "test.e_t"),
+        ("[equilibrium]\nkinetic_ratio = 0", "equilibrium.kinetic_ratio"),
+        (
+            "[equilibrium]\nforce_imbalance = -1",
+            "equilibrium.force_imbalance",
+        ),
+        ("[equilibrium]\nhold_steps = 0", "equilibrium.hold_steps"),
+        ("[equilibrium]\nmax_time = 0", "equilibrium.max_time"),
+        ("[output]\ndir = \"\"", "output.dir"),
+        ("[output]\nseries_every = 0", "output.series_every"),
+        ("[output]\nsnapshot_every = -0.01", "output.snapshot_every"),
+    ];
+    for (text, field) in cases {
+        match Config::from_toml_str(text) {
+            Err(Error::Invalid {
+                field: f, allowed, ..
+            }) => {
+                assert_eq!(&f, field, "{text}");
+                assert!(!allowed.is_empty());
+            }
+            other => panic!("{text}: expected an invalid `{field}`, got {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn overrides_replace_file_values() {
+    let mut c = Config::default();
+    c.apply(&Overrides {
+        disks: Some(5000),
+        mu: Some(3.0),
+        sigma3: Some("4 MPa".parse().unwrap()),
+        strain: Some(0.05),
+        seed: Some(7),
+        backend: Some("cpu".into()),
+        out: Some("runs/x".into()),
+    })
+    .unwrap();
+    c.validate().unwrap();
+    assert_eq!(c.sample.disks, 5000);
+    assert_eq!(c.test.mu, 3.0);
+    assert_eq!(c.test.wall_friction(), 3.0);
+    assert_eq!(c.test.sigma3, Pressure(4e6));
+    assert_eq!(c.test.strain_end, 0.05);
+    assert_eq!(c.sample.seed, 7);
+    assert_eq!(c.solver.backend, Backend::Cpu);
+    assert_eq!(c.output.dir, PathBuf::from("runs/x"));
+    let e = c
+        .apply(&Overrides {
+            backend: Some("tpu".into()),
+            ..Default::default()
+        })
+        .unwrap_err();
+    assert!(e.to_string().contains("solver.backend"), "{e}");
+    assert_eq!(Config::default().apply(&Overrides::default()).ok(), Some(()));
+}
+
+#[test]
+fn load_names_the_file() {
+    let dir = std::env::temp_dir().join(format!("cdlab-config-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("bad.toml");
+    std::fs::write(&path, "[test]\nmu = \n").unwrap();
+    let e = Config::load(&path).unwrap_err().to_string();
+    assert!(e.contains("bad.toml") && e.contains("line 2"), "{e}");
+    let e = Config::load(dir.join("missing.toml")).unwrap_err().to_string();
+    assert!(e.contains("missing.toml"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

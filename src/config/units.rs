@@ -1,0 +1,264 @@
+//! Physical quantities with unit suffixes, for configuration files and the command line.
+//!
+//! A quantity is written either as a bare number (SI: Pa, m, s, m/s, kg/m^3) or as a string
+//! with a unit suffix, with or without a space: `"8MPa"`, `"8 MPa"`, `"0.5 m/s"`, `"7.5 m"`.
+//! Units are case-sensitive on purpose: `mPa` (millipascal) and `MPa` differ by 1e9, and a
+//! silent case-folding would turn a typo into a wrong experiment.
+//!
+//! Each dimension has its own newtype, so a length can never be read where a pressure is
+//! expected; a unit of the wrong dimension ("8 m" for a pressure) is an error that lists the
+//! units accepted. Values serialize as plain SI numbers: Rust prints `f64` in its shortest
+//! round-trip form, so writing and reading a configuration gives back the same bits.
+
+use std::fmt;
+use std::str::FromStr;
+
+use serde::de::{self, Visitor};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+/// A physical dimension and its accepted units (symbol, factor to SI).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Dimension {
+    /// Stress or pressure (Pa).
+    Pressure,
+    /// Length (m).
+    Length,
+    /// Time (s).
+    Duration,
+    /// Velocity (m/s).
+    Velocity,
+    /// Mass density (kg/m^3).
+    Density,
+}
+
+impl Dimension {
+    /// The accepted unit symbols with their factor to SI; the first one is the SI unit.
+    pub fn units(self) -> &'static [(&'static str, f64)] {
+        match self {
+            Dimension::Pressure => &[("Pa", 1.0), ("kPa", 1e3), ("MPa", 1e6), ("GPa", 1e9)],
+            Dimension::Length => &[("m", 1.0), ("mm", 1e-3), ("cm", 1e-2), ("km", 1e3)],
+            Dimension::Duration => &[("s", 1.0), ("ms", 1e-3), ("us", 1e-6), ("µs", 1e-6)],
+            Dimension::Velocity => &[("m/s", 1.0), ("mm/s", 1e-3), ("cm/s", 1e-2)],
+            Dimension::Density => &[("kg/m3", 1.0), ("kg/m^3", 1.0)],
+        }
+    }
+
+    /// Human name of the dimension, for messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Dimension::Pressure => "pressure",
+            Dimension::Length => "length",
+            Dimension::Duration => "duration",
+            Dimension::Velocity => "velocity",
+            Dimension::Density => "density",
+        }
+    }
+
+    /// The SI unit symbol.
+    pub fn si(self) -> &'static str {
+        self.units()[0].0
+    }
+
+    /// "a pressure: a number (Pa) or a string with one of Pa, kPa, MPa, GPa".
+    pub fn expected(self) -> String {
+        let list: Vec<&str> = self.units().iter().map(|(u, _)| *u).collect();
+        format!(
+            "a {}: a number ({}) or a string with one of the units {}",
+            self.name(),
+            self.si(),
+            list.join(", ")
+        )
+    }
+}
+
+/// A quantity that could not be parsed; the message says what was expected.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct UnitError(pub String);
+
+/// Parses `text` as a quantity of dimension `dim` and returns its value in SI units.
+///
+/// The number part is the longest prefix made of digits, `.`, `e`, `E`, `+`, `-`; the rest,
+/// trimmed, is the unit (empty = SI). Non-finite results are not rejected here: range checks
+/// belong to `Config::validate`, which names the field.
+pub fn parse_quantity(text: &str, dim: Dimension) -> Result<f64, UnitError> {
+    let s = text.trim();
+    let split = s
+        .find(|c: char| !(c.is_ascii_digit() || matches!(c, '.' | 'e' | 'E' | '+' | '-')))
+        .unwrap_or(s.len());
+    // "5e-4s" must split as 5e-4 / s, but a trailing 'e' with no exponent belongs to nothing:
+    // f64 parsing rejects it below with the full text in the message.
+    let (num, unit) = s.split_at(split);
+    let bad = || UnitError(format!("`{text}` is not {}", dim.expected()));
+    let value: f64 = num.parse().map_err(|_| bad())?;
+    let unit = unit.trim();
+    if unit.is_empty() {
+        return Ok(value);
+    }
+    dim.units()
+        .iter()
+        .find(|(u, _)| *u == unit)
+        .map(|(_, f)| value * f)
+        .ok_or_else(bad)
+}
+
+/// Defines one newtype per dimension with serde, `FromStr` and `Display` (SI value + unit).
+macro_rules! quantity {
+    ($(#[$doc:meta])* $name:ident, $dim:expr) => {
+        $(#[$doc])*
+        #[derive(Clone, Copy, Debug, PartialEq, PartialOrd, Default)]
+        pub struct $name(pub f64);
+
+        impl $name {
+            /// The dimension of this quantity.
+            pub const DIMENSION: Dimension = $dim;
+
+            /// The value in SI units.
+            pub fn si(self) -> f64 {
+                self.0
+            }
+        }
+
+        impl FromStr for $name {
+            type Err = UnitError;
+            fn from_str(s: &str) -> Result<Self, UnitError> {
+                parse_quantity(s, $dim).map($name)
+            }
+        }
+
+        impl fmt::Display for $name {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                write!(f, "{} {}", self.0, $dim.si())
+            }
+        }
+
+        impl Serialize for $name {
+            fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+                s.serialize_f64(self.0)
+            }
+        }
+
+        impl<'de> Deserialize<'de> for $name {
+            fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+                d.deserialize_any(QuantityVisitor($dim)).map($name)
+            }
+        }
+    };
+}
+
+quantity!(
+    /// A pressure or stress in Pa.
+    Pressure,
+    Dimension::Pressure
+);
+quantity!(
+    /// A length in m.
+    Length,
+    Dimension::Length
+);
+quantity!(
+    /// A time span in s.
+    Duration,
+    Dimension::Duration
+);
+quantity!(
+    /// A velocity in m/s.
+    Velocity,
+    Dimension::Velocity
+);
+quantity!(
+    /// A mass density in kg/m^3.
+    Density,
+    Dimension::Density
+);
+
+/// Accepts a number (SI) or a string with a unit of the given dimension.
+struct QuantityVisitor(Dimension);
+
+impl Visitor<'_> for QuantityVisitor {
+    type Value = f64;
+
+    fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0.expected())
+    }
+
+    fn visit_f64<E: de::Error>(self, v: f64) -> Result<f64, E> {
+        Ok(v)
+    }
+
+    fn visit_i64<E: de::Error>(self, v: i64) -> Result<f64, E> {
+        Ok(v as f64)
+    }
+
+    fn visit_u64<E: de::Error>(self, v: u64) -> Result<f64, E> {
+        Ok(v as f64)
+    }
+
+    fn visit_str<E: de::Error>(self, v: &str) -> Result<f64, E> {
+        parse_quantity(v, self.0).map_err(|e| E::custom(e.0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_units_with_and_without_space() {
+        assert_eq!("8MPa".parse::<Pressure>().unwrap().0, 8e6);
+        assert_eq!("8 MPa".parse::<Pressure>().unwrap().0, 8e6);
+        assert_eq!("500 kPa".parse::<Pressure>().unwrap().0, 5e5);
+        assert_eq!("1 GPa".parse::<Pressure>().unwrap().0, 1e9);
+        assert_eq!("0.5 m/s".parse::<Velocity>().unwrap().0, 0.5);
+        assert_eq!("7.5 m".parse::<Length>().unwrap().0, 7.5);
+        assert_eq!("500mm".parse::<Length>().unwrap().0, 0.5);
+        assert_eq!("5e-4s".parse::<Duration>().unwrap().0, 5e-4);
+        assert_eq!("0.5 ms".parse::<Duration>().unwrap().0, 5e-4);
+        assert_eq!("2600 kg/m3".parse::<Density>().unwrap().0, 2600.0);
+        assert_eq!("2600 kg/m^3".parse::<Density>().unwrap().0, 2600.0);
+        assert_eq!("-3".parse::<Length>().unwrap().0, -3.0);
+        assert_eq!(" 42 ".parse::<Pressure>().unwrap().0, 42.0);
+    }
+
+    #[test]
+    fn rejects_wrong_dimension_and_garbage_naming_the_units() {
+        let e = "8 m".parse::<Pressure>().unwrap_err().0;
+        assert!(e.contains("pressure") && e.contains("MPa"), "{e}");
+        let e = "0.5 m".parse::<Velocity>().unwrap_err().0;
+        assert!(e.contains("m/s"), "{e}");
+        assert!("8 mpa".parse::<Pressure>().is_err(), "units are case-sensitive");
+        assert!("MPa".parse::<Pressure>().is_err());
+        assert!("".parse::<Length>().is_err());
+        assert!("1e m".parse::<Length>().is_err());
+        assert!("nan".parse::<Length>().is_err());
+    }
+
+    #[test]
+    fn serde_accepts_numbers_and_strings_and_writes_si_numbers() {
+        #[derive(Deserialize, Serialize, PartialEq, Debug)]
+        struct T {
+            p: Pressure,
+            l: Length,
+        }
+        let t: T = toml::from_str("p = \"8 MPa\"\nl = 3").unwrap();
+        assert_eq!(
+            t,
+            T {
+                p: Pressure(8e6),
+                l: Length(3.0)
+            }
+        );
+        let text = toml::to_string(&t).unwrap();
+        assert_eq!(toml::from_str::<T>(&text).unwrap(), t);
+        let err = toml::from_str::<T>("p = \"8 m\"\nl = 3").unwrap_err().to_string();
+        assert!(err.contains("kPa"), "{err}");
+        let j: T = serde_json::from_str(r#"{"p": 1.5e6, "l": "2 cm"}"#).unwrap();
+        assert_eq!(
+            j,
+            T {
+                p: Pressure(1.5e6),
+                l: Length(0.02)
+            }
+        );
+    }
+}

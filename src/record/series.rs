@@ -1,0 +1,195 @@
+//! One row of the measured time series: the `/series` channel and `series.csv`.
+//!
+//! Field names carry their SI unit (`sigma1_pa`, `height_m`); fields without a suffix are
+//! dimensionless or counts. The JSON schema that Foxglove reads and the CSV header are built
+//! from one table ([`SERIES_FIELDS`]), and a test checks that the table matches the struct.
+
+use serde::{Deserialize, Deserializer, Serialize};
+
+/// Measurements at one step. Non-finite values (e.g. the inertial number before the
+/// compression starts, stored as NaN) are written as JSON `null` and read back as NaN.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct SeriesRow {
+    /// Simulated time (s).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub time_s: f64,
+    /// Step index.
+    pub step: u64,
+    /// Phase name ("compaction", "confinement", "compression").
+    pub phase: String,
+    /// Axial strain `dz / h0` (compressive positive; 0 before the compression).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub strain_axial: f64,
+    /// Axial stress on the top wall (Pa).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub sigma1_pa: f64,
+    /// Confining stress applied by the strips (Pa).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub sigma3_pa: f64,
+    /// Volumetric strain `dV / V0` (positive = dilation).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub volumetric_strain: f64,
+    /// Candidate contacts (disk-disk and disk-wall).
+    pub n_contacts: u64,
+    /// Force-carrying contacts.
+    pub n_force: u64,
+    /// Force-carrying, non-slipping contacts.
+    pub n_rolling: u64,
+    /// Force-carrying, slipping contacts.
+    pub n_sliding: u64,
+    /// Geometric contacts without force.
+    pub n_zero_force: u64,
+    /// Coordination number `Z = 2 N_c / N'`.
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub coordination: f64,
+    /// Fraction of free disks with fewer than two force-carrying contacts.
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub isolated_fraction: f64,
+    /// Mean overlap over `r_min`.
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub overlap_mean_rel: f64,
+    /// Maximum overlap over `r_min`.
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub overlap_max_rel: f64,
+    /// Mean solver iterations per step over the row's interval.
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub iterations: f64,
+    /// Largest iteration count of a step in the interval.
+    pub iterations_max: u64,
+    /// Kinetic energy of the free disks (J per metre of thickness).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub kinetic_energy_j: f64,
+    /// Inertial number.
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub inertial_number: f64,
+    /// Sample height between the walls (m).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub height_m: f64,
+    /// Sample width between the outer edges of the strips (m).
+    #[serde(deserialize_with = "f64_or_nan")]
+    pub width_m: f64,
+}
+
+/// JSON `null` (how serde_json writes NaN and infinities) becomes NaN.
+fn f64_or_nan<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+}
+
+/// Every field of [`SeriesRow`] in declaration order: (name, JSON type, description).
+pub const SERIES_FIELDS: &[(&str, &str, &str)] = &[
+    ("time_s", "number", "simulated time (s)"),
+    ("step", "integer", "step index"),
+    ("phase", "string", "phase: compaction, confinement or compression"),
+    (
+        "strain_axial",
+        "number",
+        "axial strain dz/h0 (compression positive)",
+    ),
+    ("sigma1_pa", "number", "axial stress on the top wall (Pa)"),
+    ("sigma3_pa", "number", "confining stress of the strips (Pa)"),
+    ("volumetric_strain", "number", "dV/V0, positive = dilation"),
+    ("n_contacts", "integer", "candidate contacts"),
+    ("n_force", "integer", "force-carrying contacts"),
+    ("n_rolling", "integer", "force-carrying non-slipping contacts"),
+    ("n_sliding", "integer", "force-carrying slipping contacts"),
+    ("n_zero_force", "integer", "geometric contacts without force"),
+    ("coordination", "number", "coordination number 2 Nc / N'"),
+    (
+        "isolated_fraction",
+        "number",
+        "fraction of free disks with < 2 force contacts",
+    ),
+    ("overlap_mean_rel", "number", "mean overlap / r_min"),
+    ("overlap_max_rel", "number", "maximum overlap / r_min"),
+    (
+        "iterations",
+        "number",
+        "mean solver iterations per step over the interval",
+    ),
+    (
+        "iterations_max",
+        "integer",
+        "largest solver iteration count of a step in the interval",
+    ),
+    (
+        "kinetic_energy_j",
+        "number",
+        "kinetic energy of the free disks (J/m)",
+    ),
+    ("inertial_number", "number", "inertial number I"),
+    ("height_m", "number", "sample height (m)"),
+    ("width_m", "number", "sample width (m)"),
+];
+
+/// The JSON schema of `/series` messages (Foxglove uses it to offer the fields in plots).
+pub fn series_json_schema() -> String {
+    let props: serde_json::Map<String, serde_json::Value> = SERIES_FIELDS
+        .iter()
+        .map(|(name, ty, desc)| {
+            // Numbers may be null: non-finite values have no JSON representation.
+            let ty = if *ty == "number" {
+                serde_json::json!(["number", "null"])
+            } else {
+                serde_json::json!(ty)
+            };
+            (
+                name.to_string(),
+                serde_json::json!({ "type": ty, "description": desc }),
+            )
+        })
+        .collect();
+    let names: Vec<&str> = SERIES_FIELDS.iter().map(|f| f.0).collect();
+    serde_json::json!({
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": "cdlab.SeriesRow",
+        "description": "Macroscopic measurements of a cdlab run at one step (SI units)",
+        "type": "object",
+        "properties": props,
+        "required": names,
+    })
+    .to_string()
+}
+
+/// The CSV header line (field names with their units, as in [`SERIES_FIELDS`]).
+pub fn csv_header() -> String {
+    let names: Vec<&str> = SERIES_FIELDS.iter().map(|f| f.0).collect();
+    names.join(",")
+}
+
+impl SeriesRow {
+    /// The row as one CSV line (no newline), in the order of [`csv_header`]. Floats use
+    /// Rust's shortest round-trip form, so the CSV holds the same bits as the MCAP.
+    pub fn csv_line(&self) -> String {
+        // The phase is the only text; quote it if it ever holds a comma or a quote.
+        let phase = if self.phase.contains([',', '"', '\n']) {
+            format!("\"{}\"", self.phase.replace('"', "\"\""))
+        } else {
+            self.phase.clone()
+        };
+        format!(
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            self.time_s,
+            self.step,
+            phase,
+            self.strain_axial,
+            self.sigma1_pa,
+            self.sigma3_pa,
+            self.volumetric_strain,
+            self.n_contacts,
+            self.n_force,
+            self.n_rolling,
+            self.n_sliding,
+            self.n_zero_force,
+            self.coordination,
+            self.isolated_fraction,
+            self.overlap_mean_rel,
+            self.overlap_max_rel,
+            self.iterations,
+            self.iterations_max,
+            self.kinetic_energy_j,
+            self.inertial_number,
+            self.height_m,
+            self.width_m,
+        )
+    }
+}

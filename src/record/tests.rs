@@ -1,0 +1,301 @@
+//! Tests of the records: write and read back, truncated files, foreign files.
+
+use std::path::PathBuf;
+
+use super::*;
+use crate::config::Config;
+
+/// A fresh directory under the system temp dir, removed when dropped.
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(name: &str) -> Self {
+        let p = std::env::temp_dir().join(format!("cdlab-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&p);
+        std::fs::create_dir_all(&p).unwrap();
+        TempDir(p)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn row(k: u64) -> SeriesRow {
+    let x = k as f64;
+    SeriesRow {
+        time_s: x * 5e-3,
+        step: k * 10,
+        phase: if k < 50 { "confinement" } else { "compression" }.into(),
+        strain_axial: x * 1e-4,
+        sigma1_pa: 8e6 + x * 1234.5678,
+        sigma3_pa: 8e6,
+        volumetric_strain: -x * 1e-5,
+        n_contacts: 2000 + k,
+        n_force: 1500 + k,
+        n_rolling: 1400,
+        n_sliding: 100 + k,
+        n_zero_force: 500,
+        coordination: 3.9 + x * 1e-3,
+        isolated_fraction: 0.1 / (1.0 + x),
+        overlap_mean_rel: 1e-4 * x.sin().abs(),
+        overlap_max_rel: 3e-3,
+        iterations: (100 + k % 7) as f64 + 0.25,
+        iterations_max: 200 + k % 5,
+        kinetic_energy_j: 1.0 / 3.0 * x,
+        inertial_number: 1e-4,
+        height_m: 97.0 - x * 1e-3,
+        width_m: 39.0 + x * 1e-4,
+    }
+}
+
+fn snapshot(k: usize, n: usize) -> Snapshot {
+    Snapshot {
+        time_s: k as f64,
+        strain: k as f64 * 0.01,
+        disks: (0..n)
+            .map(|i| {
+                let v = (i * 31 + k) as f64;
+                DiskRecord {
+                    x: v.sin(),
+                    y: v.cos(),
+                    theta: v * 0.1,
+                    vx: -v,
+                    vy: v * 1e-3,
+                    w: 0.5,
+                    r: 0.5 + (i % 4) as f64 * 0.5,
+                    dx: v * 1e-6,
+                    dy: -v * 1e-6,
+                }
+            })
+            .collect(),
+        contacts: (0..2 * n)
+            .map(|i| ContactRecord {
+                i: i as u32,
+                j: (i + 1) as u32,
+                nx: 0.6,
+                ny: -0.8,
+                f_n: 1e5 * i as f64,
+                f_t: -3e4,
+                class: (i % 4) as u8,
+            })
+            .collect(),
+    }
+}
+
+/// Writes a run with many chunks; returns (file length after each checkpoint, its step),
+/// the file length after the configuration, and the complete record.
+fn write_run(dir: &std::path::Path) -> (Vec<(u64, u64)>, u64, RunRecord) {
+    let config = Config::default();
+    let mut rec = Recorder::create(dir, &config).unwrap();
+    let len = || std::fs::metadata(dir.join(MCAP_FILE)).unwrap().len();
+    let first = len();
+    let mut marks = Vec::new();
+    let mut expected = RunRecord {
+        config_json: serde_json::to_string(&config).unwrap(),
+        version: env!("CARGO_PKG_VERSION").into(),
+        ..Default::default()
+    };
+    for k in 0..400 {
+        let r = row(k);
+        rec.series(&r).unwrap();
+        expected.series.push(r);
+        if k % 100 == 99 {
+            let s = snapshot(k as usize, 50);
+            rec.snapshot(&s).unwrap();
+            expected.snapshots.push(s);
+        }
+        if k % 40 == 39 {
+            let state: Vec<u8> = (0..1000u32).map(|b| (b * 7 + k as u32) as u8).collect();
+            rec.checkpoint(k * 10, k as f64 * 5e-3, &state).unwrap();
+            marks.push((len(), k * 10));
+            expected.last_checkpoint = Some((k * 10, state));
+        }
+    }
+    rec.finish().unwrap();
+    (marks, first, expected)
+}
+
+#[test]
+fn write_then_read_back_equal() {
+    let tmp = TempDir::new("roundtrip");
+    let (_, _, expected) = write_run(&tmp.0);
+    let run = read_run(&tmp.0).unwrap();
+    assert_eq!(run.truncated, None);
+    assert_eq!(run.series, expected.series);
+    assert_eq!(run.snapshots, expected.snapshots);
+    assert_eq!(run.last_checkpoint, expected.last_checkpoint);
+    assert_eq!(run.version, expected.version);
+    assert_eq!(run.config().unwrap(), Config::default());
+    // The file itself is a valid, complete MCAP with a summary (what Foxglove indexes).
+    let bytes = std::fs::read(tmp.0.join(MCAP_FILE)).unwrap();
+    let summary = mcap::Summary::read(&bytes).unwrap().expect("summary");
+    let topics: Vec<_> = summary.channels.values().map(|c| c.topic.clone()).collect();
+    for t in [TOPIC_CONFIG, TOPIC_SERIES, TOPIC_SNAPSHOT, TOPIC_CHECKPOINT] {
+        assert!(topics.iter().any(|x| x == t), "{t} missing from {topics:?}");
+    }
+    // The CSV holds the same rows, same bits.
+    let csv = std::fs::read_to_string(tmp.0.join(CSV_FILE)).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next().unwrap(), csv_header());
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len(), expected.series.len());
+    assert_eq!(rows[7], expected.series[7].csv_line());
+}
+
+#[test]
+fn truncated_file_is_read_up_to_its_last_complete_chunk() {
+    let tmp = TempDir::new("truncate");
+    let (marks, first, full) = write_run(&tmp.0);
+    let bytes = std::fs::read(tmp.0.join(MCAP_FILE)).unwrap();
+    let n = bytes.len() as u64;
+    // Evenly spread cuts, pseudo-random ones, the flush points themselves and the tail.
+    let mut cuts: Vec<u64> = (0..60).map(|k| k * n / 60).collect();
+    let mut s = 0x9e3779b97f4a7c15u64;
+    for _ in 0..40 {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        cuts.push(s % n);
+    }
+    cuts.extend(marks.iter().flat_map(|&(l, _)| [l - 1, l, l + 1]));
+    cuts.extend([0, 4, 8, 20, first - 1, first, n - 1, n - 8, n - 30]);
+    for early in [0, 4, 8, 20] {
+        std::fs::write(tmp.0.join("early.mcap"), &bytes[..early]).unwrap();
+        assert!(read_run(tmp.0.join("early.mcap")).is_err(), "cut at {early}");
+    }
+    let cut_path = tmp.0.join("cut.mcap");
+    for cut in cuts {
+        std::fs::write(&cut_path, &bytes[..cut as usize]).unwrap();
+        let result = read_run(&cut_path);
+        if cut < first {
+            // Cut inside the configuration's chunk (an error) or inside the message index
+            // that follows it (the configuration alone).
+            match result {
+                Err(e) => assert!(e.to_string().contains("cut.mcap"), "{e}"),
+                Ok(run) => assert!(run.series.is_empty() && run.truncated.is_some()),
+            }
+            continue;
+        }
+        let run = result.unwrap_or_else(|e| panic!("cut at {cut} of {n}: {e}"));
+        assert!(run.truncated.is_some(), "cut at {cut} of {n}");
+        assert_eq!(run.config().unwrap(), Config::default());
+        assert_eq!(run.series[..], full.series[..run.series.len()]);
+        assert_eq!(run.snapshots[..], full.snapshots[..run.snapshots.len()]);
+        // Every checkpoint flushed before the cut is there, with its series rows.
+        if let Some(&(_, step)) = marks.iter().rev().find(|(l, _)| *l <= cut) {
+            let (got, _) = run.last_checkpoint.as_ref().expect("checkpoint");
+            assert!(*got >= step, "cut at {cut}: checkpoint {got} < {step}");
+            assert!(run.series.last().unwrap().step >= step);
+        }
+        if let Some((step, state)) = &run.last_checkpoint {
+            assert_eq!(state.len(), 1000);
+            assert_eq!(state[0], (step / 10) as u8);
+        }
+    }
+}
+
+#[test]
+fn foreign_files_are_rejected_naming_the_file() {
+    let tmp = TempDir::new("foreign");
+    let text = tmp.0.join("notes.txt");
+    std::fs::write(&text, "just some text, not a run\n").unwrap();
+    let mut s = 12345u64;
+    let random: Vec<u8> = (0..4096)
+        .map(|_| {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 33) as u8
+        })
+        .collect();
+    let rnd = tmp.0.join("random.bin");
+    std::fs::write(&rnd, &random).unwrap();
+    let empty = tmp.0.join("empty.mcap");
+    std::fs::write(&empty, b"").unwrap();
+    // A valid MCAP that is not a cdlab run.
+    let other = tmp.0.join("other.mcap");
+    {
+        let mut w =
+            mcap::Writer::new(std::io::BufWriter::new(std::fs::File::create(&other).unwrap())).unwrap();
+        let ch = w.add_channel(0, "/imu", "json", &Default::default()).unwrap();
+        let header = mcap::records::MessageHeader {
+            channel_id: ch,
+            sequence: 0,
+            log_time: 1,
+            publish_time: 1,
+        };
+        w.write_to_known_channel(&header, b"{}").unwrap();
+        w.finish().unwrap();
+    }
+    for path in [&text, &rnd, &empty, &other, &tmp.0.join("missing.mcap")] {
+        let e = read_run(path).expect_err("foreign file").to_string();
+        let name = path.file_name().unwrap().to_str().unwrap();
+        assert!(e.contains(name), "{e}");
+    }
+    // Our own topic with a foreign schema is refused, not misread.
+    let clash = tmp.0.join("clash.mcap");
+    {
+        let mut w =
+            mcap::Writer::new(std::io::BufWriter::new(std::fs::File::create(&clash).unwrap())).unwrap();
+        let ch = w
+            .add_channel(0, TOPIC_CONFIG, "json", &Default::default())
+            .unwrap();
+        let header = mcap::records::MessageHeader {
+            channel_id: ch,
+            sequence: 0,
+            log_time: 0,
+            publish_time: 0,
+        };
+        w.write_to_known_channel(&header, b"{}").unwrap();
+        w.finish().unwrap();
+    }
+    let e = read_run(&clash).unwrap_err().to_string();
+    assert!(e.contains("clash.mcap") && e.contains(CONFIG_SCHEMA), "{e}");
+}
+
+#[test]
+fn series_table_matches_the_struct() {
+    let value = serde_json::to_value(row(3)).unwrap();
+    let obj = value.as_object().unwrap();
+    assert_eq!(obj.len(), SERIES_FIELDS.len());
+    // The CSV line, read through its header, gives the JSON values back.
+    let line = row(3).csv_line();
+    let cells: Vec<&str> = line.split(',').collect();
+    assert_eq!(cells.len(), SERIES_FIELDS.len());
+    for ((name, ty, _), cell) in SERIES_FIELDS.iter().zip(cells) {
+        let v = &obj[*name];
+        match *ty {
+            "string" => assert_eq!(v.as_str().unwrap(), cell, "{name}"),
+            "integer" => assert_eq!(v.as_u64().unwrap(), cell.parse::<u64>().unwrap()),
+            _ => assert_eq!(v.as_f64().unwrap(), cell.parse::<f64>().unwrap(), "{name}"),
+        }
+    }
+    let schema: serde_json::Value = serde_json::from_str(&series_json_schema()).unwrap();
+    assert_eq!(schema["properties"].as_object().unwrap().len(), obj.len());
+}
+
+#[test]
+fn non_finite_series_values_come_back_as_nan() {
+    let mut r = row(1);
+    r.inertial_number = f64::NAN;
+    r.sigma1_pa = f64::INFINITY;
+    let json = serde_json::to_string(&r).unwrap();
+    let back: SeriesRow = serde_json::from_str(&json).unwrap();
+    assert!(back.inertial_number.is_nan() && back.sigma1_pa.is_nan());
+    assert_eq!(back.height_m, r.height_m);
+}
+
+#[test]
+fn snapshot_codec_round_trips_and_rejects_bad_lengths() {
+    let s = snapshot(3, 17);
+    let b = s.encode().unwrap();
+    assert_eq!(b.len(), 24 + 72 * 17 + 41 * 34);
+    assert_eq!(Snapshot::decode(&b).unwrap(), s);
+    assert!(Snapshot::decode(&b[..b.len() - 1]).is_err());
+    assert!(Snapshot::decode(&b[..10]).is_err());
+    assert_eq!(ContactClass::from_u8(3), Some(ContactClass::Sliding));
+    assert_eq!(ContactClass::from_u8(4), None);
+}
