@@ -97,6 +97,8 @@ pub struct Reductions {
     pub overlap_max: f64,
     /// Kinetic energy of the free disks at the end (J/m).
     pub kinetic_energy: f64,
+    /// Translational part of the kinetic energy (J/m).
+    pub translational_energy: f64,
     /// Total mass of the free disks (kg/m), to turn the kinetic energy into an RMS velocity.
     pub free_mass: f64,
     /// Mean centre x of the left and right strips (m); NaN without strips.
@@ -199,6 +201,7 @@ impl Accumulator {
             1.0 - connected as f64 / free.len() as f64
         };
         r.kinetic_energy = d.kinetic_energy();
+        r.translational_energy = d.translational_energy();
         r.free_mass = free.iter().map(|&k| d.mass[k]).sum();
         let mut sx = [0.0f64; 2];
         let mut cnt = [0u32; 2];

@@ -103,7 +103,7 @@ impl Default for Solver {
     fn default() -> Self {
         Solver {
             dt: Duration(5e-4),
-            theta: 0.5,
+            theta: 1.0,
             tol: 1e-4,
             max_iter: 1000,
             method: Method::ColoredGs,

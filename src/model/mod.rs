@@ -112,7 +112,15 @@ impl Disks {
         self.spin[k] = 0.0;
     }
 
-    /// Kinetic energy of the free disks (J/m).
+    /// Translational kinetic energy of the free disks (J/m).
+    pub fn translational_energy(&self) -> f64 {
+        (0..self.len())
+            .filter(|&k| self.kind[k] == BodyKind::Free)
+            .map(|k| 0.5 * self.mass[k] * self.vel[k].length_squared())
+            .sum()
+    }
+
+    /// Kinetic energy of the free disks, translation and spin (J/m).
     pub fn kinetic_energy(&self) -> f64 {
         (0..self.len())
             .filter(|&k| self.kind[k] == BodyKind::Free)

@@ -19,8 +19,10 @@ use crate::model::Scene;
 /// When a phase counts as settled (stated in the README; recorded with each phase end).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Equilibrium {
-    /// Threshold on the kinetic ratio `K / (sigma A)`: the kinetic energy of the free
-    /// disks over the phase's applied stress times the total disk area (dimensionless).
+    /// Threshold on the kinetic ratio `K / (sigma A)`: the translational kinetic energy of
+    /// the free disks over the phase's applied stress times the total disk area
+    /// (dimensionless). Spin is left out: a rattler spins on untouched forever without
+    /// doing work on the sample.
     pub kinetic_ratio: f64,
     /// Relative imbalance between the force the contacts exert on a force-driven wall and
     /// the force applied to it, `|F_contacts - F_applied| / F_applied`, averaged over a check
@@ -98,7 +100,7 @@ impl ProtocolParams {
             mu_compaction: 0.0,
             step: StepParams {
                 dt: 5e-4,
-                theta: 0.5,
+                theta: 1.0,
                 alert: 0.05,
                 overlap_limit: 0.05,
                 solver: SolverParams {
