@@ -18,6 +18,7 @@ pub mod cli;
 pub mod contact;
 pub mod engine;
 pub mod error;
+pub mod gpu;
 pub mod model;
 pub mod solver;
 

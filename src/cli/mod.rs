@@ -1,6 +1,8 @@
 //! The `cdlab` command line. Each subcommand lives in its own file with an `Args` struct
 //! (clap) and a `run` function; this file only dispatches.
 
+pub mod info;
+
 use clap::{Parser, Subcommand};
 
 /// cdlab: contact dynamics laboratory for granular materials of rigid frictional disks.
@@ -17,6 +19,8 @@ pub struct Cli {
 pub enum Command {
     /// Print the version and build information.
     Version,
+    /// List the GPU adapters and their limits.
+    Info(info::Args),
 }
 
 /// Parses the command line, runs the subcommand and returns the process exit code.
@@ -27,6 +31,7 @@ pub fn main() -> i32 {
             println!("cdlab {}", env!("CARGO_PKG_VERSION"));
             Ok(())
         }
+        Command::Info(args) => info::run(&args),
     };
     match result {
         Ok(()) => 0,
