@@ -6,7 +6,13 @@
 //! - [`pipeline`]: shader composition and the compute pipelines;
 //! - [`backend`]: [`GpuBackend`], the [`crate::backend::Backend`] the protocol drives.
 
+pub mod backend;
+pub mod buffers;
 pub mod device;
+pub mod pipeline;
+mod step;
+
+pub use backend::{GpuBackend, GpuCounters};
 
 /// WGSL shared by every phase (structs, bindings, contact frame, local solve).
 pub const COMMON_WGSL: &str = include_str!("../../shaders/common.wgsl");
@@ -14,12 +20,18 @@ pub const COMMON_WGSL: &str = include_str!("../../shaders/common.wgsl");
 /// The phase shaders, by file name (one per phase, each composed with [`COMMON_WGSL`]).
 pub const SHADERS: &[(&str, &str)] = &[
     ("scan.wgsl", include_str!("../../shaders/scan.wgsl")),
-    ("integrate_free.wgsl", include_str!("../../shaders/integrate_free.wgsl")),
+    (
+        "integrate_free.wgsl",
+        include_str!("../../shaders/integrate_free.wgsl"),
+    ),
     ("grid.wgsl", include_str!("../../shaders/grid.wgsl")),
     ("detect.wgsl", include_str!("../../shaders/detect.wgsl")),
     ("color.wgsl", include_str!("../../shaders/color.wgsl")),
     ("solve.wgsl", include_str!("../../shaders/solve.wgsl")),
-    ("integrate.wgsl", include_str!("../../shaders/integrate.wgsl")),
+    (
+        "integrate.wgsl",
+        include_str!("../../shaders/integrate.wgsl"),
+    ),
     ("reduce.wgsl", include_str!("../../shaders/reduce.wgsl")),
 ];
 
