@@ -263,8 +263,8 @@ impl GpuBackend {
         let walls: Vec<GpuWall> = s.walls.iter().map(|w| gpu_wall(w, c)).collect();
         let nb = s.n_bodies();
         let mut vel = vec![[0.0f32; 4]; 4 * nb];
-        for k in 0..d.len() {
-            vel[k] = [d.vel[k].x as f32, d.vel[k].y as f32, d.spin[k] as f32, 0.0];
+        for (k, v) in vel.iter_mut().take(d.len()).enumerate() {
+            *v = [d.vel[k].x as f32, d.vel[k].y as f32, d.spin[k] as f32, 0.0];
         }
         for (w, wall) in s.walls.iter().enumerate() {
             vel[d.len() + w] = [wall.vel.x as f32, wall.vel.y as f32, 0.0, 0.0];

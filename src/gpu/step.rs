@@ -12,7 +12,7 @@
 //! At the end of a run, one more submission reduces counts, overlaps and energies.
 
 use super::backend::GpuBackend;
-use super::buffers::{ARGS_STRIDE, Capacity, status};
+use super::buffers::{ARGS_STRIDE, status};
 use crate::backend::{Loading, Reductions};
 use crate::error::{Error, Result};
 use crate::solver::Method;
@@ -330,7 +330,7 @@ impl GpuBackend {
         };
         red.overlap_max = f[r + 8] as f64;
         red.kinetic_energy = f[r + 9] as f64;
-        let has = |s: i8| loading.strip.iter().any(|&x| x == s);
+        let has = |s: i8| loading.strip.contains(&s);
         red.strip_mean_x = [(-1i8, 10usize, 12usize), (1, 11, 13)].map(|(s, sx, sc)| {
             if has(s) && f[r + sc] > 0.0 {
                 f[r + sx] as f64 / f[r + sc] as f64 + self.centre.x
@@ -341,7 +341,3 @@ impl GpuBackend {
         Ok(red)
     }
 }
-
-/// Keeps `Capacity` in this module's public vocabulary for the docs.
-#[allow(dead_code)]
-type _Cap = Capacity;
