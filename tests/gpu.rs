@@ -7,6 +7,18 @@
 
 use std::path::Path;
 
+mod common;
+#[path = "gpu_support/mod.rs"]
+mod gpu_support;
+
+use cdlab::backend::{Backend, CpuBackend, Loading};
+use cdlab::engine::CpuEngine;
+use cdlab::model::Scene;
+use cdlab::solver::Method;
+use common::*;
+use glam::DVec2;
+use gpu_support::*;
+
 /// Every WGSL file in `shaders/` parses and validates through naga, composed the way the
 /// pipelines compose it (`common.wgsl` first). Iterates the directory, so a new shader is
 /// covered without touching this test.
@@ -39,49 +51,6 @@ fn every_shader_parses_and_validates() {
         checked += 1;
     }
     assert!(checked >= 8, "only {checked} shaders found");
-}
-
-mod common;
-
-use cdlab::backend::{Backend, CpuBackend, Loading};
-use cdlab::engine::{CpuEngine, StepParams};
-use cdlab::gpu::GpuBackend;
-use cdlab::model::Scene;
-use cdlab::solver::Method;
-use common::*;
-use glam::DVec2;
-
-/// A GPU backend on `scene`, or `None` with a visible SKIPPED line when no adapter exists.
-/// With `CDLAB_REQUIRE_GPU=1` a missing adapter panics instead (CI sets it).
-fn gpu_or_skip(test: &str, scene: &Scene, params: StepParams) -> Option<GpuBackend> {
-    match GpuBackend::new(scene.clone(), params) {
-        Ok(b) => Some(b),
-        Err(cdlab::Error::Gpu(msg)) if std::env::var("CDLAB_REQUIRE_GPU").as_deref() != Ok("1") => {
-            // Written to the process's stderr directly, past the test harness's capture, so
-            // the skip shows in a plain `cargo test`.
-            let line = format!("SKIPPED (no GPU adapter): {test}: {msg}\n");
-            let _ = std::io::Write::write_all(&mut std::io::stderr(), line.as_bytes());
-            None
-        }
-        Err(e) => panic!("{test}: {e}"),
-    }
-}
-
-/// Tight solver settings for the GPU: f32 impulses stop changing at a relative 1e-7, so a
-/// tolerance of 1e-6 is the tightest the convergence test can certify; iterations are
-/// checked one by one so the GPU stops at the same iteration as a converged CPU run would.
-fn gpu_params(method: Method) -> StepParams {
-    let mut p = tight(method);
-    p.solver.tol = 1e-6;
-    p.solver.max_iter = 5000;
-    p
-}
-
-/// Sorted (i, partner) pairs.
-fn pairs(it: impl Iterator<Item = (u32, u32)>) -> Vec<(u32, u32)> {
-    let mut v: Vec<_> = it.collect();
-    v.sort_unstable();
-    v
 }
 
 fn compare_contact_sets(test: &str, s: &Scene) {
@@ -123,28 +92,6 @@ fn gpu_contact_set_equals_cpu_on_a_random_cloud() {
     compare_contact_sets("random cloud", &s);
 }
 
-/// Near-touching disks on a jittered square lattice with random velocities (see the
-/// contact-set test), in a box.
-fn lattice(n: usize, seed: u64) -> Scene {
-    let mut rng = Rng(seed);
-    let mut s = scene(0.3);
-    for a in 0..n {
-        for b in 0..n {
-            let r = 1.0 - 0.01 * rng.uniform();
-            let p = DVec2::new(
-                2.0 * a as f64 + rng.range(-0.004, 0.004),
-                2.0 * b as f64 + rng.range(-0.004, 0.004),
-            );
-            let k = s.disks.push(p, r, RHO).unwrap();
-            s.disks.vel[k] = DVec2::new(rng.range(-0.1, 0.1), rng.range(-0.1, 0.1));
-            s.disks.spin[k] = rng.range(-0.1, 0.1);
-        }
-    }
-    let side = 2.0 * n as f64 - 1.0;
-    add_box(&mut s, -1.005, side, -1.0, side);
-    s
-}
-
 #[test]
 fn gpu_contact_set_equals_cpu_on_a_dense_packing() {
     // A hexagonal packing of equal disks in contact (every pair at gap 0 or 2 r (sqrt3-1)),
@@ -155,48 +102,6 @@ fn gpu_contact_set_equals_cpu_on_a_dense_packing() {
     }
     s.disks.set_kind(20, cdlab::model::BodyKind::Fixed);
     compare_contact_sets("dense packing", &s);
-}
-
-/// A hexagonal packing of `rows` x `cols` equal disks (radius 0.5) in contact, on a floor.
-fn hex(rows: usize, cols: usize) -> Scene {
-    let mut s = scene(0.3);
-    let r = 0.5;
-    for row in 0..rows {
-        for col in 0..cols {
-            let x = 2.0 * r * col as f64 + r * (row % 2) as f64;
-            let y = row as f64 * r * 3f64.sqrt();
-            s.disks.push(DVec2::new(x, y), r, RHO).unwrap();
-        }
-    }
-    s.walls.push(floor_at(-r));
-    s
-}
-
-fn floor_at(y: f64) -> cdlab::model::Wall {
-    cdlab::model::Wall::fixed(DVec2::new(0.0, y), DVec2::Y)
-}
-
-#[test]
-fn gpu_head_on_inelastic_collision_gives_the_mean_velocity() {
-    for method in [Method::ColoredGs, Method::Jacobi] {
-        let mut s = scene(0.0);
-        s.disks.push(DVec2::new(-1.0, 0.0), 1.0, RHO).unwrap();
-        s.disks.push(DVec2::new(1.0, 0.0), 1.0, RHO).unwrap();
-        s.disks.vel[0] = DVec2::new(2.0, 0.0);
-        s.disks.vel[1] = DVec2::new(-1.0, 0.0);
-        let Some(mut g) = gpu_or_skip("head-on", &s, gpu_params(method)) else {
-            return;
-        };
-        g.run(1, &Loading::default()).unwrap();
-        let out = g.scene().unwrap();
-        // Expected 0.5 m/s; f32 arithmetic on O(1) velocities: a few ulp (6e-8) plus the
-        // solver's 1e-6 relative stop.
-        for k in 0..2 {
-            let v = out.disks.vel[k];
-            assert!((v.x - 0.5).abs() < 1e-5, "{method:?}: v{k} = {v}");
-            assert_eq!(v.y, 0.0);
-        }
-    }
 }
 
 #[test]
@@ -268,94 +173,6 @@ fn step_matches_cpu(method: Method) {
         r_scale,
         worst_v,
         v_scale
-    );
-}
-
-const G: f64 = 9.81;
-
-#[test]
-fn gpu_loaded_column_carries_the_top_force_through_every_contact() {
-    let (n, r, force) = (5usize, 1.0, 2.0e6);
-    let mut s = scene(0.3);
-    s.gravity = DVec2::new(0.0, -G);
-    s.walls.push(floor());
-    s.walls.push(cdlab::model::Wall {
-        drive: cdlab::model::WallDrive::Force { mass: 1.0e4, force },
-        ..cdlab::model::Wall::fixed(DVec2::new(0.0, 2.0 * r * n as f64), -DVec2::Y)
-    });
-    for k in 0..n {
-        s.disks
-            .push(DVec2::new(0.0, r + 2.0 * r * k as f64), r, RHO)
-            .unwrap();
-    }
-    let weight = s.disks.mass[0] * G;
-    let Some(mut g) = gpu_or_skip("column", &s, gpu_params(Method::ColoredGs)) else {
-        return;
-    };
-    let red = g.run(20, &Loading::default()).unwrap();
-    let dt = g.params().dt;
-    let contacts = g.contacts().unwrap();
-    let force_of = |i: u32, j: u32| {
-        contacts
-            .iter()
-            .find(|c| (c.i, c.j) == (i, j))
-            .unwrap_or_else(|| panic!("no contact {i}-{j}"))
-            .f_n
-    };
-    // Expected: F plus the weights above each contact. Tolerance 1e-4 F: f32 impulses
-    // (6e-8) through a chain of 6 contacts solved to a relative change of 1e-6.
-    let tol = 1e-4 * force;
-    let top = force_of(n as u32 - 1, n as u32 + 1);
-    assert!((top - force).abs() < tol, "top {top}");
-    for k in 0..n - 1 {
-        let expected = force + weight * (n - 1 - k) as f64;
-        let got = force_of(k as u32, k as u32 + 1);
-        assert!(
-            (got - expected).abs() < tol,
-            "contact {k}: {got}, expected {expected}"
-        );
-    }
-    let expected = force + weight * n as f64;
-    let got = force_of(0, n as u32);
-    assert!(
-        (got - expected).abs() < tol,
-        "floor {got}, expected {expected}"
-    );
-    // The floor's reaction in the reductions (last step's impulse equals the average once
-    // the column is at rest; the first steps settle, hence the looser 1e-2).
-    let _ = dt;
-    assert!(
-        (red.wall_force[0].y + expected).abs() < 1e-2 * expected,
-        "floor reaction {}",
-        red.wall_force[0].y
-    );
-}
-
-#[test]
-fn gpu_disk_on_an_incline_rolls_at_two_thirds_g_sin_a() {
-    let (mu, r, steps) = (0.3, 0.8, 200u32);
-    let a = 0.6f64.atan();
-    let mut s = scene(mu);
-    s.walls.push(floor());
-    s.gravity = G * DVec2::new(a.sin(), -a.cos());
-    s.disks.push(DVec2::new(0.0, r), r, RHO).unwrap();
-    let Some(mut g) = gpu_or_skip("incline", &s, gpu_params(Method::ColoredGs)) else {
-        return;
-    };
-    g.run(steps, &Loading::default()).unwrap();
-    let out = g.scene().unwrap();
-    let t = steps as f64 * g.params().dt;
-    let acc = out.disks.vel[0].x / t;
-    let alpha = out.disks.spin[0] / t;
-    let expected = 2.0 / 3.0 * G * a.sin();
-    // f32 velocity summed over 200 steps: 200 x 6e-8 relative, plus the solver's 1e-6.
-    assert!(
-        (acc - expected).abs() < 1e-4 * expected,
-        "a = {acc}, expected {expected}"
-    );
-    assert!(
-        (alpha + expected / r).abs() < 1e-4 * expected / r,
-        "alpha = {alpha}"
     );
 }
 
@@ -480,7 +297,9 @@ fn gpu_grows_an_overflowing_slot_list_and_redoes_the_step() {
     for k in 0..40 {
         let a = k as f64 * std::f64::consts::TAU / 40.0;
         let d = big + small + 0.002;
-        s.disks.push(d * DVec2::new(a.cos(), a.sin()), small, RHO).unwrap();
+        s.disks
+            .push(d * DVec2::new(a.cos(), a.sin()), small, RHO)
+            .unwrap();
         s.disks.vel[k + 1] = -0.1 * DVec2::new(a.cos(), a.sin());
     }
     let params = gpu_params(Method::ColoredGs);

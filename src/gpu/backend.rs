@@ -37,6 +37,13 @@ pub struct GpuCounters {
 }
 
 /// The GPU backend (f32 kernels, positions relative to the sample centre).
+///
+/// Differences from the CPU backend, by design: `Method::Gs` (sequential order) has no
+/// parallel form and runs as colored Gauss-Seidel; the coloring is Jones-Plassmann-Luby
+/// (more colors than the CPU's greedy one, not seeded with the last step's colors);
+/// convergence is checked every [`GpuBackend::conv_every`] iterations, so iteration counts
+/// are multiples of it (set it to 1 for CPU-comparable counts); a capacity growth drops
+/// nothing (the step is redone) and keeps the warm start.
 pub struct GpuBackend {
     pub(super) gpu: GpuDevice,
     pub(super) pipes: Pipelines,
