@@ -11,6 +11,7 @@
 //! - [`protocol`]: the biaxial test's phases (preparation, confinement, compression);
 //! - [`sample`]: grain sizes and geometric deposition;
 //! - [`measure`]: series rows and derived strength;
+//! - [`gpu`]: the GPU backend (wgpu, WGSL shaders in `shaders/`);
 //! - [`backend`]: the interface the protocol drives, and the CPU backend;
 //! - [`engine`]: the CPU reference time stepper;
 //! - [`solver`]: local law, coloring, Gauss-Seidel and Jacobi sweeps;
@@ -24,6 +25,7 @@ pub mod config;
 pub mod contact;
 pub mod engine;
 pub mod error;
+pub mod gpu;
 pub mod measure;
 pub mod model;
 pub mod protocol;

@@ -33,16 +33,21 @@ pub struct Loading {
 }
 
 impl Loading {
-    /// Sets the strip forces of `scene` for the current height: each strip carries
-    /// `sigma3 * H` (N/m), shared among its disks in proportion to their radius (so that
-    /// large and small disks carry the same pressure over their diameter), applied at the
-    /// centres, horizontally, towards the sample. Forces of other disks are left alone.
-    pub fn apply(&self, scene: &mut Scene) {
+    /// Sets the force of every force-driven wall listed in `wall_forces`.
+    pub fn apply_wall_forces(&self, scene: &mut Scene) {
         for &(w, f) in &self.wall_forces {
             if let crate::model::WallDrive::Force { force, .. } = &mut scene.walls[w].drive {
                 *force = f;
             }
         }
+    }
+
+    /// Sets the strip forces of `scene` for the current height: each strip carries
+    /// `sigma3 * H` (N/m), shared among its disks in proportion to their radius (so that
+    /// large and small disks carry the same pressure over their diameter), applied at the
+    /// centres, horizontally, towards the sample. Forces of other disks are left alone.
+    pub fn apply(&self, scene: &mut Scene) {
+        self.apply_wall_forces(scene);
         if self.strip.is_empty() || self.sigma3 == 0.0 {
             return;
         }

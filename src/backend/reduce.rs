@@ -99,8 +99,6 @@ pub struct Reductions {
     pub kinetic_energy: f64,
     /// Translational part of the kinetic energy (J/m).
     pub translational_energy: f64,
-    /// Total mass of the free disks (kg/m), to turn the kinetic energy into an RMS velocity.
-    pub free_mass: f64,
     /// Mean centre x of the left and right strips (m); NaN without strips.
     pub strip_mean_x: [f64; 2],
     /// Solver iterations summed over the run's steps.
@@ -202,7 +200,6 @@ impl Accumulator {
         };
         r.kinetic_energy = d.kinetic_energy();
         r.translational_energy = d.translational_energy();
-        r.free_mass = free.iter().map(|&k| d.mass[k]).sum();
         let mut sx = [0.0f64; 2];
         let mut cnt = [0u32; 2];
         for (k, &s) in loading.strip.iter().enumerate() {

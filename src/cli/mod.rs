@@ -2,6 +2,7 @@
 //! (clap) and a `run` function; this file only dispatches.
 
 pub mod config;
+pub mod info;
 
 use clap::{Parser, Subcommand};
 
@@ -21,6 +22,8 @@ pub enum Command {
     Version,
     /// Print the default configuration or check a configuration file.
     Config(config::Args),
+    /// List the GPU adapters and their limits.
+    Info(info::Args),
 }
 
 /// Parses the command line, runs the subcommand and returns the process exit code.
@@ -32,6 +35,7 @@ pub fn main() -> i32 {
             Ok(())
         }
         Command::Config(args) => config::run(&args),
+        Command::Info(args) => info::run(&args),
     };
     match result {
         Ok(()) => 0,

@@ -1,0 +1,161 @@
+// Shared declarations for every phase: the binding table, the records (identical to the
+// #[repr(C)] Pod structs in src/gpu/buffers.rs), the contact frame and the local
+// Signorini-Coulomb solution (CPU twins: src/contact/mod.rs, src/solver/law.rs).
+//
+// All kernels share one bind group layout so that a single bind group serves the whole
+// step. Integer scratch lives in one atomic u32 buffer (`ints`) and float scratch in one
+// f32 buffer (`floats`), cut into regions whose offsets come from `sim` (recomputed by the
+// host whenever a capacity grows): this keeps the layout at 6 storage buffers, under the
+// WebGPU default of 8 per stage.
+
+const WG: u32 = 64u;
+const UNSET: u32 = 0xffffffffu;
+const NOT_GLUED: u32 = 0xffffffffu;
+const KIND_FREE: u32 = 0u;
+const KIND_KINEMATIC: u32 = 1u;
+
+// Status words (ints[o_status + k]) read back once per step after detection and coloring.
+const ST_CONTACTS: u32 = 0u;      // contacts found (may exceed the capacity)
+const ST_SLOTS_NEED: u32 = 1u;    // largest per-disk contact count (may exceed k_slots)
+const ST_COLORS: u32 = 3u;        // colors used
+const ST_OVERLAP: u32 = 4u;       // largest overlap, f32 bits (positive floats sort as u32)
+const ST_ROUNDS: u32 = 5u;        // coloring rounds
+const ST_CELLS_NEED: u32 = 6u;    // grid cells wanted
+const ST_WORDS: u32 = 16u;        // status words; color offsets follow them
+
+struct Sim {
+    n_disks: u32, n_walls: u32, n_bodies: u32, k_slots: u32,
+    cap_contacts: u32, cap_cells: u32, max_colors: u32, strips: u32,
+    top: u32, bottom: u32, o_cell_start: u32, o_cell_fill: u32,
+    o_items: u32, o_cell_of: u32, o_dcount: u32, o_slots: u32,
+    o_inc_count: u32, o_inc_fill: u32, o_inc_list: u32, o_status: u32,
+    o_color_count: u32, o_color_fill: u32, o_order: u32, o_per_disk: u32,
+    f_d2: u32, f_r2: u32, f_fresh: u32, f_wall: u32,
+    f_red: u32, f_grid: u32, f_conv: u32, jacobi: u32,
+    dt: f32, theta: f32, alert: f32, r_max: f32,
+    gx: f32, gy: f32, mu_disk: f32, mu_wall: f32,
+    e_n: f32, e_t: f32, sigma3: f32, relax: f32,
+    strip_sum_r0: f32, strip_sum_r1: f32, gap_tol: f32, _pad: f32,
+}
+
+// Per-dispatch arguments (a region to scan, a color to sweep), bound at a dynamic offset.
+struct Args { a: u32, b: u32, c: u32, d: u32 }
+
+struct Disk {
+    x: f32, y: f32, theta: f32, radius: f32,
+    inv_mass: f32, inv_inertia: f32, mass: f32, kind: u32,
+    glued: u32, strip: i32, fx: f32, fy: f32,
+    torque: f32, _p0: f32, _p1: f32, _p2: f32,
+}
+
+// A plane wall; its velocity is vel[n_disks + w] (generalized body numbering).
+struct Wall {
+    nx: f32, ny: f32, px: f32, py: f32,
+    inv_mass: f32, force: f32, is_active: u32, forced: u32,
+}
+
+// Same fields and meaning as crate::contact::Contact (f32).
+struct Contact {
+    i: u32, j: u32, disk_j: u32, color: u32,
+    nx: f32, ny: f32, gap: f32, ri: f32,
+    rj: f32, mi: f32, mj: f32, ma: f32,
+    ax: f32, ay: f32, ki: f32, kj: f32,
+    wnn: f32, wtt: f32, wnt: f32, mu: f32,
+    un0: f32, ut0: f32, bias_n: f32, bias_t: f32,
+    rn: f32, rt: f32, _p0: f32, _p1: f32,
+}
+
+@group(0) @binding(0) var<uniform> sim: Sim;
+@group(0) @binding(1) var<storage, read_write> disks: array<Disk>;
+@group(0) @binding(2) var<storage, read_write> walls: array<Wall>;
+// Generalized velocities (vx, vy, spin, 0), four regions of n_bodies: 0 state (end of
+// step), 1 start of step, 2 free, 3 current iterate.
+@group(0) @binding(3) var<storage, read_write> vel: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read_write> ints: array<atomic<u32>>;
+@group(0) @binding(5) var<storage, read_write> contacts: array<Contact>;
+@group(0) @binding(6) var<storage, read_write> floats: array<f32>;
+// Previous step's contacts for the warm start: offsets per disk (n_disks + 1), then
+// records (disk_j, rn bits, rt bits) in key order.
+@group(0) @binding(7) var<storage, read_write> prev: array<u32>;
+@group(1) @binding(0) var<uniform> args: Args;
+
+fn ld(k: u32) -> u32 { return atomicLoad(&ints[k]); }
+fn st(k: u32, v: u32) { atomicStore(&ints[k], v); }
+fn n_contacts() -> u32 { return min(ld(sim.o_status + ST_CONTACTS), sim.cap_contacts); }
+fn vel_at(region: u32, b: u32) -> vec4<f32> { return vel[region * sim.n_bodies + b]; }
+fn set_vel(region: u32, b: u32, v: vec4<f32>) { vel[region * sim.n_bodies + b] = v; }
+
+// Relative velocity (U_n, U_t) of the contact points for body velocities vi, vj.
+fn relative_velocity(c: Contact, vi: vec4<f32>, vj: vec4<f32>) -> vec2<f32> {
+    let dx = vi.x - vj.x;
+    let dy = vi.y - vj.y;
+    let un = dx * c.nx + dy * c.ny;
+    let ut = dx * c.ny - dy * c.nx + vi.z * c.ri + vj.z * c.rj;
+    return vec2<f32>(un, ut);
+}
+
+// Velocity change of body i for impulse increments (drn, drt).
+fn dv_i(c: Contact, drn: f32, drt: f32) -> vec4<f32> {
+    let px = drn * c.nx + drt * c.ny;
+    let py = drn * c.ny - drt * c.nx;
+    return vec4<f32>(c.mi * px, c.mi * py, c.ki * drt, 0.0);
+}
+
+// Velocity change of body j for impulse increments (drn, drt) (it receives -P).
+fn dv_j(c: Contact, drn: f32, drt: f32) -> vec4<f32> {
+    let px = drn * c.nx + drt * c.ny;
+    let py = drn * c.ny - drt * c.nx;
+    let pa = c.ma * (px * c.ax + py * c.ay);
+    return vec4<f32>(-(c.mj * px + pa * c.ax), -(c.mj * py + pa * c.ay), c.kj * drt, 0.0);
+}
+
+// Kinematic and fixed bodies are never written: this is what lets one color share them.
+fn moves_j(c: Contact) -> bool { return c.mj != 0.0 || c.ma != 0.0 || c.kj != 0.0; }
+fn moves_i(c: Contact) -> bool { return c.mi != 0.0 || c.ki != 0.0; }
+
+// Exact local solution with a diagonal Delassus block (every disk-disk and disk-plane
+// contact): R_n = max(0, -ufn / W_nn), R_t = clamp(-uft / W_tt, -mu R_n, mu R_n).
+fn solve_diagonal(wnn: f32, wtt: f32, ufn: f32, uft: f32, mu: f32) -> vec2<f32> {
+    var rn = 0.0;
+    if ufn < 0.0 { rn = -ufn / wnn; }
+    let lim = mu * rn;
+    var rt = 0.0;
+    if wtt > 0.0 { rt = clamp(-uft / wtt, -lim, lim); }
+    return vec2<f32>(rn, rt);
+}
+
+// Exact local solution for a full 2x2 block (a disk glued to a force-driven wall touching
+// a disk obliquely), by cases: separation, stick, slide either way (CPU: law::solve_block).
+fn solve_block(wnn: f32, wtt: f32, wnt: f32, ufn: f32, uft: f32, mu: f32) -> vec2<f32> {
+    if ufn >= 0.0 { return vec2<f32>(0.0, 0.0); }
+    let det = wnn * wtt - wnt * wnt;
+    if det > 0.0 {
+        let rn = (-ufn * wtt + uft * wnt) / det;
+        let rt = (-uft * wnn + ufn * wnt) / det;
+        if rn >= 0.0 && abs(rt) <= mu * rn { return vec2<f32>(rn, rt); }
+    }
+    var best = vec2<f32>(0.0, 0.0);
+    for (var k = 0; k < 2; k++) {
+        let s = select(-1.0, 1.0, k == 0);
+        let denom = wnn - s * mu * wnt;
+        if denom <= 0.0 { continue; }
+        let rn = -ufn / denom;
+        let ut = uft + (wnt - s * mu * wtt) * rn;
+        if rn >= 0.0 && ut * s >= 0.0 { return vec2<f32>(rn, -s * mu * rn); }
+        best = vec2<f32>(rn, -s * mu * rn);
+    }
+    return best;
+}
+
+fn solve_local(c: Contact, ufn: f32, uft: f32) -> vec2<f32> {
+    if c.wnt == 0.0 { return solve_diagonal(c.wnn, c.wtt, ufn, uft, c.mu); }
+    return solve_block(c.wnn, c.wtt, c.wnt, ufn, uft, c.mu);
+}
+
+// The new local impulses of contact c from the current velocities (its own removed).
+fn local_update(c: Contact, vi: vec4<f32>, vj: vec4<f32>) -> vec2<f32> {
+    let u = relative_velocity(c, vi, vj);
+    let ufn = u.x - c.wnn * c.rn - c.wnt * c.rt + c.bias_n;
+    let uft = u.y - c.wnt * c.rn - c.wtt * c.rt + c.bias_t;
+    return solve_local(c, ufn, uft);
+}

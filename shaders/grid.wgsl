@@ -1,0 +1,93 @@
+// Phase 2: the uniform cell grid (CPU twin: CellGrid::build): bounds, cell count,
+// prefix sum (scan.wgsl), scatter. The order of disks inside a cell is not deterministic
+// here (atomics), which is harmless: detection sorts each disk's partners.
+
+var<workgroup> lo_x: array<f32, 256>;
+var<workgroup> lo_y: array<f32, 256>;
+var<workgroup> hi_x: array<f32, 256>;
+var<workgroup> hi_y: array<f32, 256>;
+
+// Bounding box of the centres and the grid built on it, written to floats[f_grid..]:
+// origin x, y, cell side, nx, ny (bits). Same sizing rule as the CPU: a cell at least the
+// largest diameter plus the alert distance, enlarged so the cells stay within capacity.
+@compute @workgroup_size(256)
+fn grid_bounds(@builtin(local_invocation_index) t: u32) {
+    var lx = 3.0e38;
+    var ly = 3.0e38;
+    var hx = -3.0e38;
+    var hy = -3.0e38;
+    for (var k = t; k < sim.n_disks; k += 256u) {
+        lx = min(lx, disks[k].x);
+        ly = min(ly, disks[k].y);
+        hx = max(hx, disks[k].x);
+        hy = max(hy, disks[k].y);
+    }
+    lo_x[t] = lx; lo_y[t] = ly; hi_x[t] = hx; hi_y[t] = hy;
+    workgroupBarrier();
+    for (var off = 128u; off > 0u; off >>= 1u) {
+        if t < off {
+            lo_x[t] = min(lo_x[t], lo_x[t + off]);
+            lo_y[t] = min(lo_y[t], lo_y[t + off]);
+            hi_x[t] = max(hi_x[t], hi_x[t + off]);
+            hi_y[t] = max(hi_y[t], hi_y[t + off]);
+        }
+        workgroupBarrier();
+    }
+    if t == 0u {
+        var o = vec2<f32>(lo_x[0], lo_y[0]);
+        var ext = vec2<f32>(hi_x[0], hi_y[0]) - o;
+        if sim.n_disks == 0u { o = vec2<f32>(0.0); ext = vec2<f32>(0.0); }
+        let min_cell = 2.0 * sim.r_max + sim.alert;
+        let max_cells = f32(sim.cap_cells);
+        var cell = min_cell;
+        if (ext.x / cell + 1.0) * (ext.y / cell + 1.0) > max_cells {
+            cell = max(sqrt(ext.x * ext.y / max_cells), min_cell) * 1.5;
+        }
+        // An elongated cloud can still need too many cells: enlarge until it fits.
+        var nx = u32(ext.x / cell) + 1u;
+        var ny = u32(ext.y / cell) + 1u;
+        while nx * ny > sim.cap_cells {
+            cell *= 1.5;
+            nx = u32(ext.x / cell) + 1u;
+            ny = u32(ext.y / cell) + 1u;
+        }
+        floats[sim.f_grid] = o.x;
+        floats[sim.f_grid + 1u] = o.y;
+        floats[sim.f_grid + 2u] = cell;
+        floats[sim.f_grid + 3u] = bitcast<f32>(nx);
+        floats[sim.f_grid + 4u] = bitcast<f32>(ny);
+    }
+}
+
+fn grid_dims() -> vec2<u32> {
+    return vec2<u32>(bitcast<u32>(floats[sim.f_grid + 3u]), bitcast<u32>(floats[sim.f_grid + 4u]));
+}
+
+fn cell_coords(k: u32) -> vec2<u32> {
+    let o = vec2<f32>(floats[sim.f_grid], floats[sim.f_grid + 1u]);
+    let cell = floats[sim.f_grid + 2u];
+    let dims = grid_dims();
+    let p = (vec2<f32>(disks[k].x, disks[k].y) - o) / cell;
+    return min(vec2<u32>(max(p, vec2<f32>(0.0))), dims - vec2<u32>(1u));
+}
+
+// Counts the disks of every cell (into the cell-start region, scanned next).
+@compute @workgroup_size(64)
+fn grid_count(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if k >= sim.n_disks { return; }
+    let cc = cell_coords(k);
+    let c = cc.y * grid_dims().x + cc.x;
+    st(sim.o_cell_of + k, c);
+    atomicAdd(&ints[sim.o_cell_start + c], 1u);
+}
+
+// Places every disk in its cell's range of the item list.
+@compute @workgroup_size(64)
+fn grid_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if k >= sim.n_disks { return; }
+    let c = ld(sim.o_cell_of + k);
+    let slot = ld(sim.o_cell_start + c) + atomicAdd(&ints[sim.o_cell_fill + c], 1u);
+    st(sim.o_items + slot, k);
+}

@@ -1,0 +1,135 @@
+// Phase 7: reductions (CPU twin: backend::reduce::Accumulator and CpuEngine::wall_impulses).
+// Only these small sums leave the device during a run.
+
+var<workgroup> sum_x: array<f32, 256>;
+var<workgroup> sum_y: array<f32, 256>;
+
+// Tree sum of each thread's (x, y) over the workgroup; every thread gets the total.
+fn wg_sum2(t: u32, v: vec2<f32>) -> vec2<f32> {
+    sum_x[t] = v.x;
+    sum_y[t] = v.y;
+    workgroupBarrier();
+    for (var off = 128u; off > 0u; off >>= 1u) {
+        if t < off {
+            sum_x[t] += sum_x[t + off];
+            sum_y[t] += sum_y[t + off];
+        }
+        workgroupBarrier();
+    }
+    let out = vec2<f32>(sum_x[0], sum_y[0]);
+    workgroupBarrier();
+    return out;
+}
+
+// Impulse exerted by the contacts on wall w (workgroup w), glued disks included, added to
+// the run's accumulator floats[f_wall + 2w ..].
+@compute @workgroup_size(256)
+fn wall_impulse(@builtin(local_invocation_index) t: u32, @builtin(workgroup_id) wg: vec3<u32>) {
+    let body = sim.n_disks + wg.x;
+    var p = vec2<f32>(0.0);
+    let n = n_contacts();
+    for (var k = t; k < n; k += 256u) {
+        let c = contacts[k];
+        if c.j == body {
+            p -= c.rn * vec2<f32>(c.nx, c.ny) + c.rt * vec2<f32>(c.ny, -c.nx);
+        }
+    }
+    let s = wg_sum2(t, p);
+    if t == 0u {
+        floats[sim.f_wall + 2u * wg.x] += s.x;
+        floats[sim.f_wall + 2u * wg.x + 1u] += s.y;
+    }
+}
+
+var<workgroup> cnt: array<atomic<u32>, 8>;
+var<workgroup> ov_max: atomic<u32>;
+
+const SLIDE_EPS: f32 = 1e-6;
+const FORCE_THRESHOLD: f32 = 1e-6;
+
+// Counts, overlaps, kinetic energy and strip positions of the last step, to floats[f_red..]:
+// 0 mean R_n of loaded contacts, 1 rolling, 2 sliding, 3 zero-force, 4 disks with >= 2
+// force-carrying contacts, 5 free disks, 6 overlapping contacts, 7 overlap sum, 8 overlap
+// max, 9 kinetic energy, 10-11 strip x sums, 12-13 strip counts (counts as u32 bits),
+// 14 translational kinetic energy.
+@compute @workgroup_size(256)
+fn reduce_final(@builtin(local_invocation_index) t: u32) {
+    let nd = sim.n_disks;
+    let n = n_contacts();
+    if t < 8u { atomicStore(&cnt[t], 0u); }
+    if t == 0u { atomicStore(&ov_max, 0u); }
+    for (var k = t; k < nd; k += 256u) { st(sim.o_per_disk + k, 0u); }
+    storageBarrier();
+    var loaded = vec2<f32>(0.0);
+    for (var k = t; k < n; k += 256u) {
+        let rn = contacts[k].rn;
+        if rn > 0.0 { loaded += vec2<f32>(rn, 1.0); }
+    }
+    let tot = wg_sum2(t, loaded);
+    let mean_rn = tot.x / max(tot.y, 1.0);
+    let threshold = FORCE_THRESHOLD * mean_rn;
+    var ov = vec2<f32>(0.0);
+    for (var k = t; k < n; k += 256u) {
+        let c = contacts[k];
+        if c.gap < 0.0 {
+            ov += vec2<f32>(1.0, -c.gap);
+            atomicMax(&ov_max, bitcast<u32>(-c.gap));
+        }
+        let disk_disk = c.disk_j < nd;
+        let carrying = c.rn > threshold;
+        if carrying {
+            atomicAdd(&ints[sim.o_per_disk + c.i], 1u);
+            if disk_disk { atomicAdd(&ints[sim.o_per_disk + c.disk_j], 1u); }
+        }
+        if !disk_disk { continue; }
+        if !carrying && c.gap <= sim.gap_tol {
+            atomicAdd(&cnt[2], 1u);
+        } else if carrying && c.rn > 0.0 {
+            if abs(c.rt) >= c.mu * c.rn * (1.0 - SLIDE_EPS) {
+                atomicAdd(&cnt[1], 1u);
+            } else {
+                atomicAdd(&cnt[0], 1u);
+            }
+        }
+    }
+    let ovs = wg_sum2(t, ov);
+    storageBarrier();
+    workgroupBarrier();
+    var ke = 0.0;
+    var ket = 0.0;
+    var sx = vec2<f32>(0.0);
+    var sc = vec2<f32>(0.0);
+    for (var k = t; k < nd; k += 256u) {
+        let d = disks[k];
+        if d.kind == KIND_FREE {
+            atomicAdd(&cnt[4], 1u);
+            if ld(sim.o_per_disk + k) >= 2u { atomicAdd(&cnt[3], 1u); }
+            let v = vel_at(0u, k);
+            ket += 0.5 * d.mass * dot(v.xy, v.xy);
+            ke += 0.5 * d.mass * dot(v.xy, v.xy) + 0.25 * d.mass * d.radius * d.radius * v.z * v.z;
+        }
+        if d.strip < 0 { sx.x += d.x; sc.x += 1.0; }
+        if d.strip > 0 { sx.y += d.x; sc.y += 1.0; }
+    }
+    let kes = wg_sum2(t, vec2<f32>(ke, ket));
+    let sxs = wg_sum2(t, sx);
+    let scs = wg_sum2(t, sc);
+    if t == 0u {
+        let r = sim.f_red;
+        floats[r] = mean_rn;
+        floats[r + 1u] = bitcast<f32>(atomicLoad(&cnt[0]));
+        floats[r + 2u] = bitcast<f32>(atomicLoad(&cnt[1]));
+        floats[r + 3u] = bitcast<f32>(atomicLoad(&cnt[2]));
+        floats[r + 4u] = bitcast<f32>(atomicLoad(&cnt[3]));
+        floats[r + 5u] = bitcast<f32>(atomicLoad(&cnt[4]));
+        floats[r + 6u] = ovs.x;
+        floats[r + 7u] = ovs.y;
+        floats[r + 8u] = bitcast<f32>(atomicLoad(&ov_max));
+        floats[r + 9u] = kes.x;
+        floats[r + 10u] = sxs.x;
+        floats[r + 11u] = sxs.y;
+        floats[r + 12u] = scs.x;
+        floats[r + 13u] = scs.y;
+        floats[r + 14u] = kes.y;
+    }
+}

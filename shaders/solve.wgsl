@@ -1,0 +1,102 @@
+// Phase 5: the iterative solver (CPU twin: solver::sweep). Colored projected Gauss-Seidel
+// runs one dispatch per color (contacts of a color share no movable body, so the threads
+// of a dispatch never write the same velocity); relaxed Jacobi solves every contact from
+// the same velocities and rebuilds each body's velocity by a gather over its own sorted
+// incidence list (no float atomics, reproducible). Convergence sums are per contact and
+// reduced in index order by one workgroup.
+
+// Impulse contribution of contact e to body b's velocity, with impulses (rn, rt).
+fn contribution(b: u32, c: Contact, rn: f32, rt: f32) -> vec4<f32> {
+    if c.i == b { return dv_i(c, rn, rt); }
+    return dv_j(c, rn, rt);
+}
+
+// v = v_free + M^-1 sum H R over the body's contacts (warm start and Jacobi).
+@compute @workgroup_size(64)
+fn gather(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let b = gid.x;
+    if b >= sim.n_bodies { return; }
+    var v = vel_at(2u, b);
+    for (var s = ld(sim.o_inc_count + b); s < ld(sim.o_inc_count + b + 1u); s++) {
+        let c = contacts[ld(sim.o_inc_list + s)];
+        v += contribution(b, c, c.rn, c.rt);
+    }
+    set_vel(3u, b, v);
+}
+
+// One color of a Gauss-Seidel sweep: the color index is args.a.
+@compute @workgroup_size(64)
+fn sweep_color(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let start = ld(sim.o_color_count + args.a);
+    let end = ld(sim.o_color_count + args.a + 1u);
+    if start + gid.x >= end { return; }
+    let k = ld(sim.o_order + start + gid.x);
+    var c = contacts[k];
+    let vi = vel_at(3u, c.i);
+    let vj = vel_at(3u, c.j);
+    let r = local_update(c, vi, vj);
+    let drn = r.x - c.rn;
+    let drt = r.y - c.rt;
+    if drn != 0.0 || drt != 0.0 {
+        set_vel(3u, c.i, vi + dv_i(c, drn, drt));
+        if moves_j(c) { set_vel(3u, c.j, vj + dv_j(c, drn, drt)); }
+    }
+    contacts[k].rn = r.x;
+    contacts[k].rt = r.y;
+    floats[sim.f_d2 + k] = drn * drn + drt * drt;
+    floats[sim.f_r2 + k] = dot(r, r);
+}
+
+// Jacobi, part 1: every contact from the same velocities, relaxed by sim.relax.
+@compute @workgroup_size(64)
+fn jacobi_solve(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if k >= n_contacts() { return; }
+    let c = contacts[k];
+    let r = local_update(c, vel_at(3u, c.i), vel_at(3u, c.j));
+    let old = vec2<f32>(c.rn, c.rt);
+    let fresh = old + sim.relax * (r - old);
+    let d = fresh - old;
+    floats[sim.f_fresh + 2u * k] = fresh.x;
+    floats[sim.f_fresh + 2u * k + 1u] = fresh.y;
+    floats[sim.f_d2 + k] = dot(d, d);
+    floats[sim.f_r2 + k] = dot(fresh, fresh);
+}
+
+// Jacobi, part 2: commit the relaxed impulses (the gather then rebuilds the velocities).
+@compute @workgroup_size(64)
+fn jacobi_commit(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if k >= n_contacts() { return; }
+    contacts[k].rn = floats[sim.f_fresh + 2u * k];
+    contacts[k].rt = floats[sim.f_fresh + 2u * k + 1u];
+}
+
+var<workgroup> red_a: array<f32, 256>;
+var<workgroup> red_b: array<f32, 256>;
+
+// sum |dR|^2 and sum |R|^2 of the last iteration, to floats[f_conv], [f_conv + 1].
+@compute @workgroup_size(256)
+fn conv_reduce(@builtin(local_invocation_index) t: u32) {
+    var a = 0.0;
+    var b = 0.0;
+    let n = n_contacts();
+    for (var k = t; k < n; k += 256u) {
+        a += floats[sim.f_d2 + k];
+        b += floats[sim.f_r2 + k];
+    }
+    red_a[t] = a;
+    red_b[t] = b;
+    workgroupBarrier();
+    for (var off = 128u; off > 0u; off >>= 1u) {
+        if t < off {
+            red_a[t] += red_a[t + off];
+            red_b[t] += red_b[t + off];
+        }
+        workgroupBarrier();
+    }
+    if t == 0u {
+        floats[sim.f_conv] = red_a[0];
+        floats[sim.f_conv + 1u] = red_b[0];
+    }
+}

@@ -1,0 +1,457 @@
+//! [`GpuBackend`]: the [`Backend`] the protocol drives, on a wgpu device. Upload and
+//! download are plain copies of the Pod records; [`Backend::run`] records whole steps
+//! (see `step.rs`) and reads back only the status words, the convergence norms every
+//! `conv_every` iterations and the reductions at the end.
+
+use glam::DVec2;
+
+use super::buffers::{ARGS_STRIDE, Buffers, Capacity, GpuContact, GpuDisk, GpuWall, SimParams, args_slots};
+use super::device::{GpuDevice, open};
+use super::pipeline::Pipelines;
+use crate::backend::reduce::{Reductions, classify, zero_gap_tolerance};
+use crate::backend::{Backend, ContactRecord, Loading};
+use crate::contact::Contact;
+use crate::engine::StepParams;
+use crate::error::{Error, Result};
+use crate::model::{BodyKind, Scene, WallDrive};
+use crate::solver::Method;
+
+/// Work counts of the GPU path since the backend was created (divide by `steps` for the
+/// per-step figures).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct GpuCounters {
+    /// Steps taken.
+    pub steps: u64,
+    /// Steps redone after a capacity grew.
+    pub redone: u64,
+    /// Compute dispatches recorded.
+    pub dispatches: u64,
+    /// Command buffers submitted.
+    pub submissions: u64,
+    /// Buffers mapped and waited for (status, convergence, reductions, downloads).
+    pub readbacks: u64,
+    /// Solver iterations.
+    pub iterations: u64,
+}
+
+/// The GPU backend (f32 kernels, positions relative to the sample centre).
+///
+/// Differences from the CPU backend, by design: `Method::Gs` (sequential order) has no
+/// parallel form and runs as colored Gauss-Seidel; the coloring is Jones-Plassmann-Luby
+/// (more colors than the CPU's greedy one, not seeded with the last step's colors);
+/// convergence is checked every [`GpuBackend::conv_every`] iterations, so iteration counts
+/// are multiples of it (set it to 1 for CPU-comparable counts); a capacity growth drops
+/// nothing (the step is redone) and keeps the warm start.
+pub struct GpuBackend {
+    pub(super) gpu: GpuDevice,
+    pub(super) pipes: Pipelines,
+    pub(super) bufs: Buffers,
+    pub(super) bind: (wgpu::BindGroup, wgpu::BindGroup),
+    pub(super) sim: SimParams,
+    pub(super) cap: Capacity,
+    pub(super) params: StepParams,
+    /// Host copy of the scene; positions and velocities are stale until [`Backend::scene`].
+    pub(super) scene: Scene,
+    /// The sample centre subtracted from every position on upload.
+    pub(super) centre: DVec2,
+    /// Iterations recorded between two convergence readbacks.
+    pub conv_every: u32,
+    pub(super) counters: GpuCounters,
+    /// Contacts and color offsets of the last step (from the status readback).
+    pub(super) n_contacts: u32,
+    pub(super) color_offsets: Vec<u32>,
+    pub(super) loading: Loading,
+}
+
+impl GpuBackend {
+    /// Opens the best adapter (see [`super::device::open`]) and uploads `scene`.
+    pub fn new(scene: Scene, params: StepParams) -> Result<Self> {
+        Self::with_device(open()?, scene, params)
+    }
+
+    /// A backend on an already opened device.
+    pub fn with_device(gpu: GpuDevice, scene: Scene, params: StepParams) -> Result<Self> {
+        params.validate()?;
+        scene.validate()?;
+        let pipes = Pipelines::new(&gpu.device)?;
+        let cap = Capacity::initial(scene.disks.len(), scene.walls.len());
+        let mut sim = SimParams::default();
+        let bufs = Buffers::new(&gpu.device, &gpu.limits, &mut sim, cap)?;
+        let bind = pipes.bind(&gpu.device, &bufs);
+        let mut b = GpuBackend {
+            gpu,
+            pipes,
+            bufs,
+            bind,
+            sim,
+            cap,
+            params,
+            scene: Scene::default(),
+            centre: DVec2::ZERO,
+            conv_every: 8,
+            counters: GpuCounters::default(),
+            n_contacts: 0,
+            color_offsets: Vec::new(),
+            loading: Loading::default(),
+        };
+        b.set_scene(&scene)?;
+        Ok(b)
+    }
+
+    /// Work counts since creation.
+    pub fn counters(&self) -> GpuCounters {
+        self.counters
+    }
+
+    /// Adapter name and type.
+    pub fn adapter(&self) -> &wgpu::AdapterInfo {
+        &self.gpu.info
+    }
+
+    /// Capacities in force (they grow when a step overflows them).
+    pub fn capacity(&self) -> Capacity {
+        self.cap
+    }
+
+    /// Fills the physics part of the uniform parameters from the scene, the step
+    /// parameters and the loading.
+    pub(super) fn fill_params(&mut self) {
+        let (s, p, l) = (&self.scene, &self.params, &self.loading);
+        let d = &s.disks;
+        let sim = &mut self.sim;
+        sim.n_disks = d.len() as u32;
+        sim.n_walls = s.walls.len() as u32;
+        sim.n_bodies = s.n_bodies() as u32;
+        sim.dt = p.dt as f32;
+        sim.theta = p.theta as f32;
+        sim.alert = p.alert as f32;
+        sim.relax = p.solver.relax as f32;
+        sim.jacobi = (p.solver.method == Method::Jacobi) as u32;
+        sim.r_max = d.radius.iter().cloned().fold(0.0, f64::max) as f32;
+        sim.gx = s.gravity.x as f32;
+        sim.gy = s.gravity.y as f32;
+        sim.mu_disk = s.material.mu_disk as f32;
+        sim.mu_wall = s.material.mu_wall as f32;
+        sim.e_n = s.material.e_n as f32;
+        sim.e_t = s.material.e_t as f32;
+        sim.gap_tol = zero_gap_tolerance(s) as f32;
+        let strips = !l.strip.is_empty() && l.sigma3 != 0.0;
+        sim.strips = strips as u32;
+        sim.sigma3 = l.sigma3 as f32;
+        sim.top = l.top as u32;
+        sim.bottom = l.bottom as u32;
+        let mut sum_r = [0.0f64; 2];
+        for (k, &st) in l.strip.iter().enumerate() {
+            if st != 0 {
+                sum_r[(st > 0) as usize] += d.radius[k];
+            }
+        }
+        sim.strip_sum_r0 = sum_r[0] as f32;
+        sim.strip_sum_r1 = sum_r[1] as f32;
+    }
+
+    /// Writes the uniform parameters and the per-dispatch argument table.
+    pub(super) fn write_params(&mut self) {
+        let q = &self.gpu.queue;
+        q.write_buffer(&self.bufs.sim, 0, bytemuck::bytes_of(&self.sim));
+        let s = &self.sim;
+        let mut table = vec![0u32; (args_slots(self.cap) as u64 * ARGS_STRIDE / 4) as usize];
+        let mut put = |slot: usize, a: u32, b: u32| {
+            let w = slot * (ARGS_STRIDE / 4) as usize;
+            table[w] = a;
+            table[w + 1] = b;
+        };
+        put(0, 0, self.bufs.layout.clear_len);
+        put(1, s.o_cell_start, s.cap_cells);
+        put(2, s.o_dcount, s.n_disks);
+        put(3, s.o_inc_count, s.n_bodies);
+        for c in 0..self.cap.colors {
+            put(4 + c as usize, c, 0);
+        }
+        q.write_buffer(&self.bufs.args, 0, bytemuck::cast_slice(&table));
+    }
+
+    /// Reallocates the buffers for new capacities, keeping the state, the warm-start
+    /// impulses and the run's accumulators (the growing regions come after them).
+    pub(super) fn grow(&mut self, cap: Capacity) -> Result<()> {
+        let mut sim = self.sim;
+        let bufs = Buffers::new(&self.gpu.device, &self.gpu.limits, &mut sim, cap)?;
+        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+        let old = &self.bufs;
+        for (a, b) in [
+            (&old.disks, &bufs.disks),
+            (&old.walls, &bufs.walls),
+            (&old.vel, &bufs.vel),
+            (&old.prev, &bufs.prev),
+        ] {
+            enc.copy_buffer_to_buffer(a, 0, b, 0, a.size().min(b.size()));
+        }
+        let keep = 4 * old.layout.floats_keep as u64;
+        if keep > 0 {
+            enc.copy_buffer_to_buffer(&old.floats, 0, &bufs.floats, 0, keep.next_multiple_of(4));
+        }
+        self.gpu.queue.submit([enc.finish()]);
+        self.counters.submissions += 1;
+        self.bufs = bufs;
+        self.sim = sim;
+        self.cap = cap;
+        self.bind = self.pipes.bind(&self.gpu.device, &self.bufs);
+        self.write_params();
+        Ok(())
+    }
+
+    /// Copies `size` bytes of `src` from `offset` to the host (one map-and-wait).
+    pub(super) fn download(&mut self, src: &wgpu::Buffer, offset: u64, size: u64) -> Result<Vec<u8>> {
+        let size = size.max(4).next_multiple_of(4);
+        let staging = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+        enc.copy_buffer_to_buffer(src, offset, &staging, 0, size);
+        self.gpu.queue.submit([enc.finish()]);
+        self.counters.submissions += 1;
+        self.read_staging(&staging)
+    }
+
+    /// Maps an already filled staging buffer and returns its bytes.
+    pub(super) fn read_staging(&mut self, staging: &wgpu::Buffer) -> Result<Vec<u8>> {
+        let (tx, rx) = std::sync::mpsc::channel();
+        staging.map_async(wgpu::MapMode::Read, .., move |r| {
+            let _ = tx.send(r);
+        });
+        self.gpu
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))?;
+        rx.recv()
+            .map_err(|e| Error::Gpu(e.to_string()))?
+            .map_err(|e| Error::Gpu(format!("mapping a readback buffer: {e}")))?;
+        let bytes = staging
+            .get_mapped_range(..)
+            .map_err(|e| Error::Gpu(format!("{e:?}")))?
+            .to_vec();
+        staging.unmap();
+        self.counters.readbacks += 1;
+        Ok(bytes)
+    }
+
+    fn upload(&mut self) {
+        let s = &self.scene;
+        let d = &s.disks;
+        let c = self.centre;
+        let disks: Vec<GpuDisk> = (0..d.len())
+            .map(|k| GpuDisk {
+                x: (d.pos[k].x - c.x) as f32,
+                y: (d.pos[k].y - c.y) as f32,
+                theta: d.theta[k] as f32,
+                radius: d.radius[k] as f32,
+                inv_mass: d.inv_mass[k] as f32,
+                inv_inertia: d.inv_inertia[k] as f32,
+                mass: d.mass[k] as f32,
+                kind: d.kind[k] as u32,
+                glued: d.glued_to[k],
+                strip: self.loading.strip.get(k).copied().unwrap_or(0) as i32,
+                fx: d.force[k].x as f32,
+                fy: d.force[k].y as f32,
+                torque: d.torque[k] as f32,
+                pad: [0.0; 3],
+            })
+            .collect();
+        let walls: Vec<GpuWall> = s.walls.iter().map(|w| gpu_wall(w, c)).collect();
+        let nb = s.n_bodies();
+        let mut vel = vec![[0.0f32; 4]; 4 * nb];
+        for (k, v) in vel.iter_mut().take(d.len()).enumerate() {
+            *v = [d.vel[k].x as f32, d.vel[k].y as f32, d.spin[k] as f32, 0.0];
+        }
+        for (w, wall) in s.walls.iter().enumerate() {
+            vel[d.len() + w] = [wall.vel.x as f32, wall.vel.y as f32, 0.0, 0.0];
+        }
+        let q = &self.gpu.queue;
+        q.write_buffer(&self.bufs.disks, 0, bytemuck::cast_slice(&disks));
+        q.write_buffer(&self.bufs.walls, 0, bytemuck::cast_slice(&walls));
+        q.write_buffer(&self.bufs.vel, 0, bytemuck::cast_slice(&vel));
+    }
+
+    /// Contacts of the last step as f32 records (key order).
+    pub fn raw_contacts(&mut self) -> Result<Vec<GpuContact>> {
+        let n = self.n_contacts as u64;
+        if n == 0 {
+            return Ok(Vec::new());
+        }
+        let contacts = self.bufs.contacts.clone();
+        let bytes = self.download(&contacts, 0, n * size_of::<GpuContact>() as u64)?;
+        Ok(bytemuck::cast_slice(&bytes).to_vec())
+    }
+}
+
+fn gpu_wall(w: &crate::model::Wall, c: DVec2) -> GpuWall {
+    let (inv_mass, force, forced) = match w.drive {
+        WallDrive::Kinematic => (0.0, 0.0, 0),
+        WallDrive::Force { mass, force } => (1.0 / mass, force, 1),
+    };
+    GpuWall {
+        nx: w.normal.x as f32,
+        ny: w.normal.y as f32,
+        px: (w.point.x - c.x) as f32,
+        py: (w.point.y - c.y) as f32,
+        inv_mass: inv_mass as f32,
+        force: force as f32,
+        is_active: w.active as u32,
+        forced,
+    }
+}
+
+/// The crate's contact record of a downloaded f32 contact (for classification).
+pub fn to_contact(g: &GpuContact) -> Contact {
+    Contact {
+        i: g.i,
+        j: g.j,
+        disk_j: g.disk_j,
+        color: g.color,
+        n: DVec2::new(g.nx as f64, g.ny as f64),
+        gap: g.gap as f64,
+        ri: g.ri as f64,
+        rj: g.rj as f64,
+        mi: g.mi as f64,
+        mj: g.mj as f64,
+        ma: g.ma as f64,
+        a: DVec2::new(g.ax as f64, g.ay as f64),
+        ki: g.ki as f64,
+        kj: g.kj as f64,
+        wnn: g.wnn as f64,
+        wtt: g.wtt as f64,
+        wnt: g.wnt as f64,
+        mu: g.mu as f64,
+        un0: g.un0 as f64,
+        ut0: g.ut0 as f64,
+        bias_n: g.bias_n as f64,
+        bias_t: g.bias_t as f64,
+        rn: g.rn as f64,
+        rt: g.rt as f64,
+    }
+}
+
+impl Backend for GpuBackend {
+    fn name(&self) -> String {
+        format!("gpu ({}, {:?})", self.gpu.info.name, self.gpu.info.backend)
+    }
+
+    fn params(&self) -> StepParams {
+        self.params
+    }
+
+    fn set_params(&mut self, params: StepParams) -> Result<()> {
+        params.validate()?;
+        self.params = params;
+        self.fill_params();
+        self.write_params();
+        Ok(())
+    }
+
+    fn set_scene(&mut self, scene: &Scene) -> Result<()> {
+        scene.validate()?;
+        let same = scene.disks.len() == self.scene.disks.len() && scene.walls.len() == self.scene.walls.len();
+        self.scene = scene.clone();
+        if !same {
+            // New bodies: fresh buffers, and no warm start (the zeroed offsets of `prev`
+            // give every disk an empty list of previous contacts).
+            let d = &scene.disks;
+            self.centre = if d.is_empty() {
+                DVec2::ZERO
+            } else {
+                let lo = d.pos.iter().fold(DVec2::splat(f64::INFINITY), |a, p| a.min(*p));
+                let hi = d
+                    .pos
+                    .iter()
+                    .fold(DVec2::splat(f64::NEG_INFINITY), |a, p| a.max(*p));
+                0.5 * (lo + hi)
+            };
+            self.fill_params();
+            let cap = Capacity::initial(d.len(), scene.walls.len());
+            let mut sim = self.sim;
+            self.bufs = Buffers::new(&self.gpu.device, &self.gpu.limits, &mut sim, cap)?;
+            self.sim = sim;
+            self.cap = cap;
+            self.bind = self.pipes.bind(&self.gpu.device, &self.bufs);
+            self.n_contacts = 0;
+        }
+        self.fill_params();
+        self.write_params();
+        self.upload();
+        Ok(())
+    }
+
+    fn scene(&mut self) -> Result<Scene> {
+        let nd = self.scene.disks.len();
+        let nw = self.scene.walls.len();
+        let (disks_buf, walls_buf, vel_buf) = (
+            self.bufs.disks.clone(),
+            self.bufs.walls.clone(),
+            self.bufs.vel.clone(),
+        );
+        let disks: Vec<GpuDisk> = if nd > 0 {
+            bytemuck::cast_slice(&self.download(&disks_buf, 0, (nd * 64) as u64)?).to_vec()
+        } else {
+            Vec::new()
+        };
+        let walls: Vec<GpuWall> = if nw > 0 {
+            bytemuck::cast_slice(&self.download(&walls_buf, 0, (nw * 32) as u64)?).to_vec()
+        } else {
+            Vec::new()
+        };
+        let vel: Vec<[f32; 4]> =
+            bytemuck::cast_slice(&self.download(&vel_buf, 0, ((nd + nw) * 16) as u64)?).to_vec();
+        let c = self.centre;
+        let s = &mut self.scene;
+        for (k, g) in disks.iter().enumerate() {
+            s.disks.pos[k] = DVec2::new(g.x as f64 + c.x, g.y as f64 + c.y);
+            s.disks.theta[k] = g.theta as f64;
+            s.disks.force[k] = DVec2::new(g.fx as f64, g.fy as f64);
+            if s.disks.kind[k] != BodyKind::Fixed {
+                s.disks.vel[k] = DVec2::new(vel[k][0] as f64, vel[k][1] as f64);
+                s.disks.spin[k] = vel[k][2] as f64;
+            }
+        }
+        for (w, g) in walls.iter().enumerate() {
+            s.walls[w].point = DVec2::new(g.px as f64 + c.x, g.py as f64 + c.y);
+            s.walls[w].vel = DVec2::new(vel[nd + w][0] as f64, vel[nd + w][1] as f64);
+        }
+        Ok(self.scene.clone())
+    }
+
+    fn contacts(&mut self) -> Result<Vec<ContactRecord>> {
+        let dt = self.params.dt;
+        let gap_tol = zero_gap_tolerance(&self.scene);
+        Ok(self
+            .raw_contacts()?
+            .iter()
+            .map(|g| {
+                let c = to_contact(g);
+                ContactRecord {
+                    i: c.i,
+                    j: c.disk_j,
+                    n: c.n,
+                    gap: c.gap,
+                    rn: c.rn,
+                    rt: c.rt,
+                    f_n: c.rn / dt,
+                    f_t: c.rt / dt,
+                    class: classify(&c, gap_tol),
+                }
+            })
+            .collect())
+    }
+
+    fn set_warm_start(&mut self, _contacts: &[ContactRecord]) -> Result<()> {
+        // The GPU keeps its warm start in its own per-disk slots, rebuilt by the next step's
+        // detection; a resumed GPU run starts cold (it is not bit-reproducible anyway).
+        Ok(())
+    }
+
+    fn run(&mut self, steps: u32, loading: &Loading) -> Result<Reductions> {
+        self.run_steps(steps, loading)
+    }
+}

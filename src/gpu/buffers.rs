@@ -1,0 +1,373 @@
+//! Device-side records and buffers.
+//!
+//! The records are `#[repr(C)]` bytemuck `Pod` structs in f32 with the exact field order of
+//! the WGSL structs in `shaders/common.wgsl`, so upload and readback are plain copies.
+//! Positions are relative to the sample centre (see [`crate::model`]). Integer and float
+//! scratch live in two buffers cut into regions ([`Layout`]); capacities that can overflow
+//! (contact slots per disk, contacts, colors) are checked by the kernels, reported in the
+//! status words, and grown by the host, which then redoes the step.
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::error::{Error, Result};
+
+/// A disk (64 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+#[allow(missing_docs)]
+pub struct GpuDisk {
+    pub x: f32,
+    pub y: f32,
+    pub theta: f32,
+    pub radius: f32,
+    pub inv_mass: f32,
+    pub inv_inertia: f32,
+    pub mass: f32,
+    pub kind: u32,
+    pub glued: u32,
+    pub strip: i32,
+    pub fx: f32,
+    pub fy: f32,
+    pub torque: f32,
+    pub pad: [f32; 3],
+}
+
+/// A plane wall (32 bytes); its velocity is in the velocity buffer.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+#[allow(missing_docs)]
+pub struct GpuWall {
+    pub nx: f32,
+    pub ny: f32,
+    pub px: f32,
+    pub py: f32,
+    pub inv_mass: f32,
+    pub force: f32,
+    pub is_active: u32,
+    pub forced: u32,
+}
+
+/// A contact (112 bytes), the f32 twin of [`crate::contact::Contact`].
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+#[allow(missing_docs)]
+pub struct GpuContact {
+    pub i: u32,
+    pub j: u32,
+    pub disk_j: u32,
+    pub color: u32,
+    pub nx: f32,
+    pub ny: f32,
+    pub gap: f32,
+    pub ri: f32,
+    pub rj: f32,
+    pub mi: f32,
+    pub mj: f32,
+    pub ma: f32,
+    pub ax: f32,
+    pub ay: f32,
+    pub ki: f32,
+    pub kj: f32,
+    pub wnn: f32,
+    pub wtt: f32,
+    pub wnt: f32,
+    pub mu: f32,
+    pub un0: f32,
+    pub ut0: f32,
+    pub bias_n: f32,
+    pub bias_t: f32,
+    pub rn: f32,
+    pub rt: f32,
+    pub pad: [f32; 2],
+}
+
+/// The uniform parameters of the kernels (WGSL `Sim`): sizes, region offsets, physics.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+#[allow(missing_docs)]
+pub struct SimParams {
+    pub n_disks: u32,
+    pub n_walls: u32,
+    pub n_bodies: u32,
+    pub k_slots: u32,
+    pub cap_contacts: u32,
+    pub cap_cells: u32,
+    pub max_colors: u32,
+    pub strips: u32,
+    pub top: u32,
+    pub bottom: u32,
+    pub o_cell_start: u32,
+    pub o_cell_fill: u32,
+    pub o_items: u32,
+    pub o_cell_of: u32,
+    pub o_dcount: u32,
+    pub o_slots: u32,
+    pub o_inc_count: u32,
+    pub o_inc_fill: u32,
+    pub o_inc_list: u32,
+    pub o_status: u32,
+    pub o_color_count: u32,
+    pub o_color_fill: u32,
+    pub o_order: u32,
+    pub o_per_disk: u32,
+    pub f_d2: u32,
+    pub f_r2: u32,
+    pub f_fresh: u32,
+    pub f_wall: u32,
+    pub f_red: u32,
+    pub f_grid: u32,
+    pub f_conv: u32,
+    pub jacobi: u32,
+    pub dt: f32,
+    pub theta: f32,
+    pub alert: f32,
+    pub r_max: f32,
+    pub gx: f32,
+    pub gy: f32,
+    pub mu_disk: f32,
+    pub mu_wall: f32,
+    pub e_n: f32,
+    pub e_t: f32,
+    pub sigma3: f32,
+    pub relax: f32,
+    pub strip_sum_r0: f32,
+    pub strip_sum_r1: f32,
+    pub gap_tol: f32,
+    pub pad: f32,
+}
+
+/// Status words read back after detection and coloring (indices into the status region).
+pub mod status {
+    /// Contacts found (may exceed the capacity).
+    pub const CONTACTS: usize = 0;
+    /// Largest per-disk partner count (may exceed the slots).
+    pub const SLOTS_NEED: usize = 1;
+    /// Colors used.
+    pub const COLORS: usize = 3;
+    /// Largest overlap, f32 bits.
+    pub const OVERLAP: usize = 4;
+    /// Coloring rounds.
+    pub const ROUNDS: usize = 5;
+    /// Indirect dispatch size of per-contact kernels (3 words).
+    pub const ARGS: usize = 8;
+    /// Words before the color offsets.
+    pub const WORDS: usize = 16;
+}
+
+/// Stride of the per-dispatch argument table (the largest dynamic-offset alignment any
+/// adapter asks for).
+pub const ARGS_STRIDE: u64 = 256;
+
+/// Capacities of the buffers that can overflow.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Capacity {
+    /// Contact slots per disk.
+    pub k_slots: u32,
+    /// Contacts.
+    pub contacts: u32,
+    /// Grid cells.
+    pub cells: u32,
+    /// Colors.
+    pub colors: u32,
+}
+
+impl Capacity {
+    /// Starting capacities for `nd` disks: 12 slots (a dense packing of similar disks owns
+    /// about 3-4 pairs per disk), 4 contacts per disk, as many cells as the CPU grid allows.
+    pub fn initial(nd: usize, nw: usize) -> Self {
+        Capacity {
+            k_slots: 12,
+            contacts: (4 * nd + nw * 16 + 256) as u32,
+            cells: (4 * nd + 1024) as u32,
+            colors: 64,
+        }
+    }
+}
+
+/// Region offsets (in words) of the scratch buffers, and their sizes.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Layout {
+    /// Words of `ints`.
+    pub ints_len: u32,
+    /// Words of `ints` cleared at the start of each step (from 0).
+    pub clear_len: u32,
+    /// Words of `floats`.
+    pub floats_len: u32,
+    /// Words of `floats` that survive a growth (wall accumulator, reductions, grid, conv).
+    pub floats_keep: u32,
+    /// Words of `prev`.
+    pub prev_len: u32,
+}
+
+/// Fills the region offsets of `p` for the given sizes and returns the buffer sizes.
+/// Counters cleared every step come first so one dispatch clears them all; the float
+/// accumulators come first in `floats` so they survive a reallocation.
+pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
+    let (nd, nb) = (p.n_disks, p.n_bodies);
+    fn take(o: &mut u32, n: u32) -> u32 {
+        let at = *o;
+        *o += n;
+        at
+    }
+    let mut o = 0u32;
+    p.o_status = take(&mut o, status::WORDS as u32);
+    p.o_color_count = take(&mut o, cap.colors + 1);
+    p.o_color_fill = take(&mut o, cap.colors);
+    p.o_cell_start = take(&mut o, cap.cells + 1);
+    p.o_cell_fill = take(&mut o, cap.cells);
+    p.o_dcount = take(&mut o, nd + 1);
+    p.o_inc_count = take(&mut o, nb + 1);
+    p.o_inc_fill = take(&mut o, nb);
+    let clear_len = o;
+    p.o_items = take(&mut o, nd);
+    p.o_cell_of = take(&mut o, nd);
+    p.o_slots = take(&mut o, nd * cap.k_slots);
+    p.o_inc_list = take(&mut o, 2 * cap.contacts);
+    p.o_order = take(&mut o, cap.contacts);
+    p.o_per_disk = take(&mut o, nd);
+    let ints_len = o.max(1);
+    let mut f = 0u32;
+    p.f_wall = take(&mut f, 2 * p.n_walls);
+    p.f_red = take(&mut f, 16);
+    p.f_grid = take(&mut f, 8);
+    p.f_conv = take(&mut f, 4);
+    let floats_keep = f;
+    p.f_d2 = take(&mut f, cap.contacts);
+    p.f_r2 = take(&mut f, cap.contacts);
+    p.f_fresh = take(&mut f, 2 * cap.contacts);
+    p.k_slots = cap.k_slots;
+    p.cap_contacts = cap.contacts;
+    p.cap_cells = cap.cells;
+    p.max_colors = cap.colors;
+    Layout {
+        ints_len,
+        clear_len,
+        floats_len: f,
+        floats_keep,
+        prev_len: nd + 1 + 3 * cap.contacts,
+    }
+}
+
+/// The device buffers of a scene.
+pub struct Buffers {
+    /// Uniform parameters.
+    pub sim: wgpu::Buffer,
+    /// Per-dispatch arguments (dynamic offsets of [`ARGS_STRIDE`]).
+    pub args: wgpu::Buffer,
+    /// Disks.
+    pub disks: wgpu::Buffer,
+    /// Walls.
+    pub walls: wgpu::Buffer,
+    /// Generalized velocities (4 regions).
+    pub vel: wgpu::Buffer,
+    /// Integer scratch.
+    pub ints: wgpu::Buffer,
+    /// Contacts.
+    pub contacts: wgpu::Buffer,
+    /// Float scratch.
+    pub floats: wgpu::Buffer,
+    /// Previous step's impulses.
+    pub prev: wgpu::Buffer,
+    /// Indirect dispatch arguments of the per-contact kernels.
+    pub indirect: wgpu::Buffer,
+    /// Sizes and offsets.
+    pub layout: Layout,
+}
+
+/// Number of per-dispatch argument slots: 4 fixed ones and one per color.
+pub fn args_slots(cap: Capacity) -> u32 {
+    4 + cap.colors
+}
+
+/// Checks one buffer size against the adapter's limits; the error names the limit, the
+/// need and an estimate of the largest sample that fits (sizes grow linearly with disks).
+pub fn check_size(
+    what: &str,
+    bytes: u64,
+    n_disks: usize,
+    limits: &wgpu::Limits,
+    storage: bool,
+) -> Result<()> {
+    let (limit, name) = if storage {
+        (
+            limits.max_storage_buffer_binding_size.min(limits.max_buffer_size),
+            "max_storage_buffer_binding_size",
+        )
+    } else {
+        (limits.max_buffer_size, "max_buffer_size")
+    };
+    if bytes > limit {
+        let fits = (n_disks as f64 * limit as f64 / bytes as f64) as u64;
+        return Err(Error::Gpu(format!(
+            "the {what} buffer needs {bytes} bytes but the adapter's {name} is {limit}: \
+             the largest sample that fits is about {fits} disks"
+        )));
+    }
+    Ok(())
+}
+
+fn storage(device: &wgpu::Device, label: &str, bytes: u64, extra: wgpu::BufferUsages) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes.max(256).next_multiple_of(16),
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST
+            | extra,
+        mapped_at_creation: false,
+    })
+}
+
+impl Buffers {
+    /// Allocates every buffer for `p` (whose offsets [`layout`] fills) after checking the
+    /// sizes against `limits`.
+    pub fn new(
+        device: &wgpu::Device,
+        limits: &wgpu::Limits,
+        p: &mut SimParams,
+        cap: Capacity,
+    ) -> Result<Self> {
+        let layout = layout(p, cap);
+        let nd = p.n_disks as usize;
+        let sizes = [
+            ("disk", (nd * size_of::<GpuDisk>()) as u64),
+            ("velocity", 64 * p.n_bodies as u64),
+            ("integer scratch", 4 * layout.ints_len as u64),
+            ("contact", cap.contacts as u64 * size_of::<GpuContact>() as u64),
+            ("float scratch", 4 * layout.floats_len as u64),
+            ("warm-start", 4 * layout.prev_len as u64),
+        ];
+        for (what, bytes) in sizes {
+            check_size(what, bytes, nd, limits, true)?;
+        }
+        let none = wgpu::BufferUsages::empty();
+        Ok(Buffers {
+            sim: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("sim"),
+                size: size_of::<SimParams>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            args: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("args"),
+                size: args_slots(cap) as u64 * ARGS_STRIDE,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            disks: storage(device, "disks", sizes[0].1, none),
+            walls: storage(device, "walls", 32 * p.n_walls as u64, none),
+            vel: storage(device, "vel", sizes[1].1, none),
+            ints: storage(device, "ints", sizes[2].1, none),
+            contacts: storage(device, "contacts", sizes[3].1, none),
+            floats: storage(device, "floats", sizes[4].1, none),
+            prev: storage(device, "prev", sizes[5].1, none),
+            indirect: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("indirect"),
+                size: 16,
+                usage: wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            layout,
+        })
+    }
+}

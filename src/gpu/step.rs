@@ -1,0 +1,335 @@
+//! Recording of one time step on the device, phase by phase (the order of
+//! `CpuEngine::step`), and the run loop with its few readbacks:
+//!
+//! 1. submission A: clear, free velocities, grid, detection, compaction with warm start,
+//!    incidence lists, warm-start gather, coloring; then one readback of the status words
+//!    (contact count, overflows, colors and their offsets, largest overlap). On overflow
+//!    the capacities grow and A is recorded again (nothing in A changes the state).
+//! 2. submissions B: `conv_every` iterations (one dispatch per color, or three for
+//!    Jacobi) and a convergence reduction; one readback of two floats each.
+//! 3. submission C: integration, wall impulses, saving the impulses for the warm start.
+//!
+//! At the end of a run, one more submission reduces counts, overlaps and energies.
+
+use super::backend::GpuBackend;
+use super::buffers::{ARGS_STRIDE, status};
+use crate::backend::{Loading, Reductions};
+use crate::error::{Error, Result};
+use crate::solver::Method;
+
+const WG: u32 = 64;
+
+fn groups(n: u32) -> u32 {
+    n.div_ceil(WG)
+}
+
+/// A compute pass with the shared bind groups set and a dispatch counter.
+struct Rec<'a> {
+    pass: wgpu::ComputePass<'a>,
+    b: &'a GpuBackend,
+    dispatches: u64,
+}
+
+impl<'a> Rec<'a> {
+    fn new(enc: &'a mut wgpu::CommandEncoder, b: &'a GpuBackend) -> Self {
+        let mut pass = enc
+            .begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("cdlab step"),
+                timestamp_writes: None,
+            })
+            .forget_lifetime();
+        pass.set_bind_group(0, &b.bind.0, &[]);
+        Rec {
+            pass,
+            b,
+            dispatches: 0,
+        }
+    }
+
+    /// Dispatches `x` workgroups of entry point `name` with argument slot `slot`.
+    fn go(&mut self, name: &str, slot: u32, x: u32) {
+        if x == 0 {
+            return;
+        }
+        self.pass.set_pipeline(self.b.pipes.get(name));
+        self.pass
+            .set_bind_group(1, &self.b.bind.1, &[(slot as u64 * ARGS_STRIDE) as u32]);
+        self.pass.dispatch_workgroups(x, 1, 1);
+        self.dispatches += 1;
+    }
+
+    /// Dispatches entry point `name` over the contacts (indirect: the count is on the GPU).
+    fn go_contacts(&mut self, name: &str) {
+        self.pass.set_pipeline(self.b.pipes.get(name));
+        self.pass.set_bind_group(1, &self.b.bind.1, &[0]);
+        self.pass.dispatch_workgroups_indirect(&self.b.bufs.indirect, 0);
+        self.dispatches += 1;
+    }
+}
+
+/// What one step did on the device.
+struct StepInfo {
+    iterations: u32,
+    converged: bool,
+    colors: u32,
+}
+
+impl GpuBackend {
+    /// Runs `steps` steps under `loading` and returns the reductions.
+    pub(super) fn run_steps(&mut self, steps: u32, loading: &Loading) -> Result<Reductions> {
+        if *loading != self.loading {
+            // The strip flags and the wall forces live in the disk and wall records:
+            // download, re-tag, upload (once per change of loading, not per step).
+            let mut scene = crate::backend::Backend::scene(self)?;
+            self.loading = loading.clone();
+            loading.apply_wall_forces(&mut scene);
+            crate::backend::Backend::set_scene(self, &scene)?;
+        }
+        let nw = self.scene.walls.len();
+        let zeros = vec![0u8; 8 * nw];
+        if nw > 0 {
+            self.gpu
+                .queue
+                .write_buffer(&self.bufs.floats, 4 * self.sim.f_wall as u64, &zeros);
+        }
+        let mut red = Reductions::default();
+        let mut colors = 0u64;
+        for _ in 0..steps {
+            let info = self.step_once()?;
+            red.steps += 1;
+            red.iterations_sum += info.iterations as u64;
+            red.iterations_max = red.iterations_max.max(info.iterations);
+            red.capped_steps += !info.converged as u32;
+            colors += info.colors as u64;
+            self.scene.time += self.params.dt;
+            self.scene.step += 1;
+        }
+        red.colors_mean = colors as f64 / red.steps.max(1) as f64;
+        self.finish_reductions(red, loading)
+    }
+
+    fn submit(&mut self, enc: wgpu::CommandEncoder) {
+        self.gpu.queue.submit([enc.finish()]);
+        self.counters.submissions += 1;
+    }
+
+    fn step_once(&mut self) -> Result<StepInfo> {
+        let nd = self.sim.n_disks;
+        let nb = self.sim.n_bodies;
+        // Submission A, redone after a growth.
+        let status = loop {
+            let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+            let mut d = 0;
+            {
+                let mut r = Rec::new(&mut enc, self);
+                r.go("clear_ints", 0, groups(self.bufs.layout.clear_len));
+                r.go("free_velocity", 0, groups(nb));
+                r.go("grid_bounds", 0, 1);
+                r.go("grid_count", 0, groups(nd));
+                r.go("scan", 1, 1);
+                r.go("grid_scatter", 0, groups(nd));
+                r.go("detect", 0, groups(nd));
+                r.go("scan", 2, 1);
+                r.go("contact_args", 0, 1);
+                d += r.dispatches;
+            }
+            let o = 4 * (self.sim.o_status as u64 + status::ARGS as u64);
+            enc.copy_buffer_to_buffer(&self.bufs.ints, o, &self.bufs.indirect, 0, 12);
+            {
+                let mut r = Rec::new(&mut enc, self);
+                r.go("build_contacts", 0, groups(nd));
+                r.go_contacts("incidence_count");
+                r.go("scan", 3, 1);
+                r.go_contacts("incidence_fill");
+                r.go("incidence_sort", 0, groups(nb));
+                r.go("gather", 0, groups(nb));
+                r.go("color_jpl", 0, 1);
+                d += r.dispatches;
+            }
+            self.counters.dispatches += d;
+            self.submit(enc);
+            let words = status::WORDS as u64 + self.cap.colors as u64 + 1;
+            let ints = self.bufs.ints.clone();
+            let bytes = self.download(&ints, 4 * self.sim.o_status as u64, 4 * words)?;
+            let st: Vec<u32> = bytemuck::cast_slice(&bytes).to_vec();
+            let mut cap = self.cap;
+            let n = st[status::CONTACTS];
+            if n > cap.contacts {
+                cap.contacts = n + n / 4 + 64;
+            }
+            if st[status::SLOTS_NEED] > cap.k_slots {
+                cap.k_slots = st[status::SLOTS_NEED] + 4;
+            }
+            if st[status::COLORS] > cap.colors {
+                cap.colors = 2 * st[status::COLORS];
+            }
+            if cap == self.cap {
+                break st;
+            }
+            self.grow(cap)?;
+            self.counters.redone += 1;
+        };
+        let n = status[status::CONTACTS];
+        let n_colors = status[status::COLORS];
+        self.n_contacts = n;
+        self.color_offsets = status[status::WORDS..status::WORDS + n_colors as usize + 1].to_vec();
+        let overlap = f32::from_bits(status[status::OVERLAP]) as f64;
+        if overlap > self.params.overlap_limit {
+            return Err(Error::Numerical {
+                step: self.scene.step,
+                message: format!(
+                    "overlap {overlap:.3e} m exceeds the limit {:.3e} m (reduce the time step \
+                     or the loading rate, or tighten the solver tolerance)",
+                    self.params.overlap_limit
+                ),
+            });
+        }
+        let (iterations, converged) = self.iterate(n)?;
+        // Submission C.
+        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+        {
+            let mut r = Rec::new(&mut enc, self);
+            r.go("integrate", 0, groups(nb));
+            r.go("wall_impulse", 0, self.sim.n_walls);
+            r.go("save_prev", 0, groups(n.max(nd + 1)));
+            let d = r.dispatches;
+            drop(r);
+            self.counters.dispatches += d;
+        }
+        self.submit(enc);
+        self.counters.steps += 1;
+        self.counters.iterations += iterations as u64;
+        Ok(StepInfo {
+            iterations,
+            converged,
+            colors: if self.params.solver.method == Method::Jacobi {
+                0
+            } else {
+                n_colors
+            },
+        })
+    }
+
+    /// The solver loop: `conv_every` iterations per submission, then the two convergence
+    /// sums read back. Plain `Method::Gs` has no parallel form and runs colored on the GPU.
+    fn iterate(&mut self, n: u32) -> Result<(u32, bool)> {
+        if n == 0 {
+            return Ok((0, true));
+        }
+        let p = self.params.solver;
+        let jacobi = p.method == Method::Jacobi;
+        let nb = self.sim.n_bodies;
+        let mut done = 0u32;
+        loop {
+            let batch = self.conv_every.max(1).min(p.max_iter - done);
+            let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+            {
+                let mut r = Rec::new(&mut enc, self);
+                for _ in 0..batch {
+                    if jacobi {
+                        r.go("jacobi_solve", 0, groups(n));
+                        r.go("jacobi_commit", 0, groups(n));
+                        r.go("gather", 0, groups(nb));
+                    } else {
+                        for (c, w) in self.color_offsets.windows(2).enumerate() {
+                            r.go("sweep_color", 4 + c as u32, groups(w[1] - w[0]));
+                        }
+                    }
+                }
+                r.go("conv_reduce", 0, 1);
+                let d = r.dispatches;
+                drop(r);
+                self.counters.dispatches += d;
+            }
+            self.submit(enc);
+            done += batch;
+            let floats = self.bufs.floats.clone();
+            let bytes = self.download(&floats, 4 * self.sim.f_conv as u64, 8)?;
+            let s: &[f32] = bytemuck::cast_slice(&bytes);
+            let (d2, r2) = (s[0] as f64, s[1] as f64);
+            if !(d2.is_finite() && r2.is_finite()) {
+                return Err(Error::Numerical {
+                    step: self.scene.step,
+                    message: format!("non-finite impulses in the GPU solver (sums {d2}, {r2})"),
+                });
+            }
+            let residual = if d2 == 0.0 {
+                0.0
+            } else if r2 == 0.0 {
+                f64::INFINITY
+            } else {
+                (d2 / r2).sqrt()
+            };
+            if residual <= p.tol {
+                return Ok((done, true));
+            }
+            if done >= p.max_iter {
+                return Ok((done, false));
+            }
+        }
+    }
+
+    /// The end-of-run reductions: one dispatch, one readback of the float accumulators.
+    fn finish_reductions(&mut self, mut red: Reductions, loading: &Loading) -> Result<Reductions> {
+        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+        {
+            let mut r = Rec::new(&mut enc, self);
+            r.go("reduce_final", 0, 1);
+            let d = r.dispatches;
+            drop(r);
+            self.counters.dispatches += d;
+        }
+        self.submit(enc);
+        let floats = self.bufs.floats.clone();
+        let keep = self.bufs.layout.floats_keep as u64;
+        let bytes = self.download(&floats, 0, 4 * keep)?;
+        let f: Vec<f32> = bytemuck::cast_slice(&bytes).to_vec();
+        let nw = self.scene.walls.len();
+        let walls_buf = self.bufs.walls.clone();
+        if nw > 0 {
+            let wb = self.download(&walls_buf, 0, 32 * nw as u64)?;
+            let walls: &[super::buffers::GpuWall] = bytemuck::cast_slice(&wb);
+            for (w, g) in walls.iter().enumerate() {
+                self.scene.walls[w].point =
+                    glam::DVec2::new(g.px as f64 + self.centre.x, g.py as f64 + self.centre.y);
+            }
+        }
+        let dt = self.params.dt;
+        let steps = red.steps.max(1) as f64;
+        let fw = self.sim.f_wall as usize;
+        red.wall_force = (0..nw)
+            .map(|w| glam::DVec2::new(f[fw + 2 * w] as f64, f[fw + 2 * w + 1] as f64) / (steps * dt))
+            .collect();
+        red.wall_point = self.scene.walls.iter().map(|w| w.point).collect();
+        red.time = self.scene.time;
+        red.step = self.scene.step;
+        red.candidates = self.n_contacts;
+        let r = self.sim.f_red as usize;
+        let u = |k: usize| f[r + k].to_bits();
+        red.rolling = u(1);
+        red.sliding = u(2);
+        red.zero_force = u(3);
+        red.force_carrying = red.rolling + red.sliding;
+        let (connected, free) = (u(4) as f64, u(5) as f64);
+        red.coordination = if connected > 0.0 {
+            2.0 * red.force_carrying as f64 / connected
+        } else {
+            0.0
+        };
+        red.isolated_fraction = if free > 0.0 { 1.0 - connected / free } else { 0.0 };
+        let n_ov = f[r + 6] as f64;
+        red.overlap_mean = if n_ov > 0.0 { f[r + 7] as f64 / n_ov } else { 0.0 };
+        red.overlap_max = f[r + 8] as f64;
+        red.kinetic_energy = f[r + 9] as f64;
+        red.translational_energy = f[r + 14] as f64;
+        let has = |s: i8| loading.strip.contains(&s);
+        red.strip_mean_x = [(-1i8, 10usize, 12usize), (1, 11, 13)].map(|(s, sx, sc)| {
+            if has(s) && f[r + sc] > 0.0 {
+                f[r + sx] as f64 / f[r + sc] as f64 + self.centre.x
+            } else {
+                f64::NAN
+            }
+        });
+        Ok(red)
+    }
+}

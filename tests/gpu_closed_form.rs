@@ -1,0 +1,160 @@
+//! Closed-form cases on the GPU path (validation.md cases 2, 3, 5 and a glued-wall case),
+//! with f32 tolerances. Skips visibly without an adapter (see `gpu_support::gpu_or_skip`).
+
+mod common;
+#[path = "gpu_support/mod.rs"]
+mod gpu_support;
+
+use cdlab::backend::{Backend, Loading};
+use cdlab::solver::Method;
+use common::*;
+use glam::DVec2;
+use gpu_support::*;
+
+#[test]
+fn gpu_head_on_inelastic_collision_gives_the_mean_velocity() {
+    for method in [Method::ColoredGs, Method::Jacobi] {
+        let mut s = scene(0.0);
+        s.disks.push(DVec2::new(-1.0, 0.0), 1.0, RHO).unwrap();
+        s.disks.push(DVec2::new(1.0, 0.0), 1.0, RHO).unwrap();
+        s.disks.vel[0] = DVec2::new(2.0, 0.0);
+        s.disks.vel[1] = DVec2::new(-1.0, 0.0);
+        let Some(mut g) = gpu_or_skip("head-on", &s, gpu_params(method)) else {
+            return;
+        };
+        g.run(1, &Loading::default()).unwrap();
+        let out = g.scene().unwrap();
+        // Expected 0.5 m/s; f32 arithmetic on O(1) velocities: a few ulp (6e-8) plus the
+        // solver's 1e-6 relative stop.
+        for k in 0..2 {
+            let v = out.disks.vel[k];
+            assert!((v.x - 0.5).abs() < 1e-5, "{method:?}: v{k} = {v}");
+            assert_eq!(v.y, 0.0);
+        }
+    }
+}
+
+#[test]
+fn gpu_loaded_column_carries_the_top_force_through_every_contact() {
+    let (n, r, force) = (5usize, 1.0, 2.0e6);
+    let mut s = scene(0.3);
+    s.gravity = DVec2::new(0.0, -G);
+    s.walls.push(floor());
+    s.walls.push(cdlab::model::Wall {
+        drive: cdlab::model::WallDrive::Force { mass: 1.0e4, force },
+        ..cdlab::model::Wall::fixed(DVec2::new(0.0, 2.0 * r * n as f64), -DVec2::Y)
+    });
+    for k in 0..n {
+        s.disks
+            .push(DVec2::new(0.0, r + 2.0 * r * k as f64), r, RHO)
+            .unwrap();
+    }
+    let weight = s.disks.mass[0] * G;
+    let Some(mut g) = gpu_or_skip("column", &s, gpu_params(Method::ColoredGs)) else {
+        return;
+    };
+    let red = g.run(20, &Loading::default()).unwrap();
+    let dt = g.params().dt;
+    let contacts = g.contacts().unwrap();
+    let force_of = |i: u32, j: u32| {
+        contacts
+            .iter()
+            .find(|c| (c.i, c.j) == (i, j))
+            .unwrap_or_else(|| panic!("no contact {i}-{j}"))
+            .f_n
+    };
+    // Expected: F plus the weights above each contact. Tolerance 1e-4 F: f32 impulses
+    // (6e-8) through a chain of 6 contacts solved to a relative change of 1e-6.
+    let tol = 1e-4 * force;
+    let top = force_of(n as u32 - 1, n as u32 + 1);
+    assert!((top - force).abs() < tol, "top {top}");
+    for k in 0..n - 1 {
+        let expected = force + weight * (n - 1 - k) as f64;
+        let got = force_of(k as u32, k as u32 + 1);
+        assert!(
+            (got - expected).abs() < tol,
+            "contact {k}: {got}, expected {expected}"
+        );
+    }
+    let expected = force + weight * n as f64;
+    let got = force_of(0, n as u32);
+    assert!((got - expected).abs() < tol, "floor {got}, expected {expected}");
+    // The floor's reaction in the reductions (last step's impulse equals the average once
+    // the column is at rest; the first steps settle, hence the looser 1e-2).
+    let _ = dt;
+    assert!(
+        (red.wall_force[0].y + expected).abs() < 1e-2 * expected,
+        "floor reaction {}",
+        red.wall_force[0].y
+    );
+}
+
+#[test]
+fn gpu_disk_on_an_incline_rolls_at_two_thirds_g_sin_a() {
+    let (mu, r, steps) = (0.3, 0.8, 200u32);
+    let a = 0.6f64.atan();
+    let mut s = scene(mu);
+    s.walls.push(floor());
+    s.gravity = G * DVec2::new(a.sin(), -a.cos());
+    s.disks.push(DVec2::new(0.0, r), r, RHO).unwrap();
+    let Some(mut g) = gpu_or_skip("incline", &s, gpu_params(Method::ColoredGs)) else {
+        return;
+    };
+    g.run(steps, &Loading::default()).unwrap();
+    let out = g.scene().unwrap();
+    let t = steps as f64 * g.params().dt;
+    let acc = out.disks.vel[0].x / t;
+    let alpha = out.disks.spin[0] / t;
+    let expected = 2.0 / 3.0 * G * a.sin();
+    // f32 velocity summed over 200 steps: 200 x 6e-8 relative, plus the solver's 1e-6.
+    assert!(
+        (acc - expected).abs() < 1e-4 * expected,
+        "a = {acc}, expected {expected}"
+    );
+    assert!(
+        (alpha + expected / r).abs() < 1e-4 * expected / r,
+        "alpha = {alpha}"
+    );
+}
+
+#[test]
+fn gpu_glued_disk_on_a_force_driven_wall_matches_the_hand_calculation() {
+    // A free disk B on the floor against a left wall; a disk A glued to a force-driven top
+    // wall (pushing down with F) touches B at 60 degrees. The wall moves along y only, so
+    // the A-B contact is oblique to its axis: W_nt != 0 and the local problem is the 2x2
+    // block. Frictionless, the three normal forces are determinate: A-B carries 2F/sqrt3,
+    // the floor F, the left wall F/sqrt3.
+    let (r, f) = (1.0, 1.0e6);
+    let mut s = scene(0.0);
+    s.walls.push(floor());
+    s.walls
+        .push(cdlab::model::Wall::fixed(DVec2::new(-r, 0.0), DVec2::X));
+    let top = r + 3f64.sqrt() * r;
+    s.walls.push(cdlab::model::Wall {
+        drive: cdlab::model::WallDrive::Force {
+            mass: 1.0e3,
+            force: f,
+        },
+        ..cdlab::model::Wall::fixed(DVec2::new(0.0, top + r), -DVec2::Y)
+    });
+    s.disks.push(DVec2::new(0.0, r), r, RHO).unwrap();
+    s.disks.push(DVec2::new(r, top), r, RHO).unwrap();
+    s.disks.glue(1, 2);
+    let params = gpu_params(Method::ColoredGs);
+    let Some(mut g) = gpu_or_skip("glued block", &s, params) else {
+        return;
+    };
+    g.run(20, &Loading::default()).unwrap();
+    let raw = g.raw_contacts().unwrap();
+    assert!(raw.iter().any(|c| c.wnt != 0.0), "no coupled contact: {raw:?}");
+    let contacts = g.contacts().unwrap();
+    let force_of = |j: u32| contacts.iter().find(|c| (c.i, c.j) == (0, j)).unwrap().f_n;
+    // f32 impulses solved to 1e-6: 1e-4 F.
+    let tol = 1e-4 * f;
+    let ab = force_of(1);
+    assert!((ab - 2.0 * f / 3f64.sqrt()).abs() < tol, "A-B {ab}");
+    let floor_n = force_of(2);
+    assert!((floor_n - f).abs() < tol, "floor {floor_n}");
+    let left = force_of(3);
+    assert!((left - f / 3f64.sqrt()).abs() < tol, "left wall {left}");
+}

@@ -1,0 +1,86 @@
+//! Helpers of the GPU tests: adapter-or-skip, parameters, packings.
+#![allow(dead_code)]
+
+use cdlab::engine::StepParams;
+use cdlab::gpu::GpuBackend;
+use cdlab::model::Scene;
+use cdlab::solver::Method;
+use glam::DVec2;
+
+use crate::common::*;
+
+/// A GPU backend on `scene`, or `None` with a visible SKIPPED line when no adapter exists.
+/// With `CDLAB_REQUIRE_GPU=1` a missing adapter panics instead (CI sets it).
+pub fn gpu_or_skip(test: &str, scene: &Scene, params: StepParams) -> Option<GpuBackend> {
+    match GpuBackend::new(scene.clone(), params) {
+        Ok(b) => Some(b),
+        Err(cdlab::Error::Gpu(msg)) if std::env::var("CDLAB_REQUIRE_GPU").as_deref() != Ok("1") => {
+            // Written to the process's stderr directly, past the test harness's capture, so
+            // the skip shows in a plain `cargo test`.
+            let line = format!("SKIPPED (no GPU adapter): {test}: {msg}\n");
+            let _ = std::io::Write::write_all(&mut std::io::stderr(), line.as_bytes());
+            None
+        }
+        Err(e) => panic!("{test}: {e}"),
+    }
+}
+
+/// Tight solver settings for the GPU: f32 impulses stop changing at a relative 1e-7, so a
+/// tolerance of 1e-6 is the tightest the convergence test can certify; iterations are
+/// checked one by one so the GPU stops at the same iteration as a converged CPU run would.
+pub fn gpu_params(method: Method) -> StepParams {
+    let mut p = tight(method);
+    p.solver.tol = 1e-6;
+    p.solver.max_iter = 5000;
+    p
+}
+
+/// Sorted (i, partner) pairs.
+pub fn pairs(it: impl Iterator<Item = (u32, u32)>) -> Vec<(u32, u32)> {
+    let mut v: Vec<_> = it.collect();
+    v.sort_unstable();
+    v
+}
+
+/// Near-touching disks on a jittered square lattice with random velocities (see the
+/// contact-set test), in a box.
+pub fn lattice(n: usize, seed: u64) -> Scene {
+    let mut rng = Rng(seed);
+    let mut s = scene(0.3);
+    for a in 0..n {
+        for b in 0..n {
+            let r = 1.0 - 0.01 * rng.uniform();
+            let p = DVec2::new(
+                2.0 * a as f64 + rng.range(-0.004, 0.004),
+                2.0 * b as f64 + rng.range(-0.004, 0.004),
+            );
+            let k = s.disks.push(p, r, RHO).unwrap();
+            s.disks.vel[k] = DVec2::new(rng.range(-0.1, 0.1), rng.range(-0.1, 0.1));
+            s.disks.spin[k] = rng.range(-0.1, 0.1);
+        }
+    }
+    let side = 2.0 * n as f64 - 1.0;
+    add_box(&mut s, -1.005, side, -1.0, side);
+    s
+}
+
+/// A hexagonal packing of `rows` x `cols` equal disks (radius 0.5) in contact, on a floor.
+pub fn hex(rows: usize, cols: usize) -> Scene {
+    let mut s = scene(0.3);
+    let r = 0.5;
+    for row in 0..rows {
+        for col in 0..cols {
+            let x = 2.0 * r * col as f64 + r * (row % 2) as f64;
+            let y = row as f64 * r * 3f64.sqrt();
+            s.disks.push(DVec2::new(x, y), r, RHO).unwrap();
+        }
+    }
+    s.walls.push(floor_at(-r));
+    s
+}
+
+pub fn floor_at(y: f64) -> cdlab::model::Wall {
+    cdlab::model::Wall::fixed(DVec2::new(0.0, y), DVec2::Y)
+}
+
+pub const G: f64 = 9.81;
