@@ -101,6 +101,9 @@ pub struct Reductions {
     pub translational_energy: f64,
     /// Mean centre x of the left and right strips (m); NaN without strips.
     pub strip_mean_x: [f64; 2],
+    /// Outer edges of the left and right strips (m), see [`strip_outer_edges`]; NaN
+    /// without strips.
+    pub strip_edges: [f64; 2],
     /// Solver iterations summed over the run's steps.
     pub iterations_sum: u64,
     /// Largest iteration count of a step.
@@ -209,6 +212,7 @@ impl Accumulator {
                 cnt[side] += 1;
             }
         }
+        r.strip_edges = strip_outer_edges(scene, loading);
         r.strip_mean_x = [0, 1].map(|s| {
             if cnt[s] > 0 {
                 sx[s] / cnt[s] as f64
@@ -218,4 +222,43 @@ impl Accumulator {
         });
         self.red
     }
+}
+
+/// Outer edges of the two strips (m): the sample is cut into horizontal bands one largest
+/// diameter high between the bottom and top walls; in each band the left edge is the
+/// smallest `x - r` of the left-strip disks whose centre lies in it, the right edge the
+/// largest `x + r` of the right-strip disks; each edge is the mean over the bands that hold
+/// disks of both strips. The sample width `right - left` times the wall distance is the
+/// area between the outer edges of the strips and the walls (protocol.md's V).
+pub fn strip_outer_edges(scene: &Scene, loading: &Loading) -> [f64; 2] {
+    if loading.strip.is_empty() {
+        return [f64::NAN; 2];
+    }
+    let d = &scene.disks;
+    let y0 = scene.walls[loading.bottom].point.y;
+    let y1 = scene.walls[loading.top].point.y;
+    let band = 2.0 * d.radius.iter().cloned().fold(0.0, f64::max);
+    let n = (((y1 - y0) / band).ceil().max(1.0)) as usize;
+    let mut left = vec![f64::INFINITY; n];
+    let mut right = vec![f64::NEG_INFINITY; n];
+    for (k, &s) in loading.strip.iter().enumerate() {
+        if s == 0 {
+            continue;
+        }
+        let b = (((d.pos[k].y - y0) / band).max(0.0) as usize).min(n - 1);
+        if s < 0 {
+            left[b] = left[b].min(d.pos[k].x - d.radius[k]);
+        } else {
+            right[b] = right[b].max(d.pos[k].x + d.radius[k]);
+        }
+    }
+    let (mut sl, mut sr, mut m) = (0.0, 0.0, 0usize);
+    for b in 0..n {
+        if left[b].is_finite() && right[b].is_finite() {
+            sl += left[b];
+            sr += right[b];
+            m += 1;
+        }
+    }
+    if m == 0 { [f64::NAN; 2] } else { [sl / m as f64, sr / m as f64] }
 }

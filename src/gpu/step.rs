@@ -323,6 +323,13 @@ impl GpuBackend {
         red.kinetic_energy = f[r + 9] as f64;
         red.translational_energy = f[r + 14] as f64;
         let has = |s: i8| loading.strip.contains(&s);
+        // The outer edges need the positions: one download at the output interval.
+        if !loading.strip.is_empty() {
+            let scene = crate::backend::Backend::scene(self)?;
+            red.strip_edges = crate::backend::reduce::strip_outer_edges(&scene, loading);
+        } else {
+            red.strip_edges = [f64::NAN; 2];
+        }
         red.strip_mean_x = [(-1i8, 10usize, 12usize), (1, 11, 13)].map(|(s, sx, sc)| {
             if has(s) && f[r + sc] > 0.0 {
                 f[r + sx] as f64 / f[r + sc] as f64 + self.centre.x

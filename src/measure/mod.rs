@@ -14,10 +14,8 @@ pub struct Gauge {
     pub top: usize,
     /// See `top`.
     pub bottom: usize,
-    /// Width estimate at the reference state (outer edges of the strips, m).
+    /// Width at the start of confinement, used before the strips exist (m).
     pub w_ref: f64,
-    /// Distance between the strips' mean centres at the reference state (m).
-    pub strips_ref: f64,
     /// Height at the start of compression (m; 0 before).
     pub h0: f64,
     /// Width at the start of compression (m; 0 before).
@@ -36,17 +34,11 @@ impl Gauge {
         red.wall_point[self.top].y - red.wall_point[self.bottom].y
     }
 
-    /// Sample width (m): the outer width measured when the strips were formed, plus the
-    /// change of the distance between the two strips' mean centres since then. The strip
-    /// centroids average over a strip's ~7.5 m of disks, so this follows the deformable
-    /// walls without the noise of the single outermost disk.
+    /// Sample width (m): the distance between the strips' outer edges
+    /// ([`crate::backend::reduce::strip_outer_edges`]).
     pub fn width(&self, red: &Reductions) -> f64 {
-        let d = red.strip_mean_x[1] - red.strip_mean_x[0];
-        if d.is_finite() {
-            self.w_ref + d - self.strips_ref
-        } else {
-            self.w_ref
-        }
+        let d = red.strip_edges[1] - red.strip_edges[0];
+        if d.is_finite() { d } else { self.w_ref }
     }
 
     /// Builds a series row.

@@ -260,16 +260,8 @@ impl<B: Backend> Lab<B> {
                 }
             })
             .collect();
-        let mean_x = |side: i8| {
-            let xs: Vec<f64> = (0..n)
-                .filter(|&k| strip[k] == side)
-                .map(|k| s.disks.pos[k].x)
-                .collect();
-            xs.iter().sum::<f64>() / xs.len() as f64
-        };
         let g = &mut self.state.gauge;
         g.w_ref = x_r - x_l;
-        g.strips_ref = mean_x(1) - mean_x(-1);
         let height = s.walls[walls::TOP].point.y - s.walls[walls::BOTTOM].point.y;
         let applied = p.sigma3 * g.w_ref;
         s.walls[walls::TOP].drive = WallDrive::Force {
