@@ -16,6 +16,7 @@
 //! - [`engine`]: the CPU reference time stepper;
 //! - [`solver`]: local law, coloring, Gauss-Seidel and Jacobi sweeps;
 //! - [`contact`]: contact frame, cell grid and detection;
+//! - [`fc2d`]: Siconos frictional contact problems, an outside test of the local law;
 //! - [`model`]: disks, walls, material (the state a backend steps);
 //! - [`error`]: the error type.
 
@@ -25,6 +26,7 @@ pub mod config;
 pub mod contact;
 pub mod engine;
 pub mod error;
+pub mod fc2d;
 pub mod gpu;
 pub mod measure;
 pub mod model;

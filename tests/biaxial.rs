@@ -75,7 +75,12 @@ fn small_biaxial_test_confines_then_peaks_and_dilates() {
     let worst = obs.rows.iter().map(|r| r.overlap_max_rel).fold(0.0, f64::max);
     assert!(worst < 0.01, "largest overlap {worst} r_min");
     assert!(last.strain_axial >= p.strain_end);
-    assert_eq!(obs.snapshots.len(), 4, "snapshots at strain 0, 0.01, 0.02, 0.03: {:?}", obs.snapshots);
+    assert_eq!(
+        obs.snapshots.len(),
+        4,
+        "snapshots at strain 0, 0.01, 0.02, 0.03: {:?}",
+        obs.snapshots
+    );
 }
 
 /// Keeps the rows and every checkpoint.

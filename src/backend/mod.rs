@@ -114,3 +114,31 @@ pub trait Backend {
     /// (wall forces averaged over the steps; counts and energies of the last step).
     fn run(&mut self, steps: u32, loading: &Loading) -> Result<Reductions>;
 }
+
+/// A boxed backend is a backend: the CLI picks CPU or GPU at run time.
+impl<B: Backend + ?Sized> Backend for Box<B> {
+    fn name(&self) -> String {
+        (**self).name()
+    }
+    fn params(&self) -> StepParams {
+        (**self).params()
+    }
+    fn set_params(&mut self, params: StepParams) -> Result<()> {
+        (**self).set_params(params)
+    }
+    fn set_scene(&mut self, scene: &Scene) -> Result<()> {
+        (**self).set_scene(scene)
+    }
+    fn scene(&mut self) -> Result<Scene> {
+        (**self).scene()
+    }
+    fn contacts(&mut self) -> Result<Vec<ContactRecord>> {
+        (**self).contacts()
+    }
+    fn set_warm_start(&mut self, contacts: &[ContactRecord]) -> Result<()> {
+        (**self).set_warm_start(contacts)
+    }
+    fn run(&mut self, steps: u32, loading: &Loading) -> Result<Reductions> {
+        (**self).run(steps, loading)
+    }
+}

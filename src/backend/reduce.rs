@@ -260,5 +260,9 @@ pub fn strip_outer_edges(scene: &Scene, loading: &Loading) -> [f64; 2] {
             m += 1;
         }
     }
-    if m == 0 { [f64::NAN; 2] } else { [sl / m as f64, sr / m as f64] }
+    if m == 0 {
+        [f64::NAN; 2]
+    } else {
+        [sl / m as f64, sr / m as f64]
+    }
 }

@@ -1,8 +1,11 @@
 //! The `cdlab` command line. Each subcommand lives in its own file with an `Args` struct
 //! (clap) and a `run` function; this file only dispatches.
 
+pub mod biaxial;
 pub mod config;
+pub mod fc2d;
 pub mod info;
+pub mod run;
 
 use clap::{Parser, Subcommand};
 
@@ -18,6 +21,10 @@ pub struct Cli {
 /// The subcommands.
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// Run the biaxial test (deposition, compaction, confinement, compression).
+    Biaxial(biaxial::Args),
+    /// Solve a Siconos 2D frictional contact problem (fc2d file).
+    Fc2d(fc2d::Args),
     /// Print the version and build information.
     Version,
     /// Print the default configuration or check a configuration file.
@@ -30,6 +37,8 @@ pub enum Command {
 pub fn main() -> i32 {
     let cli = Cli::parse();
     let result: crate::Result<()> = match cli.command {
+        Command::Biaxial(args) => biaxial::run(&args),
+        Command::Fc2d(args) => fc2d::run(&args),
         Command::Version => {
             println!("cdlab {}", env!("CARGO_PKG_VERSION"));
             Ok(())

@@ -35,7 +35,7 @@ pub fn moving_peak(rows: &[SeriesRow], window: f64) -> (f64, f64) {
         }
         let n = (end - start) as f64;
         let mean = sum / n;
-        if !(mean <= best.0) {
+        if best.0.is_nan() || mean > best.0 {
             best = (
                 mean,
                 0.5 * (rows[start].strain_axial + rows[end - 1].strain_axial),

@@ -2,6 +2,7 @@
 //! the derived results (peak and residual strength, Mohr-Coulomb angle).
 
 pub mod derived;
+pub mod summary;
 
 use crate::backend::Reductions;
 

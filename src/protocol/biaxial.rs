@@ -226,7 +226,7 @@ impl<B: Backend> Lab<B> {
                 }
             }
         }
-        if top_mass == 0.0 || !s.disks.glued_to.iter().any(|&g| g == walls::BOTTOM as u32) {
+        if top_mass == 0.0 || !s.disks.glued_to.contains(&(walls::BOTTOM as u32)) {
             return Err(Error::Other(
                 "no disk touches the top or bottom wall after compaction: the sample is not confined".into(),
             ));

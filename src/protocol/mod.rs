@@ -141,7 +141,7 @@ impl ProtocolParams {
             ));
         }
         check_positive("sample.r_min", self.r_min)?;
-        if !(self.r_max >= self.r_min) || !self.r_max.is_finite() {
+        if self.r_max.is_nan() || self.r_max < self.r_min || !self.r_max.is_finite() {
             return Err(Error::invalid(
                 "sample.r_max",
                 self.r_max,

@@ -33,7 +33,7 @@ pub fn deposit(radii: &[f64], width: f64) -> Result<Packing> {
     check_positive("deposition width", width)?;
     let r_max = radii.iter().cloned().fold(0.0, f64::max);
     let r_min = radii.iter().cloned().fold(f64::INFINITY, f64::min);
-    if radii.is_empty() || !(r_min > 0.0) {
+    if radii.is_empty() || r_min.is_nan() || r_min <= 0.0 {
         return Err(Error::invalid(
             "radii",
             r_min,

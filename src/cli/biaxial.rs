@@ -1,0 +1,227 @@
+//! `cdlab biaxial`: one biaxial test, from deposition (or a prepared sample, or a resumed
+//! record) to the summary.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use crate::config::units::{Dimension, parse_quantity};
+use crate::config::{Config, Overrides, Pressure};
+use crate::error::{Error, Result};
+use crate::measure::summary::Summary;
+use crate::protocol::biaxial::Lab;
+use crate::protocol::checkpoint::decode;
+use crate::protocol::{Observer, Phase, prepare};
+use crate::record::{Recorder, read_run};
+
+use super::run::{Recording, open_backend};
+
+/// Options of `cdlab biaxial`.
+#[derive(clap::Args, Debug, Default)]
+pub struct Args {
+    /// Configuration file (TOML); the built-in default when absent (`cdlab config --print-default`).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Number of disks (the paper uses 5000).
+    #[arg(long)]
+    pub disks: Option<usize>,
+    /// Disk-disk friction coefficient.
+    #[arg(long)]
+    pub mu: Option<f64>,
+    /// Confining stress with its unit, e.g. 8MPa, 500kPa.
+    #[arg(long)]
+    pub sigma3: Option<String>,
+    /// Axial strain at which the test ends, in (0, 1).
+    #[arg(long)]
+    pub strain: Option<f64>,
+    /// Seed of the grain sizes.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// cpu, gpu or auto.
+    #[arg(long)]
+    pub backend: Option<String>,
+    /// Output directory (default: the configuration's output.dir).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Replace the files of an existing output directory.
+    #[arg(long)]
+    pub force: bool,
+    /// Continue the run recorded in this directory from its last checkpoint.
+    #[arg(long, conflicts_with_all = ["config", "disks", "mu", "sigma3", "strain", "seed", "out", "sample"])]
+    pub resume: Option<PathBuf>,
+    /// Start from a sample prepared by `cdlab prepare` (skips deposition and compaction).
+    #[arg(long)]
+    pub sample: Option<PathBuf>,
+    /// No progress display.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// The configuration of a new run: file or default, then the flags.
+pub fn configuration(args: &Args) -> Result<Config> {
+    let mut config = match &args.config {
+        Some(p) => Config::load(p)?,
+        None => Config::default(),
+    };
+    let sigma3 = match &args.sigma3 {
+        Some(s) => Some(Pressure(
+            parse_quantity(s, Dimension::Pressure).map_err(|e| Error::invalid("--sigma3", s, &e.0))?,
+        )),
+        None => None,
+    };
+    config.apply(&Overrides {
+        disks: args.disks,
+        mu: args.mu,
+        sigma3,
+        strain: args.strain,
+        seed: args.seed,
+        backend: args.backend.clone(),
+        out: args.out.clone(),
+    })?;
+    config.validate()?;
+    Ok(config)
+}
+
+/// Refuses an output directory that already holds files, unless `force`.
+pub fn check_out_dir(dir: &Path, force: bool) -> Result<()> {
+    if dir.exists() && !force {
+        let busy = std::fs::read_dir(dir)
+            .map_err(|e| Error::io(dir, e))?
+            .next()
+            .is_some();
+        if busy {
+            return Err(Error::Other(format!(
+                "output directory {} already holds files: pass --force to replace them, \
+                 --resume {} to continue that run, or --out DIR",
+                dir.display(),
+                dir.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Runs `cdlab biaxial`.
+pub fn run(args: &Args) -> Result<()> {
+    let started = Instant::now();
+    let (config, dir, lab, mut obs) = if let Some(dir) = &args.resume {
+        resume(dir, args)?
+    } else {
+        let mut config = configuration(args)?;
+        if let Some(b) = &args.backend {
+            config.solver.backend = b.parse()?;
+        }
+        let dir = config.output.dir.clone();
+        check_out_dir(&dir, args.force)?;
+        let params = config.protocol();
+        params.validate()?;
+        let (scene, compacted) = match &args.sample {
+            Some(path) => {
+                let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+                let ck = decode(&bytes).map_err(|e| Error::Other(format!("{}: {e}", path.display())))?;
+                (ck.scene, true)
+            }
+            None => {
+                let (scene, rep) = prepare::deposit_scene(&params)?;
+                if !args.quiet {
+                    eprintln!(
+                        "deposited {} disks in {:.2} s: packing fraction {:.3}, coordination {:.2}, \
+                         D10 {:.2} m, D60 {:.2} m, height/width {:.2}",
+                        params.disks,
+                        rep.seconds,
+                        rep.packing_fraction,
+                        rep.coordination,
+                        rep.d10_m,
+                        rep.d60_m,
+                        rep.aspect
+                    );
+                }
+                (scene, false)
+            }
+        };
+        let backend = open_backend(&config, scene.clone(), params.step)?;
+        let lab = Lab::new(backend, params.clone(), &scene, compacted)?;
+        let obs = Recording::new(Recorder::create(&dir, &config)?, params.strain_end, args.quiet);
+        (config, dir, lab, obs)
+    };
+    if !args.quiet {
+        eprintln!(
+            "running on {} -> {}",
+            crate::backend::Backend::name(&lab.backend),
+            dir.display()
+        );
+    }
+    let mut lab = lab;
+    let outcome = lab.run(&mut obs);
+    obs.finish();
+    outcome?;
+    let summary = Summary::new(
+        &obs.rows,
+        &obs.ends,
+        config.test.sigma3.si(),
+        config.test.mu,
+        config.sample.disks,
+        crate::backend::Backend::name(&lab.backend),
+        started.elapsed().as_secs_f64(),
+    );
+    obs.recorder.finish()?;
+    write_summary(&dir, &summary)?;
+    println!("biaxial test finished: {}\n{}", dir.display(), summary.table());
+    Ok(())
+}
+
+/// Writes `summary.json` and `summary.txt` into `dir`.
+pub fn write_summary(dir: &Path, summary: &Summary) -> Result<()> {
+    let json = serde_json::to_string_pretty(summary).map_err(|e| Error::Other(e.to_string()))?;
+    let p = dir.join("summary.json");
+    std::fs::write(&p, json).map_err(|e| Error::io(&p, e))?;
+    let p = dir.join("summary.txt");
+    std::fs::write(&p, summary.table()).map_err(|e| Error::io(&p, e))
+}
+
+type Resumed = (Config, PathBuf, Lab<Box<dyn crate::backend::Backend>>, Recording);
+
+/// Reopens a run directory: reads its record, rewrites it up to the last checkpoint (rows
+/// and snapshots after it are dropped: the resumed run recomputes them exactly), and
+/// restores the lab from the checkpoint.
+fn resume(dir: &Path, args: &Args) -> Result<Resumed> {
+    let rec = read_run(dir)?;
+    let mut config = rec.config()?;
+    if let Some(b) = &args.backend {
+        config.solver.backend = b.parse()?;
+    }
+    let Some((step, bytes)) = rec.last_checkpoint.clone() else {
+        return Err(Error::Other(format!(
+            "{}: the record holds no checkpoint to resume from",
+            dir.display()
+        )));
+    };
+    let ck = decode(&bytes).map_err(|e| Error::Other(format!("{}: checkpoint: {e}", dir.display())))?;
+    if ck.state.phase == Phase::Done {
+        return Err(Error::Other(format!(
+            "{}: this run is already complete",
+            dir.display()
+        )));
+    }
+    let params = ck.state.params.clone();
+    let backend = open_backend(&config, ck.scene.clone(), params.step)?;
+    let time = ck.scene.time;
+    let lab = Lab::resume(backend, ck)?;
+    // Only now, with everything read and checked, replace the files.
+    let mut obs = Recording::new(Recorder::create(dir, &config)?, params.strain_end, args.quiet);
+    for row in rec.series.iter().filter(|r| r.step <= step) {
+        obs.series(row)?;
+    }
+    for snap in rec.snapshots.iter().filter(|s| s.time_s <= time) {
+        obs.recorder.snapshot(snap)?;
+    }
+    obs.ends = lab.state.ends.clone();
+    obs.recorder.checkpoint(step, time, &bytes)?;
+    if !args.quiet {
+        eprintln!(
+            "resuming {} from step {step} (t = {time:.3} s, phase {})",
+            dir.display(),
+            lab.state.phase.name()
+        );
+    }
+    Ok((config, dir.to_path_buf(), lab, obs))
+}

@@ -1,0 +1,184 @@
+//! Shared pieces of the commands that run tests: choosing the backend, the observer that
+//! records and shows progress.
+
+use std::io::IsTerminal;
+use std::time::Instant;
+
+use glam::DVec2;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::backend::{Backend, ContactRecord, CpuBackend};
+use crate::config::{Backend as Choice, Config};
+use crate::engine::StepParams;
+use crate::error::Result;
+use crate::measure::SeriesRow;
+use crate::model::Scene;
+use crate::protocol::{Observer, PhaseEnd};
+use crate::record::{ContactRecord as SnapContact, DiskRecord, Recorder, Snapshot};
+
+/// Opens the backend the configuration asks for. `auto` takes the GPU path only on a
+/// hardware adapter (on the software one the CPU path is faster) and says which it took.
+pub fn open_backend(config: &Config, scene: Scene, params: StepParams) -> Result<Box<dyn Backend>> {
+    let gpu = match config.solver.backend {
+        Choice::Cpu => false,
+        Choice::Gpu => true,
+        Choice::Auto => crate::gpu::device::list_adapters()
+            .iter()
+            .any(|a| a.device_type != "Cpu"),
+    };
+    if gpu {
+        Ok(Box::new(crate::gpu::backend::GpuBackend::new(scene, params)?))
+    } else {
+        Ok(Box::new(CpuBackend::new(scene, params)?))
+    }
+}
+
+/// Records every row, snapshot and checkpoint, and shows progress: a bar on a terminal,
+/// plain lines every few seconds otherwise (CI, logs).
+pub struct Recording {
+    /// The MCAP and CSV writer.
+    pub recorder: Recorder,
+    /// Rows received (the summary is derived from them).
+    pub rows: Vec<SeriesRow>,
+    /// Phase ends received.
+    pub ends: Vec<PhaseEnd>,
+    strain_end: f64,
+    bar: Option<ProgressBar>,
+    started: Instant,
+    last_line: Instant,
+    quiet: bool,
+}
+
+impl Recording {
+    /// A recording observer; `quiet` silences the progress display.
+    pub fn new(recorder: Recorder, strain_end: f64, quiet: bool) -> Self {
+        let bar = (!quiet && std::io::stderr().is_terminal()).then(|| {
+            let b = ProgressBar::new(1000);
+            b.set_style(
+                ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {msg} (ETA {eta})")
+                    .expect("valid template"),
+            );
+            b
+        });
+        Recording {
+            recorder,
+            rows: Vec::new(),
+            ends: Vec::new(),
+            strain_end,
+            bar,
+            started: Instant::now(),
+            last_line: Instant::now(),
+            quiet,
+        }
+    }
+
+    /// Ends the progress display.
+    pub fn finish(&self) {
+        if let Some(b) = &self.bar {
+            b.finish_and_clear();
+        }
+    }
+}
+
+impl Observer for Recording {
+    fn series(&mut self, row: &SeriesRow) -> Result<()> {
+        self.recorder.series(row)?;
+        let msg = format!(
+            "{:<11} t {:8.3} s  strain {:.4}  sigma1 {:7.3} MPa  dV/V0 {:+.4}  iterations/step {:6.1}",
+            row.phase,
+            row.time_s,
+            row.strain_axial,
+            row.sigma1_pa / 1e6,
+            row.volumetric_strain,
+            row.iterations
+        );
+        if let Some(b) = &self.bar {
+            if row.phase == "compression" {
+                b.set_position((1000.0 * row.strain_axial / self.strain_end).min(1000.0) as u64);
+            }
+            b.set_message(msg);
+        } else if !self.quiet && self.last_line.elapsed().as_secs_f64() >= 5.0 {
+            eprintln!("[{:7.1} s] {msg}", self.started.elapsed().as_secs_f64());
+            self.last_line = Instant::now();
+        }
+        self.rows.push(row.clone());
+        Ok(())
+    }
+
+    fn phase_end(&mut self, end: &PhaseEnd) -> Result<()> {
+        let line = format!(
+            "{} ended at t = {:.3} s (step {}): {}, kinetic ratio {:.2e}, force imbalance {:.2e}",
+            end.phase.name(),
+            end.time_s,
+            end.step,
+            if end.settled {
+                "settled"
+            } else {
+                "NOT settled (time cap reached)"
+            },
+            end.kinetic_ratio,
+            end.force_imbalance
+        );
+        match &self.bar {
+            Some(b) => b.println(line),
+            None if !self.quiet => eprintln!("{line}"),
+            None => {}
+        }
+        self.ends.push(end.clone());
+        Ok(())
+    }
+
+    fn snapshot(
+        &mut self,
+        strain: f64,
+        scene: &Scene,
+        contacts: &[ContactRecord],
+        reference: &[DVec2],
+    ) -> Result<()> {
+        self.recorder
+            .snapshot(&snapshot(strain, scene, contacts, reference))
+    }
+
+    fn checkpoint(&mut self, step: u64, bytes: &[u8]) -> Result<()> {
+        let time = self.rows.last().map_or(0.0, |r| r.time_s);
+        self.recorder.checkpoint(step, time, bytes)
+    }
+}
+
+/// The snapshot record of a state: disks with their displacement since `reference`
+/// (the start of compression; zero before), and every candidate contact.
+pub fn snapshot(strain: f64, scene: &Scene, contacts: &[ContactRecord], reference: &[DVec2]) -> Snapshot {
+    let d = &scene.disks;
+    Snapshot {
+        time_s: scene.time,
+        strain,
+        disks: (0..d.len())
+            .map(|k| {
+                let u = reference.get(k).map_or(DVec2::ZERO, |r| d.pos[k] - *r);
+                DiskRecord {
+                    x: d.pos[k].x,
+                    y: d.pos[k].y,
+                    theta: d.theta[k],
+                    vx: d.vel[k].x,
+                    vy: d.vel[k].y,
+                    w: d.spin[k],
+                    r: d.radius[k],
+                    dx: u.x,
+                    dy: u.y,
+                }
+            })
+            .collect(),
+        contacts: contacts
+            .iter()
+            .map(|c| SnapContact {
+                i: c.i,
+                j: c.j,
+                nx: c.n.x,
+                ny: c.n.y,
+                f_n: c.f_n,
+                f_t: c.f_t,
+                class: c.class as u8,
+            })
+            .collect(),
+    }
+}

@@ -1,0 +1,177 @@
+//! Reader of Siconos 2D frictional contact problems (fc2d text files), see
+//! `shared/data/fc2d/README.md` for the layout.
+
+use std::path::Path;
+
+use super::{Csc, Problem};
+use crate::error::{Error, Result};
+
+/// Reads a problem; every malformed input is an [`Error::Parse`] naming the line.
+pub fn read(path: &Path) -> Result<Problem> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    parse(&text, path)
+}
+
+/// A cursor over the lines of the file.
+struct Lines<'a> {
+    lines: Vec<&'a str>,
+    at: usize,
+    path: &'a Path,
+}
+
+impl<'a> Lines<'a> {
+    fn err(&self, message: impl Into<String>) -> Error {
+        Error::Parse {
+            path: self.path.to_path_buf(),
+            line: self.at.min(self.lines.len()),
+            message: message.into(),
+        }
+    }
+
+    fn next(&mut self, what: &str) -> Result<&'a str> {
+        while self.at < self.lines.len() {
+            let l = self.lines[self.at].trim();
+            self.at += 1;
+            if !l.is_empty() {
+                return Ok(l);
+            }
+        }
+        Err(self.err(format!("file ends before {what}")))
+    }
+
+    /// The next integer token of the header, on its own line or several on one line.
+    fn ints(&mut self, what: &str) -> Result<Vec<usize>> {
+        let l = self.next(what)?;
+        l.split_whitespace()
+            .map(|t| {
+                t.parse::<usize>()
+                    .map_err(|_| self.err(format!("expected {what}, found `{t}`")))
+            })
+            .collect()
+    }
+}
+
+fn finite(l: &Lines, t: &str, what: &str) -> Result<f64> {
+    match t.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(l.err(format!("expected a finite number for {what}, found `{t}`"))),
+    }
+}
+
+/// Parses the text of a problem (`path` only names it in errors).
+pub fn parse(text: &str, path: &Path) -> Result<Problem> {
+    let mut l = Lines {
+        lines: text.lines().collect(),
+        at: 0,
+        path,
+    };
+    // Header integers: dimension, contacts, storage kind, rows, columns, sparse kind; the
+    // matrix size may share a line.
+    let mut head = Vec::new();
+    while head.len() < 6 {
+        head.extend(l.ints("the header (dimension, contacts, storage, size, sparse kind)")?);
+    }
+    let (dim, nc, kind, rows, cols, sub) = (head[0], head[1], head[2], head[3], head[4], head[5]);
+    if dim != 2 {
+        return Err(l.err(format!("space dimension {dim}: only 2D problems are supported")));
+    }
+    if nc == 0 {
+        return Err(l.err("the problem has no contact"));
+    }
+    if kind != 2 || sub != 2 {
+        return Err(l.err(format!(
+            "matrix storage {kind}/{sub}: only sparse compressed columns (2/2) are supported"
+        )));
+    }
+    if rows != 2 * nc || cols != 2 * nc {
+        return Err(l.err(format!("matrix {rows} x {cols} does not match 2 x {nc} contacts")));
+    }
+    let n = rows;
+    let banner = l.next("the CSparse banner")?;
+    if !banner.starts_with("CSparse") {
+        return Err(l.err(format!("expected the CSparse banner, found `{banner}`")));
+    }
+    let size = l.next("the matrix size line")?;
+    if !size.starts_with(&format!("{n}-by-{n}")) {
+        return Err(l.err(format!("expected `{n}-by-{n}, ...`, found `{size}`")));
+    }
+    let mut col_start = vec![0usize; n + 1];
+    let mut row_idx = Vec::new();
+    let mut vals = Vec::new();
+    let mut line = l.next("the first column")?;
+    for j in 0..n {
+        let rest = line
+            .strip_prefix("col ")
+            .ok_or_else(|| l.err(format!("expected `col {j} : locations a to b`, found `{line}`")))?;
+        let mut it = rest.split_whitespace();
+        let cj = it.next().and_then(|t| t.parse::<usize>().ok());
+        let words: Vec<&str> = it.collect();
+        let (a, b) = match (cj, words.as_slice()) {
+            (Some(c), [":", "locations", a, "to", b]) if c == j => (a.parse::<usize>(), b.parse::<usize>()),
+            _ => return Err(l.err(format!("expected `col {j} : locations a to b`, found `{line}`"))),
+        };
+        let (a, b) = match (a, b) {
+            (Ok(a), Ok(b)) if a == vals.len() && b + 1 >= a => (a, b),
+            _ => return Err(l.err(format!("bad location range in `{line}`"))),
+        };
+        for _ in a..=b {
+            let e = l.next("a matrix entry")?;
+            let (i, v) = e
+                .split_once(':')
+                .ok_or_else(|| l.err(format!("expected `row : value`, found `{e}`")))?;
+            let i = i
+                .trim()
+                .parse::<usize>()
+                .map_err(|_| l.err(format!("bad row index in `{e}`")))?;
+            if i >= n {
+                return Err(l.err(format!("row index {i} out of range 0..{n}")));
+            }
+            row_idx.push(i);
+            vals.push(finite(&l, v.trim(), "a matrix entry")?);
+        }
+        col_start[j + 1] = vals.len();
+        line = l.next(if j + 1 < n {
+            "the next column"
+        } else {
+            "the vector q"
+        })?;
+    }
+    // Remaining tokens: q (n values) then mu (nc values), whatever the line breaks.
+    let mut numbers = Vec::with_capacity(n + nc);
+    loop {
+        for t in line.split_whitespace() {
+            numbers.push(finite(&l, t, "q or mu")?);
+        }
+        if numbers.len() >= n + nc {
+            break;
+        }
+        line = l.next(if numbers.len() < n {
+            "the rest of q"
+        } else {
+            "the friction coefficients"
+        })?;
+    }
+    if numbers.len() > n + nc {
+        return Err(l.err(format!(
+            "{} numbers after the matrix, expected {} (q) + {} (mu)",
+            numbers.len(),
+            n,
+            nc
+        )));
+    }
+    let mu = numbers.split_off(n);
+    if let Some(m) = mu.iter().find(|m| **m < 0.0) {
+        return Err(l.err(format!("negative friction coefficient {m}")));
+    }
+    Ok(Problem {
+        nc,
+        w: Csc {
+            n,
+            col_start,
+            row_idx,
+            vals,
+        },
+        q: numbers,
+        mu,
+    })
+}

@@ -1,0 +1,186 @@
+//! The end-of-run summary (`summary.json`): every key carries its unit in its name.
+
+use super::SeriesRow;
+use super::derived::{Strength, strength};
+use crate::protocol::PhaseEnd;
+
+/// What a finished biaxial test reports.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Summary {
+    /// cdlab version.
+    pub version: String,
+    /// Backend that ran the test.
+    pub backend: String,
+    /// Number of disks.
+    pub disks: usize,
+    /// Disk-disk friction coefficient.
+    pub mu: f64,
+    /// Confining stress (MPa).
+    pub sigma3_mpa: f64,
+    /// Peak of sigma_1 averaged over a 0.002 strain window (MPa).
+    pub sigma1_peak_mpa: f64,
+    /// Axial strain at the peak.
+    pub strain_peak: f64,
+    /// Mean sigma_1 over axial strain 0.05-0.10 (MPa); null if the test ended before 0.05.
+    pub sigma1_residual_mpa: Option<f64>,
+    /// Mohr-Coulomb friction angle at the peak (degrees).
+    pub phi_peak_deg: f64,
+    /// Mohr-Coulomb friction angle at the residual (degrees); null without a residual.
+    pub phi_residual_deg: Option<f64>,
+    /// Volumetric strain at the end (positive = dilation).
+    pub volumetric_strain_final: f64,
+    /// Axial strain at the end.
+    pub strain_final: f64,
+    /// Force-carrying, rolling, sliding and zero-force disk-disk contacts at the end.
+    pub contacts_force_final: u64,
+    /// See `contacts_force_final`.
+    pub contacts_rolling_final: u64,
+    /// See `contacts_force_final`.
+    pub contacts_sliding_final: u64,
+    /// See `contacts_force_final`.
+    pub contacts_zero_force_final: u64,
+    /// Coordination number at the end.
+    pub coordination_final: f64,
+    /// Fraction of isolated disks at the end.
+    pub isolated_fraction_final: f64,
+    /// Mean overlap over the compression, relative to r_min (mean of the rows' means).
+    pub overlap_mean_rel: f64,
+    /// Largest overlap of the whole run, relative to r_min.
+    pub overlap_max_rel: f64,
+    /// Mean solver iterations per step during compression.
+    pub iterations_mean: f64,
+    /// Largest iteration count of a step during the run.
+    pub iterations_max: u64,
+    /// Steps of the whole run.
+    pub steps: u64,
+    /// Simulated time of the whole run (s).
+    pub time_s: f64,
+    /// Wall-clock time of the run (s).
+    pub wall_time_s: f64,
+    /// Steps per wall-clock second.
+    pub steps_per_second: f64,
+    /// How each phase ended.
+    pub phases: Vec<PhaseEnd>,
+}
+
+impl Summary {
+    /// Builds the summary from the recorded rows.
+    pub fn new(
+        rows: &[SeriesRow],
+        ends: &[PhaseEnd],
+        sigma3: f64,
+        mu: f64,
+        disks: usize,
+        backend: String,
+        wall_time_s: f64,
+    ) -> Self {
+        let st: Strength = strength(rows, sigma3);
+        let comp: Vec<&SeriesRow> = rows.iter().filter(|r| r.phase == "compression").collect();
+        let last = rows.last().cloned().unwrap_or_default();
+        let finite = |x: f64| x.is_finite().then_some(x);
+        let steps = last.step;
+        Summary {
+            version: env!("CARGO_PKG_VERSION").to_string(),
+            backend,
+            disks,
+            mu,
+            sigma3_mpa: sigma3 / 1e6,
+            sigma1_peak_mpa: st.sigma1_peak_pa / 1e6,
+            strain_peak: st.strain_peak,
+            sigma1_residual_mpa: finite(st.sigma1_residual_pa / 1e6),
+            phi_peak_deg: st.phi_peak_deg,
+            phi_residual_deg: finite(st.phi_residual_deg),
+            volumetric_strain_final: st.volumetric_strain_final,
+            strain_final: last.strain_axial,
+            contacts_force_final: last.n_force,
+            contacts_rolling_final: last.n_rolling,
+            contacts_sliding_final: last.n_sliding,
+            contacts_zero_force_final: last.n_zero_force,
+            coordination_final: last.coordination,
+            isolated_fraction_final: last.isolated_fraction,
+            overlap_mean_rel: comp.iter().map(|r| r.overlap_mean_rel).sum::<f64>() / comp.len().max(1) as f64,
+            overlap_max_rel: rows.iter().map(|r| r.overlap_max_rel).fold(0.0, f64::max),
+            iterations_mean: comp.iter().map(|r| r.iterations).sum::<f64>() / comp.len().max(1) as f64,
+            iterations_max: rows.iter().map(|r| r.iterations_max).max().unwrap_or(0),
+            steps,
+            time_s: last.time_s,
+            wall_time_s,
+            steps_per_second: steps as f64 / wall_time_s.max(1e-9),
+            phases: ends.to_vec(),
+        }
+    }
+
+    /// A human-readable table (every number with its unit).
+    pub fn table(&self) -> String {
+        let opt = |x: Option<f64>, unit: &str| {
+            x.map_or("n/a (test ended before strain 0.05)".into(), |v| {
+                format!("{v:.3} {unit}")
+            })
+        };
+        let mut s = String::new();
+        let mut line = |k: &str, v: String| s.push_str(&format!("  {k:<34} {v}\n"));
+        line("disks", format!("{}", self.disks));
+        line("backend", self.backend.clone());
+        line("contact friction mu", format!("{}", self.mu));
+        line("confining stress sigma3", format!("{:.3} MPa", self.sigma3_mpa));
+        line(
+            "peak sigma1 (0.002 window)",
+            format!(
+                "{:.3} MPa at axial strain {:.4}",
+                self.sigma1_peak_mpa, self.strain_peak
+            ),
+        );
+        line(
+            "residual sigma1 (strain 0.05-0.10)",
+            opt(self.sigma1_residual_mpa, "MPa"),
+        );
+        line("friction angle, peak", format!("{:.2} deg", self.phi_peak_deg));
+        line("friction angle, residual", opt(self.phi_residual_deg, "deg"));
+        line("final axial strain", format!("{:.4}", self.strain_final));
+        line(
+            "final volumetric strain",
+            format!("{:+.4} (positive = dilation)", self.volumetric_strain_final),
+        );
+        line(
+            "final contacts: force/roll/slide/zero",
+            format!(
+                "{} / {} / {} / {}",
+                self.contacts_force_final,
+                self.contacts_rolling_final,
+                self.contacts_sliding_final,
+                self.contacts_zero_force_final
+            ),
+        );
+        line(
+            "final coordination number",
+            format!("{:.3}", self.coordination_final),
+        );
+        line(
+            "final isolated fraction",
+            format!("{:.3}", self.isolated_fraction_final),
+        );
+        line(
+            "overlap mean / max",
+            format!(
+                "{:.2e} / {:.2e} of r_min",
+                self.overlap_mean_rel, self.overlap_max_rel
+            ),
+        );
+        line(
+            "solver iterations per step",
+            format!(
+                "{:.1} mean (compression), {} max",
+                self.iterations_mean, self.iterations_max
+            ),
+        );
+        line(
+            "steps",
+            format!("{} ({:.2} s simulated)", self.steps, self.time_s),
+        );
+        line(
+            "wall time",
+            format!("{:.1} s ({:.0} steps/s)", self.wall_time_s, self.steps_per_second),
+        );
+        s
+    }
+}
