@@ -5,6 +5,7 @@ pub mod biaxial;
 pub mod config;
 pub mod fc2d;
 pub mod info;
+pub mod prepare;
 pub mod run;
 
 use clap::{Parser, Subcommand};
@@ -25,6 +26,8 @@ pub enum Command {
     Biaxial(biaxial::Args),
     /// Solve a Siconos 2D frictional contact problem (fc2d file).
     Fc2d(fc2d::Args),
+    /// Deposit and compact a sample, to reuse it across tests (`biaxial --sample`).
+    Prepare(prepare::Args),
     /// Print the version and build information.
     Version,
     /// Print the default configuration or check a configuration file.
@@ -39,6 +42,7 @@ pub fn main() -> i32 {
     let result: crate::Result<()> = match cli.command {
         Command::Biaxial(args) => biaxial::run(&args),
         Command::Fc2d(args) => fc2d::run(&args),
+        Command::Prepare(args) => prepare::run(&args),
         Command::Version => {
             println!("cdlab {}", env!("CARGO_PKG_VERSION"));
             Ok(())

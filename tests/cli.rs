@@ -1,0 +1,144 @@
+//! The command line end to end: a small biaxial run writes its record and summary, refuses
+//! to overwrite, resumes a record cut short to the same result, and rejects bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn cdlab(args: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args(args)
+        .output()
+        .expect("cdlab runs");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.success(), text)
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("cdlab-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+/// A small, quick configuration: 400 disks, thin strips, 0.6% strain, frequent checkpoints.
+fn small_config(dir: &Path) -> PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let p = dir.join("small.toml");
+    std::fs::write(
+        &p,
+        "[sample]\ndisks = 400\n[solver]\ntol = 1e-3\nbackend = \"cpu\"\n\
+         [test]\nstrip_thickness = \"3 m\"\nstrain_end = 0.006\n\
+         [output]\nseries_every = 10\nsnapshot_every = 0.003\ncheckpoint_every = 500\n",
+    )
+    .unwrap();
+    p
+}
+
+#[test]
+fn biaxial_run_records_resumes_and_refuses_to_overwrite() {
+    let base = scratch("run");
+    let cfg = small_config(&base);
+    let out = base.join("full");
+    let (ok, text) = cdlab(&[
+        "biaxial",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(ok, "{text}");
+    assert!(text.contains("peak sigma1") && text.contains("MPa"), "{text}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    for key in [
+        "sigma1_peak_mpa",
+        "strain_peak",
+        "volumetric_strain_final",
+        "wall_time_s",
+        "phases",
+    ] {
+        assert!(summary.get(key).is_some(), "summary.json lacks {key}");
+    }
+    let rec = cdlab::record::read_run(&out).unwrap();
+    assert!(rec.truncated.is_none());
+    assert!(rec.series.iter().any(|r| r.phase == "compression"));
+    assert!(rec.snapshots.len() >= 2, "{} snapshots", rec.snapshots.len());
+    let csv = std::fs::read_to_string(out.join("series.csv")).unwrap();
+    assert_eq!(csv.lines().count(), rec.series.len() + 1, "CSV rows and header");
+
+    // An existing output directory is refused without --force, nothing overwritten.
+    let before = std::fs::read(out.join("run.mcap")).unwrap();
+    let (ok, text) = cdlab(&[
+        "biaxial",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(!ok && text.contains("--force"), "{text}");
+    assert_eq!(before, std::fs::read(out.join("run.mcap")).unwrap());
+    // A finished run cannot be resumed.
+    let (ok, text) = cdlab(&["biaxial", "--resume", out.to_str().unwrap(), "--quiet"]);
+    assert!(!ok && text.contains("already complete"), "{text}");
+
+    // A run killed midway: the record cut at 70% of its size. Resuming it reaches the same
+    // summary as the uninterrupted run, bit for bit on the CPU path.
+    let cut = base.join("cut");
+    std::fs::create_dir_all(&cut).unwrap();
+    std::fs::write(cut.join("run.mcap"), &before[..before.len() * 7 / 10]).unwrap();
+    let partial = cdlab::record::read_run(&cut).unwrap();
+    assert!(partial.truncated.is_some() && partial.last_checkpoint.is_some());
+    let (ok, text) = cdlab(&["biaxial", "--resume", cut.to_str().unwrap(), "--quiet"]);
+    assert!(ok, "{text}");
+    let resumed: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(cut.join("summary.json")).unwrap()).unwrap();
+    for key in [
+        "sigma1_peak_mpa",
+        "strain_peak",
+        "volumetric_strain_final",
+        "strain_final",
+        "steps",
+    ] {
+        assert_eq!(summary[key], resumed[key], "{key}");
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+#[test]
+fn bad_input_is_rejected_with_a_clear_message() {
+    let base = scratch("bad");
+    let out = base.join("o");
+    let o = out.to_str().unwrap();
+    for (args, expect) in [
+        (vec!["biaxial", "--sigma3", "8 m", "--out", o], "--sigma3"),
+        (vec!["biaxial", "--sigma3=-1MPa", "--out", o], "sigma3"),
+        (vec!["biaxial", "--strain", "1.5", "--out", o], "strain_end"),
+        (vec!["biaxial", "--disks", "10", "--out", o], "disks"),
+        (vec!["biaxial", "--mu=-0.1", "--out", o], "mu"),
+        (vec!["biaxial", "--backend", "tpu", "--out", o], "backend"),
+        (vec!["biaxial", "--resume", "/nonexistent/run"], "nonexistent"),
+        (vec!["fc2d", "/nonexistent.dat"], "nonexistent"),
+        (vec!["fc2d", "/dev/null", "--tol", "0"], "--tol"),
+    ] {
+        let (ok, text) = cdlab(&args);
+        assert!(!ok, "{args:?} succeeded: {text}");
+        assert!(
+            text.contains(expect) && !text.contains("panicked"),
+            "{args:?}: {text}"
+        );
+    }
+    // A foreign file given to --resume.
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("run.mcap"), b"this is not a record").unwrap();
+    let (ok, text) = cdlab(&["biaxial", "--resume", o]);
+    assert!(
+        !ok && text.contains("run.mcap") && !text.contains("panicked"),
+        "{text}"
+    );
+    let _ = std::fs::remove_dir_all(&base);
+}
