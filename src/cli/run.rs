@@ -111,10 +111,10 @@ impl Observer for Recording {
             end.phase.name(),
             end.time_s,
             end.step,
-            if end.settled {
-                "settled"
-            } else {
-                "NOT settled (time cap reached)"
+            match (end.phase, end.settled) {
+                (crate::protocol::Phase::Compression, _) => "target strain reached",
+                (_, true) => "settled",
+                (_, false) => "NOT settled (time cap reached)",
             },
             end.kinetic_ratio,
             end.force_imbalance

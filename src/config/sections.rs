@@ -104,7 +104,7 @@ impl Default for Solver {
         Solver {
             dt: Duration(5e-4),
             theta: 1.0,
-            tol: 1e-4,
+            tol: 3e-4,
             max_iter: 1000,
             method: Method::ColoredGs,
             jacobi_relax: 0.5,

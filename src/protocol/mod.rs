@@ -105,7 +105,7 @@ impl ProtocolParams {
                 overlap_limit: 0.05,
                 solver: SolverParams {
                     method: Method::ColoredGs,
-                    tol: 1e-4,
+                    tol: 3e-4,
                     max_iter: 1000,
                     relax: 0.5,
                     parallel: true,
