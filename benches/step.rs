@@ -83,9 +83,31 @@ fn step(c: &mut Criterion) {
     }
 }
 
+/// The two Siconos fc2d problems solved to 1e-5 from r = 0.
+fn fc2d(c: &mut Criterion) {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/fc2d");
+    for name in ["fc2d_granularflowonwall_00667_00000.dat", "fc2d_granularflowonwall_02020_00213.dat"] {
+        let Ok(p) = cdlab::fc2d::read(&dir.join(name)) else {
+            println!("{name}: not found beside the repository, skipped");
+            continue;
+        };
+        let opts = cdlab::fc2d::SolveOptions::default();
+        let rep = cdlab::fc2d::solve(&p, &opts);
+        println!(
+            "{name}: {} contacts, {} sweeps, error {:.2e}, {:.3} ms, {:.2} ns per contact update",
+            rep.contacts,
+            rep.iterations,
+            rep.error,
+            rep.seconds * 1e3,
+            rep.seconds * 1e9 / (rep.contacts * rep.iterations) as f64
+        );
+        c.bench_function(name, |b| b.iter(|| black_box(cdlab::fc2d::solve(&p, &opts))));
+    }
+}
+
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(20);
-    targets = step
+    targets = step, fc2d
 }
 criterion_main!(benches);
