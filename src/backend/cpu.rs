@@ -1,6 +1,6 @@
 //! The CPU reference backend: a [`CpuEngine`] and the scene it steps.
 
-use super::reduce::{Accumulator, classify};
+use super::reduce::Accumulator;
 use super::{Backend, ContactRecord, Loading, Reductions};
 use crate::engine::{CpuEngine, StepParams};
 use crate::error::Result;
@@ -69,17 +69,7 @@ impl Backend for CpuBackend {
             .engine
             .contacts()
             .iter()
-            .map(|c| ContactRecord {
-                i: c.i,
-                j: c.disk_j,
-                n: c.n,
-                gap: c.gap,
-                rn: c.rn,
-                rt: c.rt,
-                f_n: c.rn / dt,
-                f_t: c.rt / dt,
-                class: classify(c, gap_tol),
-            })
+            .map(|c| ContactRecord::new(c, dt, gap_tol))
             .collect())
     }
 

@@ -92,6 +92,24 @@ pub struct ContactRecord {
     pub class: ContactClass,
 }
 
+impl ContactRecord {
+    /// The record of a solver contact after a step of length `dt`; `gap_tol` is the
+    /// zero-force gap tolerance ([`reduce::zero_gap_tolerance`]).
+    pub fn new(c: &crate::contact::Contact, dt: f64, gap_tol: f64) -> Self {
+        ContactRecord {
+            i: c.i,
+            j: c.disk_j,
+            n: c.n,
+            gap: c.gap,
+            rn: c.rn,
+            rt: c.rt,
+            f_n: c.rn / dt,
+            f_t: c.rt / dt,
+            class: reduce::classify(c, gap_tol),
+        }
+    }
+}
+
 /// A time stepper the protocol can drive.
 pub trait Backend {
     /// Human-readable name (backend and adapter).

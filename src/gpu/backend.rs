@@ -8,7 +8,7 @@ use glam::DVec2;
 use super::buffers::{ARGS_STRIDE, Buffers, Capacity, GpuContact, GpuDisk, GpuWall, SimParams, args_slots};
 use super::device::{GpuDevice, open};
 use super::pipeline::Pipelines;
-use crate::backend::reduce::{Reductions, classify, zero_gap_tolerance};
+use crate::backend::reduce::{Reductions, zero_gap_tolerance};
 use crate::backend::{Backend, ContactRecord, Loading};
 use crate::contact::Contact;
 use crate::engine::StepParams;
@@ -428,20 +428,7 @@ impl Backend for GpuBackend {
         Ok(self
             .raw_contacts()?
             .iter()
-            .map(|g| {
-                let c = to_contact(g);
-                ContactRecord {
-                    i: c.i,
-                    j: c.disk_j,
-                    n: c.n,
-                    gap: c.gap,
-                    rn: c.rn,
-                    rt: c.rt,
-                    f_n: c.rn / dt,
-                    f_t: c.rt / dt,
-                    class: classify(&c, gap_tol),
-                }
-            })
+            .map(|g| ContactRecord::new(&to_contact(g), dt, gap_tol))
             .collect())
     }
 
