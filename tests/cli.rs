@@ -110,6 +110,51 @@ fn biaxial_run_records_resumes_and_refuses_to_overwrite() {
 }
 
 #[test]
+fn a_prepared_sample_is_reused_by_a_test() {
+    let base = scratch("prepare");
+    let cfg = small_config(&base);
+    let sample = base.join("sample.bin");
+    let (ok, text) = cdlab(&[
+        "prepare",
+        "--config",
+        cfg.to_str().unwrap(),
+        "-o",
+        sample.to_str().unwrap(),
+    ]);
+    assert!(ok && text.contains("prepared sample written"), "{text}");
+    let (ok, text) = cdlab(&[
+        "prepare",
+        "--config",
+        cfg.to_str().unwrap(),
+        "-o",
+        sample.to_str().unwrap(),
+    ]);
+    assert!(
+        !ok && text.contains("--force"),
+        "an existing sample must not be replaced: {text}"
+    );
+    let out = base.join("test");
+    let (ok, text) = cdlab(&[
+        "biaxial",
+        "--config",
+        cfg.to_str().unwrap(),
+        "--sample",
+        sample.to_str().unwrap(),
+        "--mu",
+        "0.5",
+        "--out",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(ok, "{text}");
+    let rec = cdlab::record::read_run(&out).unwrap();
+    // Started at confinement: no compaction rows.
+    assert!(rec.series.iter().all(|r| r.phase != "compaction"));
+    assert!(rec.series.iter().any(|r| r.phase == "compression"));
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+#[test]
 fn bad_input_is_rejected_with_a_clear_message() {
     let base = scratch("bad");
     let out = base.join("o");

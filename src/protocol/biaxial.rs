@@ -214,18 +214,20 @@ impl<B: Backend> Lab<B> {
         let r_min = self.state.gauge.r_min;
         // Bumpy walls: the first layer of disks touching the top and the bottom wall.
         let touch = 0.01 * r_min;
-        let mut top_mass = 0.0;
         for k in 0..n {
             let (x, r) = (s.disks.pos[k], s.disks.radius[k]);
             for w in [walls::BOTTOM, walls::TOP] {
                 if s.disks.glued_to[k] == NOT_GLUED && s.walls[w].distance(x) - r <= touch {
                     s.disks.glue(k, w);
-                    if w == walls::TOP {
-                        top_mass += s.disks.mass[k];
-                    }
                 }
             }
         }
+        // Counted after gluing, over every glued disk: a prepared sample arrives with its
+        // bumpy walls already glued.
+        let top_mass: f64 = (0..n)
+            .filter(|&k| s.disks.glued_to[k] == walls::TOP as u32)
+            .map(|k| s.disks.mass[k])
+            .sum();
         if top_mass == 0.0 || !s.disks.glued_to.contains(&(walls::BOTTOM as u32)) {
             return Err(Error::Other(
                 "no disk touches the top or bottom wall after compaction: the sample is not confined".into(),
