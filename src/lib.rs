@@ -6,6 +6,7 @@
 //!
 //! Module map (dependencies point down the list):
 //! - [`cli`]: the `cdlab` command line;
+//! - [`analysis`]: fits of the campaign (Mohr-Coulomb envelopes, friction saturation);
 //! - [`record`]: run records (MCAP + CSV), written during a run and read back;
 //! - [`config`]: the run configuration (TOML with units);
 //! - [`protocol`]: the biaxial test's phases (preparation, confinement, compression);
@@ -20,6 +21,7 @@
 //! - [`model`]: disks, walls, material (the state a backend steps);
 //! - [`error`]: the error type.
 
+pub mod analysis;
 pub mod backend;
 pub mod cli;
 pub mod config;

@@ -1,0 +1,252 @@
+//! Least-squares fits of the campaign analysis (protocol.md, "Derived results"): the
+//! Mohr-Coulomb line through the origin `q = p sin(phi)`, the unconstrained line
+//! `q = c + p s`, and the saturation `mu_macro = a - b exp(-c mu)`, each with standard errors.
+
+/// A straight-line fit with standard errors.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Line {
+    /// Slope.
+    pub slope: f64,
+    /// Standard error of the slope (NaN with too few points).
+    pub slope_se: f64,
+    /// Intercept (0 for a fit through the origin).
+    pub intercept: f64,
+    /// Standard error of the intercept (NaN for a fit through the origin or too few points).
+    pub intercept_se: f64,
+    /// Number of points.
+    pub n: usize,
+}
+
+/// Least squares through the origin, `y = s x`: `s = sum xy / sum x^2`, with the standard
+/// error `sqrt(RSS / (n - 1) / sum x^2)`.
+pub fn through_origin(x: &[f64], y: &[f64]) -> Line {
+    let n = x.len();
+    let sxx: f64 = x.iter().map(|v| v * v).sum();
+    let sxy: f64 = x.iter().zip(y).map(|(a, b)| a * b).sum();
+    let s = sxy / sxx;
+    let rss: f64 = x.iter().zip(y).map(|(a, b)| (b - s * a).powi(2)).sum();
+    let se = if n > 1 {
+        (rss / (n - 1) as f64 / sxx).sqrt()
+    } else {
+        f64::NAN
+    };
+    Line {
+        slope: s,
+        slope_se: se,
+        intercept: 0.0,
+        intercept_se: f64::NAN,
+        n,
+    }
+}
+
+/// Ordinary least squares `y = c + s x`, with the usual standard errors (n - 2 degrees of
+/// freedom).
+pub fn unconstrained(x: &[f64], y: &[f64]) -> Line {
+    let n = x.len();
+    let nf = n as f64;
+    let mx = x.iter().sum::<f64>() / nf;
+    let my = y.iter().sum::<f64>() / nf;
+    let sxx: f64 = x.iter().map(|v| (v - mx).powi(2)).sum();
+    let sxy: f64 = x.iter().zip(y).map(|(a, b)| (a - mx) * (b - my)).sum();
+    let s = sxy / sxx;
+    let c = my - s * mx;
+    let rss: f64 = x.iter().zip(y).map(|(a, b)| (b - c - s * a).powi(2)).sum();
+    let (se_s, se_c) = if n > 2 {
+        let sigma2 = rss / (nf - 2.0);
+        (
+            (sigma2 / sxx).sqrt(),
+            (sigma2 * (1.0 / nf + mx * mx / sxx)).sqrt(),
+        )
+    } else {
+        (f64::NAN, f64::NAN)
+    };
+    Line {
+        slope: s,
+        slope_se: se_s,
+        intercept: c,
+        intercept_se: se_c,
+        n,
+    }
+}
+
+/// The fit `y = a - b exp(-c x)` with standard errors.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Saturation {
+    /// Asymptote `a`.
+    pub a: f64,
+    /// Amplitude `b`.
+    pub b: f64,
+    /// Rate `c`.
+    pub c: f64,
+    /// Standard errors of `a`, `b`, `c` (from the Gauss-Newton covariance; NaN with fewer
+    /// than four points).
+    pub se: [f64; 3],
+    /// Root-mean-square residual.
+    pub rms: f64,
+}
+
+fn solve3(m: [[f64; 3]; 3], r: [f64; 3]) -> Option<[f64; 3]> {
+    let inv = invert3(m)?;
+    Some([0, 1, 2].map(|i| (0..3).map(|j| inv[i][j] * r[j]).sum()))
+}
+
+fn invert3(m: [[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
+    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+    if !det.is_finite() || det.abs() < 1e-300 {
+        return None;
+    }
+    let c = |i: usize, j: usize| {
+        let (r0, r1) = ((i + 1) % 3, (i + 2) % 3);
+        let (c0, c1) = ((j + 1) % 3, (j + 2) % 3);
+        m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0]
+    };
+    // inverse = adjugate^T / det, with cyclic cofactors carrying their sign.
+    Some([0, 1, 2].map(|i| [0, 1, 2].map(|j| c(j, i) / det)))
+}
+
+/// Fits `y = a - b exp(-c x)` by Levenberg-Marquardt from a start taken from the data
+/// (a = largest y, b = a - smallest y, c = 1 / mean x). Returns `None` when the data cannot
+/// determine three parameters (fewer than three points, or no convergence).
+pub fn saturation(x: &[f64], y: &[f64]) -> Option<Saturation> {
+    let n = x.len();
+    if n < 3 || x.len() != y.len() {
+        return None;
+    }
+    let ymax = y.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+    let ymin = y.iter().cloned().fold(f64::INFINITY, f64::min);
+    let mx = x.iter().sum::<f64>() / n as f64;
+    let mut p = [ymax, (ymax - ymin).max(1e-6), 1.0 / mx.max(1e-6)];
+    let rss = |p: &[f64; 3]| -> f64 {
+        x.iter()
+            .zip(y)
+            .map(|(&xi, &yi)| (yi - (p[0] - p[1] * (-p[2] * xi).exp())).powi(2))
+            .sum()
+    };
+    let mut lambda = 1e-3;
+    let mut cur = rss(&p);
+    for _ in 0..500 {
+        let mut jtj = [[0.0; 3]; 3];
+        let mut jtr = [0.0; 3];
+        for (&xi, &yi) in x.iter().zip(y) {
+            let e = (-p[2] * xi).exp();
+            let r = yi - (p[0] - p[1] * e);
+            let j = [1.0, -e, p[1] * xi * e];
+            for a in 0..3 {
+                jtr[a] += j[a] * r;
+                for b in 0..3 {
+                    jtj[a][b] += j[a] * j[b];
+                }
+            }
+        }
+        let mut m = jtj;
+        for (a, row) in m.iter_mut().enumerate() {
+            row[a] *= 1.0 + lambda;
+        }
+        let Some(d) = solve3(m, jtr) else {
+            lambda *= 10.0;
+            continue;
+        };
+        let trial = [p[0] + d[0], p[1] + d[1], p[2] + d[2]];
+        let next = rss(&trial);
+        if next.is_finite() && next <= cur {
+            let done = (cur - next) <= 1e-15 * cur.max(1e-300);
+            p = trial;
+            cur = next;
+            lambda = (lambda / 10.0).max(1e-12);
+            if done {
+                break;
+            }
+        } else {
+            lambda *= 10.0;
+            if lambda > 1e12 {
+                break;
+            }
+        }
+    }
+    // Covariance sigma^2 (J^T J)^-1 at the solution.
+    let mut jtj = [[0.0; 3]; 3];
+    for &xi in x {
+        let e = (-p[2] * xi).exp();
+        let j = [1.0, -e, p[1] * xi * e];
+        for a in 0..3 {
+            for b in 0..3 {
+                jtj[a][b] += j[a] * j[b];
+            }
+        }
+    }
+    let se = match (n > 3, invert3(jtj)) {
+        (true, Some(inv)) => {
+            let s2 = cur / (n - 3) as f64;
+            [0, 1, 2].map(|i| (s2 * inv[i][i]).sqrt())
+        }
+        _ => [f64::NAN; 3],
+    };
+    p.iter().all(|v| v.is_finite()).then_some(Saturation {
+        a: p[0],
+        b: p[1],
+        c: p[2],
+        se,
+        rms: (cur / n as f64).sqrt(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn line_through_the_origin_recovers_a_known_slope() {
+        // q = p sin(30 deg) exactly: slope 0.5, zero standard error.
+        let p = [1.0, 2.0, 4.0, 8.0];
+        let q: Vec<f64> = p.iter().map(|v| 0.5 * v).collect();
+        let l = through_origin(&p, &q);
+        assert!((l.slope - 0.5).abs() < 1e-15 && l.slope_se < 1e-15);
+        // With noise +-0.1 alternating the estimate stays within its standard error of 0.5.
+        let qn: Vec<f64> = q
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + if k % 2 == 0 { 0.1 } else { -0.1 })
+            .collect();
+        let l = through_origin(&p, &qn);
+        assert!(
+            (l.slope - 0.5).abs() < 2.0 * l.slope_se && l.slope_se > 0.0,
+            "{l:?}"
+        );
+    }
+
+    #[test]
+    fn unconstrained_line_recovers_slope_and_intercept() {
+        let x = [0.5, 1.0, 2.0, 4.0, 8.0];
+        let y: Vec<f64> = x.iter().map(|v| 0.2 + 0.6 * v).collect();
+        let l = unconstrained(&x, &y);
+        assert!(
+            (l.slope - 0.6).abs() < 1e-12 && (l.intercept - 0.2).abs() < 1e-12,
+            "{l:?}"
+        );
+    }
+
+    #[test]
+    fn saturation_fit_recovers_known_parameters() {
+        // The paper's friction values; y = 0.9 - 0.7 exp(-3 mu) exactly.
+        let x: [f64; 13] = [0.01, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0, 1.2, 3.0, 6.0, 12.0];
+        let y: Vec<f64> = x.iter().map(|m| 0.9 - 0.7 * (-3.0 * m).exp()).collect();
+        let f = saturation(&x, &y).expect("fit");
+        assert!(
+            (f.a - 0.9).abs() < 1e-6 && (f.b - 0.7).abs() < 1e-6 && (f.c - 3.0).abs() < 1e-4,
+            "{f:?}"
+        );
+        // Noisy data: the truth lies within three standard errors.
+        let yn: Vec<f64> = y
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v + 0.01 * ((k as f64 * 2.3).sin()))
+            .collect();
+        let f = saturation(&x, &yn).expect("fit");
+        assert!(
+            (f.a - 0.9).abs() < 3.0 * f.se[0] && (f.c - 3.0).abs() < 3.0 * f.se[2],
+            "{f:?}"
+        );
+    }
+}
