@@ -2,3 +2,4 @@
 //! contact friction, from the summaries of finished tests.
 
 pub mod fit;
+pub mod report;

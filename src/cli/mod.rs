@@ -6,6 +6,7 @@ pub mod config;
 pub mod fc2d;
 pub mod info;
 pub mod prepare;
+pub mod report;
 pub mod run;
 
 use clap::{Parser, Subcommand};
@@ -28,6 +29,8 @@ pub enum Command {
     Fc2d(fc2d::Args),
     /// Deposit and compact a sample, to reuse it across tests (`biaxial --sample`).
     Prepare(prepare::Args),
+    /// Analyse finished tests: Mohr-Coulomb envelopes, macroscopic friction.
+    Report(report::Args),
     /// Print the version and build information.
     Version,
     /// Print the default configuration or check a configuration file.
@@ -43,6 +46,7 @@ pub fn main() -> i32 {
         Command::Biaxial(args) => biaxial::run(&args),
         Command::Fc2d(args) => fc2d::run(&args),
         Command::Prepare(args) => prepare::run(&args),
+        Command::Report(args) => report::run(&args),
         Command::Version => {
             println!("cdlab {}", env!("CARGO_PKG_VERSION"));
             Ok(())

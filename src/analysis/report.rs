@@ -1,0 +1,261 @@
+//! The campaign report: for each contact friction, the peak and residual points in the
+//! (p, q) plane, the Mohr-Coulomb fits, the macroscopic friction, and the fit of the
+//! macroscopic friction against the contact friction.
+
+use std::path::{Path, PathBuf};
+
+use super::fit::{Line, Saturation, saturation, through_origin, unconstrained};
+use crate::error::{Error, Result};
+
+/// One finished test as the report sees it.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct TestPoint {
+    /// The run directory.
+    pub dir: PathBuf,
+    /// Contact friction.
+    pub mu: f64,
+    /// Confining stress (MPa).
+    pub sigma3_mpa: f64,
+    /// Peak and residual axial stress (MPa); the residual is absent for short tests.
+    pub sigma1_peak_mpa: f64,
+    /// See `sigma1_peak_mpa`.
+    pub sigma1_residual_mpa: Option<f64>,
+}
+
+/// The analysis of one contact friction.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FrictionRow {
+    /// Contact friction.
+    pub mu: f64,
+    /// Tests at this friction.
+    pub tests: usize,
+    /// Peak points: (p, q) = ((s1 + s3) / 2, (s1 - s3) / 2) in MPa.
+    pub peak_pq_mpa: Vec<[f64; 2]>,
+    /// Residual points (MPa).
+    pub residual_pq_mpa: Vec<[f64; 2]>,
+    /// `q = p sin(phi)` through the origin at the peak.
+    pub peak_fit: Line,
+    /// The unconstrained line at the peak (its intercept is the cohesion estimate, MPa).
+    pub peak_fit_free: Line,
+    /// Macroscopic friction at the peak `tan(phi)` and its standard error.
+    pub mu_macro: f64,
+    /// See `mu_macro`.
+    pub mu_macro_se: f64,
+    /// `q = p sin(phi)` through the origin at the residual (NaN slope when no residual).
+    pub residual_fit: Line,
+    /// Residual macroscopic friction and its standard error.
+    pub mu_macro_res: f64,
+    /// See `mu_macro_res`.
+    pub mu_macro_res_se: f64,
+}
+
+/// The whole report (`report.json`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Report {
+    /// One row per contact friction, in increasing friction.
+    pub frictions: Vec<FrictionRow>,
+    /// `mu_macro = a - b exp(-c mu)` (absent with fewer than three frictions).
+    pub mu_macro_fit: Option<Saturation>,
+    /// The same for the residual macroscopic friction.
+    pub mu_macro_res_fit: Option<Saturation>,
+    /// Run directories that could not be read, with the reason.
+    pub missing: Vec<(PathBuf, String)>,
+}
+
+/// `tan(asin(s))` and its standard error from that of `s`.
+fn macro_friction(l: &Line) -> (f64, f64) {
+    let s = l.slope;
+    let t = s / (1.0 - s * s).sqrt();
+    (t, l.slope_se / (1.0 - s * s).powf(1.5))
+}
+
+fn distinct(values: impl Iterator<Item = f64>) -> usize {
+    let mut v: Vec<f64> = values.collect();
+    v.sort_by(f64::total_cmp);
+    v.dedup();
+    v.len()
+}
+
+/// Finds every `summary.json` below `roots` (a run directory or a directory of runs).
+pub fn collect(roots: &[PathBuf]) -> (Vec<TestPoint>, Vec<(PathBuf, String)>) {
+    let mut found = Vec::new();
+    let mut missing = Vec::new();
+    let mut stack: Vec<PathBuf> = roots.to_vec();
+    while let Some(dir) = stack.pop() {
+        let summary = dir.join("summary.json");
+        if summary.exists() {
+            match read_point(&dir, &summary) {
+                Ok(p) => found.push(p),
+                Err(e) => missing.push((dir.clone(), e.to_string())),
+            }
+            continue;
+        }
+        if dir.join("run.mcap").exists() {
+            missing.push((dir.clone(), "unfinished run (no summary.json)".into()));
+            continue;
+        }
+        if let Ok(entries) = std::fs::read_dir(&dir) {
+            let mut subs: Vec<PathBuf> = entries
+                .flatten()
+                .map(|e| e.path())
+                .filter(|p| p.is_dir())
+                .collect();
+            subs.sort();
+            stack.extend(subs.into_iter().rev());
+        }
+    }
+    found.sort_by(|a, b| {
+        (a.mu, a.sigma3_mpa)
+            .partial_cmp(&(b.mu, b.sigma3_mpa))
+            .expect("finite")
+    });
+    (found, missing)
+}
+
+fn read_point(dir: &Path, path: &Path) -> Result<TestPoint> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    // Only the four figures the analysis needs are read, so a summary with other fields
+    // null (NaN has no JSON form) or from another version still counts.
+    let v: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| Error::Other(format!("{}: {e}", path.display())))?;
+    let num = |k: &str| v.get(k).and_then(serde_json::Value::as_f64);
+    match (num("mu"), num("sigma3_mpa"), num("sigma1_peak_mpa")) {
+        (Some(mu), Some(s3), Some(s1)) if mu >= 0.0 && s3 > 0.0 && s1.is_finite() => Ok(TestPoint {
+            dir: dir.to_path_buf(),
+            mu,
+            sigma3_mpa: s3,
+            sigma1_peak_mpa: s1,
+            sigma1_residual_mpa: num("sigma1_residual_mpa"),
+        }),
+        _ => Err(Error::Other(format!(
+            "{}: not a cdlab test summary (needs mu, sigma3_mpa, sigma1_peak_mpa)",
+            path.display()
+        ))),
+    }
+}
+
+/// Analyses the tests (grouped by contact friction).
+pub fn analyse(points: &[TestPoint], missing: Vec<(PathBuf, String)>) -> Report {
+    let mut frictions = Vec::new();
+    let mut i = 0;
+    while i < points.len() {
+        let mu = points[i].mu;
+        let group: Vec<&TestPoint> = points[i..].iter().take_while(|p| p.mu == mu).collect();
+        i += group.len();
+        let pq = |s1: f64, s3: f64| [(s1 + s3) / 2.0, (s1 - s3) / 2.0];
+        let peak: Vec<[f64; 2]> = group
+            .iter()
+            .map(|t| pq(t.sigma1_peak_mpa, t.sigma3_mpa))
+            .collect();
+        let res: Vec<[f64; 2]> = group
+            .iter()
+            .filter_map(|t| t.sigma1_residual_mpa.map(|s1| pq(s1, t.sigma3_mpa)))
+            .collect();
+        let split = |v: &[[f64; 2]]| -> (Vec<f64>, Vec<f64>) { v.iter().map(|a| (a[0], a[1])).unzip() };
+        let (px, py) = split(&peak);
+        let (rx, ry) = split(&res);
+        let peak_fit = through_origin(&px, &py);
+        let residual_fit = through_origin(&rx, &ry);
+        let (m, m_se) = macro_friction(&peak_fit);
+        let (mr, mr_se) = macro_friction(&residual_fit);
+        frictions.push(FrictionRow {
+            mu,
+            tests: group.len(),
+            peak_pq_mpa: peak,
+            residual_pq_mpa: res,
+            peak_fit,
+            // One confining stress puts every point on q = p - sigma3: the free line then
+            // says nothing about cohesion.
+            peak_fit_free: if distinct(group.iter().map(|t| t.sigma3_mpa)) >= 2 {
+                unconstrained(&px, &py)
+            } else {
+                Line {
+                    slope: f64::NAN,
+                    slope_se: f64::NAN,
+                    intercept: f64::NAN,
+                    intercept_se: f64::NAN,
+                    n: px.len(),
+                }
+            },
+            mu_macro: m,
+            mu_macro_se: m_se,
+            residual_fit,
+            mu_macro_res: mr,
+            mu_macro_res_se: mr_se,
+        });
+    }
+    let fit_of = |f: &dyn Fn(&FrictionRow) -> f64| {
+        let (x, y): (Vec<f64>, Vec<f64>) = frictions
+            .iter()
+            .filter(|r| f(r).is_finite())
+            .map(|r| (r.mu, f(r)))
+            .unzip();
+        saturation(&x, &y)
+    };
+    Report {
+        mu_macro_fit: fit_of(&|r| r.mu_macro),
+        mu_macro_res_fit: fit_of(&|r| r.mu_macro_res),
+        frictions,
+        missing,
+    }
+}
+
+impl Report {
+    /// The friction table as CSV (header with units).
+    pub fn csv(&self) -> String {
+        let mut s = String::from(
+            "mu,tests,mu_macro,mu_macro_se,mu_macro_res,mu_macro_res_se,cohesion_peak_mpa,cohesion_peak_se_mpa\n",
+        );
+        for r in &self.frictions {
+            s.push_str(&format!(
+                "{},{},{},{},{},{},{},{}\n",
+                r.mu,
+                r.tests,
+                r.mu_macro,
+                r.mu_macro_se,
+                r.mu_macro_res,
+                r.mu_macro_res_se,
+                r.peak_fit_free.intercept,
+                r.peak_fit_free.intercept_se
+            ));
+        }
+        s
+    }
+
+    /// A human-readable table.
+    pub fn table(&self) -> String {
+        let mut s = format!(
+            "{:>8} {:>6} {:>18} {:>18} {:>22}\n",
+            "mu", "tests", "mu_macro", "mu_macro_res", "cohesion (MPa)"
+        );
+        for r in &self.frictions {
+            s.push_str(&format!(
+                "{:>8} {:>6} {:>9.3} +- {:<6.3} {:>9.3} +- {:<6.3} {:>11.3} +- {:<6.3}\n",
+                r.mu,
+                r.tests,
+                r.mu_macro,
+                r.mu_macro_se,
+                r.mu_macro_res,
+                r.mu_macro_res_se,
+                r.peak_fit_free.intercept,
+                r.peak_fit_free.intercept_se
+            ));
+        }
+        for (name, f) in [
+            ("mu_macro", &self.mu_macro_fit),
+            ("mu_macro_res", &self.mu_macro_res_fit),
+        ] {
+            match f {
+                Some(f) => s.push_str(&format!(
+                    "{name} = a - b exp(-c mu): a = {:.3} +- {:.3}, b = {:.3} +- {:.3}, c = {:.3} +- {:.3} (rms {:.3})\n",
+                    f.a, f.se[0], f.b, f.se[1], f.c, f.se[2], f.rms
+                )),
+                None => s.push_str(&format!("{name}: fewer than three frictions, no saturation fit\n")),
+            }
+        }
+        for (d, why) in &self.missing {
+            s.push_str(&format!("missing: {} ({why})\n", d.display()));
+        }
+        s
+    }
+}

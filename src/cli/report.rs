@@ -1,0 +1,50 @@
+//! `cdlab report DIR...`: the campaign analysis of the finished tests below the given
+//! directories, written as `report.json` and `report.csv` into the first one.
+
+use std::path::PathBuf;
+
+use crate::analysis::report::{analyse, collect};
+use crate::error::{Error, Result};
+
+/// Options of `cdlab report`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Run directories, or directories holding runs (searched recursively).
+    #[arg(required = true)]
+    pub dirs: Vec<PathBuf>,
+    /// Where to write report.json and report.csv (default: the first directory).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// Runs `cdlab report`.
+pub fn run(args: &Args) -> Result<()> {
+    for d in &args.dirs {
+        if !d.is_dir() {
+            return Err(Error::Other(format!("{}: not a directory", d.display())));
+        }
+    }
+    let (points, missing) = collect(&args.dirs);
+    if points.is_empty() {
+        return Err(Error::Other(format!(
+            "no finished test (summary.json) below {:?}",
+            args.dirs
+        )));
+    }
+    let report = analyse(&points, missing);
+    let out = args.out.clone().unwrap_or_else(|| args.dirs[0].clone());
+    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Other(e.to_string()))?;
+    let p = out.join("report.json");
+    std::fs::write(&p, json).map_err(|e| Error::io(&p, e))?;
+    let p = out.join("report.csv");
+    std::fs::write(&p, report.csv()).map_err(|e| Error::io(&p, e))?;
+    println!(
+        "{} tests, {} frictions -> {}\n{}",
+        points.len(),
+        report.frictions.len(),
+        out.display(),
+        report.table()
+    );
+    Ok(())
+}
