@@ -22,11 +22,11 @@ fn report_recovers_the_macroscopic_friction_and_its_saturation() {
     let base = std::env::temp_dir().join(format!("cdlab-report-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&base);
     // mu_macro = 0.9 - 0.7 exp(-3 mu) at the peak, 0.6 - 0.4 exp(-2 mu) at the residual.
-    let mus = [0.1, 0.3, 0.6, 1.0, 3.0];
+    let mus: [f64; 5] = [0.1, 0.3, 0.6, 1.0, 3.0];
     for &mu in &mus {
         let (m, mr) = (
-            0.9 - 0.7 * (-3.0 * mu as f64).exp(),
-            0.6 - 0.4 * (-2.0 * mu as f64).exp(),
+            0.9 - 0.7 * (-3.0 * mu).exp(),
+            0.6 - 0.4 * (-2.0 * mu).exp(),
         );
         for sigma3 in [0.5, 2.0, 8.0] {
             let dir = base.join(format!("mu{mu}_s{sigma3}"));
@@ -36,12 +36,12 @@ fn report_recovers_the_macroscopic_friction_and_its_saturation() {
     // A half-finished run is reported missing, not fatal.
     std::fs::create_dir_all(base.join("broken")).unwrap();
     std::fs::write(base.join("broken/run.mcap"), b"x").unwrap();
-    let (points, missing) = collect(&[base.clone()]);
+    let (points, missing) = collect(std::slice::from_ref(&base));
     assert_eq!(points.len(), 15);
     assert_eq!(missing.len(), 1);
     let rep = analyse(&points, missing);
     for (row, &mu) in rep.frictions.iter().zip(&mus) {
-        let expected = 0.9 - 0.7 * (-3.0 * mu as f64).exp();
+        let expected = 0.9 - 0.7 * (-3.0 * mu).exp();
         assert!(
             (row.mu_macro - expected).abs() < 1e-9,
             "mu {mu}: {} vs {expected}",
