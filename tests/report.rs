@@ -24,10 +24,7 @@ fn report_recovers_the_macroscopic_friction_and_its_saturation() {
     // mu_macro = 0.9 - 0.7 exp(-3 mu) at the peak, 0.6 - 0.4 exp(-2 mu) at the residual.
     let mus: [f64; 5] = [0.1, 0.3, 0.6, 1.0, 3.0];
     for &mu in &mus {
-        let (m, mr) = (
-            0.9 - 0.7 * (-3.0 * mu).exp(),
-            0.6 - 0.4 * (-2.0 * mu).exp(),
-        );
+        let (m, mr) = (0.9 - 0.7 * (-3.0 * mu).exp(), 0.6 - 0.4 * (-2.0 * mu).exp());
         for sigma3 in [0.5, 2.0, 8.0] {
             let dir = base.join(format!("mu{mu}_s{sigma3}"));
             write(&dir, mu, sigma3, m.atan().sin(), mr.atan().sin());

@@ -102,55 +102,88 @@ pub fn check_out_dir(dir: &Path, force: bool) -> Result<()> {
 
 /// Runs `cdlab biaxial`.
 pub fn run(args: &Args) -> Result<()> {
-    let started = Instant::now();
-    let (config, dir, lab, mut obs) = if let Some(dir) = &args.resume {
-        resume(dir, args)?
+    let (dir, summary) = if let Some(dir) = &args.resume {
+        (dir.clone(), run_resume(dir, args.backend.as_deref(), args.quiet)?)
     } else {
-        let mut config = configuration(args)?;
-        if let Some(b) = &args.backend {
-            config.solver.backend = b.parse()?;
-        }
+        let config = configuration(args)?;
         let dir = config.output.dir.clone();
         check_out_dir(&dir, args.force)?;
-        let params = config.protocol();
-        params.validate()?;
-        let (scene, compacted) = match &args.sample {
-            Some(path) => {
-                let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-                let ck = decode(&bytes).map_err(|e| Error::Other(format!("{}: {e}", path.display())))?;
-                (ck.scene, true)
-            }
-            None => {
-                let (scene, rep) = prepare::deposit_scene(&params)?;
-                if !args.quiet {
-                    eprintln!(
-                        "deposited {} disks in {:.2} s: packing fraction {:.3}, coordination {:.2}, \
-                         D10 {:.2} m, D60 {:.2} m, height/width {:.2}",
-                        params.disks,
-                        rep.seconds,
-                        rep.packing_fraction,
-                        rep.coordination,
-                        rep.d10_m,
-                        rep.d60_m,
-                        rep.aspect
-                    );
-                }
-                (scene, false)
-            }
+        let sample = match &args.sample {
+            Some(path) => Some(read_sample(path)?),
+            None => None,
         };
-        let backend = open_backend(&config, scene.clone(), params.step)?;
-        let lab = Lab::new(backend, params.clone(), &scene, compacted)?;
-        let obs = Recording::new(Recorder::create(&dir, &config)?, params.strain_end, args.quiet);
-        (config, dir, lab, obs)
+        (dir.clone(), run_fresh(&config, &dir, sample, args.quiet)?)
     };
-    if !args.quiet {
+    println!("biaxial test finished: {}\n{}", dir.display(), summary.table());
+    Ok(())
+}
+
+/// The compacted scene of a sample written by `cdlab prepare`.
+pub fn read_sample(path: &Path) -> Result<crate::model::Scene> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let ck = decode(&bytes).map_err(|e| Error::Other(format!("{}: {e}", path.display())))?;
+    Ok(ck.scene)
+}
+
+/// Runs a new test into `dir` (which the caller has checked), from a deposition or from a
+/// compacted `sample`, and writes its summary.
+pub fn run_fresh(
+    config: &Config,
+    dir: &Path,
+    sample: Option<crate::model::Scene>,
+    quiet: bool,
+) -> Result<Summary> {
+    let started = Instant::now();
+    let params = config.protocol();
+    params.validate()?;
+    let (scene, compacted) = match sample {
+        Some(scene) => (scene, true),
+        None => {
+            let (scene, rep) = prepare::deposit_scene(&params)?;
+            if !quiet {
+                eprintln!(
+                    "deposited {} disks in {:.2} s: packing fraction {:.3}, coordination {:.2}, \
+                     D10 {:.2} m, D60 {:.2} m, height/width {:.2}",
+                    params.disks,
+                    rep.seconds,
+                    rep.packing_fraction,
+                    rep.coordination,
+                    rep.d10_m,
+                    rep.d60_m,
+                    rep.aspect
+                );
+            }
+            (scene, false)
+        }
+    };
+    let backend = open_backend(config, scene.clone(), params.step)?;
+    let lab = Lab::new(backend, params.clone(), &scene, compacted)?;
+    let obs = Recording::new(Recorder::create(dir, config)?, params.strain_end, quiet);
+    finish(config, dir, lab, obs, started, quiet)
+}
+
+/// Continues the run recorded in `dir` from its last checkpoint and writes its summary.
+pub fn run_resume(dir: &Path, backend: Option<&str>, quiet: bool) -> Result<Summary> {
+    let started = Instant::now();
+    let (config, lab, obs) = resume(dir, backend, quiet)?;
+    finish(&config, dir, lab, obs, started, quiet)
+}
+
+fn finish(
+    config: &Config,
+    dir: &Path,
+    mut lab: Lab<Box<dyn crate::backend::Backend>>,
+    mut obs: Recording,
+    started: Instant,
+    quiet: bool,
+) -> Result<Summary> {
+    if !quiet {
         eprintln!(
             "running on {} -> {}",
             crate::backend::Backend::name(&lab.backend),
             dir.display()
         );
     }
-    let mut lab = lab;
     let outcome = lab.run(&mut obs);
     obs.finish();
     outcome?;
@@ -164,9 +197,8 @@ pub fn run(args: &Args) -> Result<()> {
         started.elapsed().as_secs_f64(),
     );
     obs.recorder.finish()?;
-    write_summary(&dir, &summary)?;
-    println!("biaxial test finished: {}\n{}", dir.display(), summary.table());
-    Ok(())
+    write_summary(dir, &summary)?;
+    Ok(summary)
 }
 
 /// Writes `summary.json` and `summary.txt` into `dir`.
@@ -178,15 +210,15 @@ pub fn write_summary(dir: &Path, summary: &Summary) -> Result<()> {
     std::fs::write(&p, summary.table()).map_err(|e| Error::io(&p, e))
 }
 
-type Resumed = (Config, PathBuf, Lab<Box<dyn crate::backend::Backend>>, Recording);
+type Resumed = (Config, Lab<Box<dyn crate::backend::Backend>>, Recording);
 
 /// Reopens a run directory: reads its record, rewrites it up to the last checkpoint (rows
 /// and snapshots after it are dropped: the resumed run recomputes them exactly), and
 /// restores the lab from the checkpoint.
-fn resume(dir: &Path, args: &Args) -> Result<Resumed> {
+fn resume(dir: &Path, backend: Option<&str>, quiet: bool) -> Result<Resumed> {
     let rec = read_run(dir)?;
     let mut config = rec.config()?;
-    if let Some(b) = &args.backend {
+    if let Some(b) = backend {
         config.solver.backend = b.parse()?;
     }
     let Some((step, bytes)) = rec.last_checkpoint.clone() else {
@@ -207,7 +239,7 @@ fn resume(dir: &Path, args: &Args) -> Result<Resumed> {
     let time = ck.scene.time;
     let lab = Lab::resume(backend, ck)?;
     // Only now, with everything read and checked, replace the files.
-    let mut obs = Recording::new(Recorder::create(dir, &config)?, params.strain_end, args.quiet);
+    let mut obs = Recording::new(Recorder::create(dir, &config)?, params.strain_end, quiet);
     for row in rec.series.iter().filter(|r| r.step <= step) {
         obs.series(row)?;
     }
@@ -216,12 +248,12 @@ fn resume(dir: &Path, args: &Args) -> Result<Resumed> {
     }
     obs.ends = lab.state.ends.clone();
     obs.recorder.checkpoint(step, time, &bytes)?;
-    if !args.quiet {
+    if !quiet {
         eprintln!(
             "resuming {} from step {step} (t = {time:.3} s, phase {})",
             dir.display(),
             lab.state.phase.name()
         );
     }
-    Ok((config, dir.to_path_buf(), lab, obs))
+    Ok((config, lab, obs))
 }

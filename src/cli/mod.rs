@@ -8,6 +8,7 @@ pub mod info;
 pub mod prepare;
 pub mod report;
 pub mod run;
+pub mod sweep;
 
 use clap::{Parser, Subcommand};
 
@@ -31,6 +32,9 @@ pub enum Command {
     Prepare(prepare::Args),
     /// Analyse finished tests: Mohr-Coulomb envelopes, macroscopic friction.
     Report(report::Args),
+    /// Run a friction x pressure campaign (`sweep FILE.toml [--shard I/N]`), or merge
+    /// campaign directories into one report (`sweep collect DIR...`).
+    Sweep(sweep::Args),
     /// Print the version and build information.
     Version,
     /// Print the default configuration or check a configuration file.
@@ -47,6 +51,7 @@ pub fn main() -> i32 {
         Command::Fc2d(args) => fc2d::run(&args),
         Command::Prepare(args) => prepare::run(&args),
         Command::Report(args) => report::run(&args),
+        Command::Sweep(args) => sweep::run(&args),
         Command::Version => {
             println!("cdlab {}", env!("CARGO_PKG_VERSION"));
             Ok(())

@@ -48,14 +48,27 @@ pub fn run(args: &Args) -> Result<()> {
         backend: args.backend.clone(),
         ..Default::default()
     })?;
+    prepare_to(&config, &args.output, false)?;
+    Ok(())
+}
+
+/// Deposits and compacts the sample of `config`, writes it to `path` and returns the
+/// compacted scene (`quiet`: no report on stderr/stdout).
+pub fn prepare_to(
+    config: &crate::config::Config,
+    path: &std::path::Path,
+    quiet: bool,
+) -> Result<crate::model::Scene> {
     let params = config.protocol();
     let t0 = std::time::Instant::now();
     let (scene, rep) = prepare::deposit_scene(&params)?;
-    eprintln!(
-        "deposited {} disks in {:.2} s: packing fraction {:.3}, coordination {:.2}, D10 {:.2} m, D60 {:.2} m",
-        params.disks, rep.seconds, rep.packing_fraction, rep.coordination, rep.d10_m, rep.d60_m
-    );
-    let backend = open_backend(&config, scene.clone(), params.step)?;
+    if !quiet {
+        eprintln!(
+            "deposited {} disks in {:.2} s: packing fraction {:.3}, coordination {:.2}, D10 {:.2} m, D60 {:.2} m",
+            params.disks, rep.seconds, rep.packing_fraction, rep.coordination, rep.d10_m, rep.d60_m
+        );
+    }
+    let backend = open_backend(config, scene.clone(), params.step)?;
     let mut lab = Lab::new(backend, params, &scene, false)?;
     let mut obs = Collect::default();
     while lab.state.phase == Phase::Compaction {
@@ -67,26 +80,26 @@ pub fn run(args: &Args) -> Result<()> {
         .cloned()
         .ok_or_else(|| Error::Other("compaction did not end".into()))?;
     let scene = crate::backend::Backend::scene(&mut lab.backend)?;
-    let d = &scene.disks;
-    let (w, h) = (
-        obs.rows.last().map_or(0.0, |r| r.width_m),
-        obs.rows.last().map_or(0.0, |r| r.height_m),
-    );
-    let area: f64 = d.radius.iter().map(|r| std::f64::consts::PI * r * r).sum();
     let bytes = encode(&lab.state, &scene, &[], &[]);
-    std::fs::write(&args.output, bytes).map_err(|e| Error::io(&args.output, e))?;
-    println!(
-        "prepared sample written to {}: {} disks, {:.2} m x {:.2} m (height/width {:.2}), packing fraction {:.3}, \
-         compaction {} at t = {:.2} s, wall time {:.1} s",
-        args.output.display(),
-        d.len(),
-        w,
-        h,
-        h / w,
-        area / (w * h),
-        if end.settled { "settled" } else { "NOT settled" },
-        end.time_s,
-        t0.elapsed().as_secs_f64()
-    );
-    Ok(())
+    std::fs::write(path, bytes).map_err(|e| Error::io(path, e))?;
+    if !quiet {
+        let d = &scene.disks;
+        let last = obs.rows.last();
+        let (w, h) = (last.map_or(0.0, |r| r.width_m), last.map_or(0.0, |r| r.height_m));
+        let area: f64 = d.radius.iter().map(|r| std::f64::consts::PI * r * r).sum();
+        println!(
+            "prepared sample written to {}: {} disks, {:.2} m x {:.2} m (height/width {:.2}), packing fraction {:.3}, \
+             compaction {} at t = {:.2} s, wall time {:.1} s",
+            path.display(),
+            d.len(),
+            w,
+            h,
+            h / w,
+            area / (w * h),
+            if end.settled { "settled" } else { "NOT settled" },
+            end.time_s,
+            t0.elapsed().as_secs_f64()
+        );
+    }
+    Ok(scene)
 }

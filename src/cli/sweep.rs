@@ -1,0 +1,259 @@
+//! `cdlab sweep FILE.toml`: the friction x pressure campaign, one compacted sample per seed
+//! reused by every test of that seed (compaction is frictionless, so the sample does not
+//! depend on the test's friction), tests run in parallel, finished ones skipped and
+//! half-finished ones resumed. `--shard I/N` runs the I-th of N disjoint parts (0 <= I < N).
+
+use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+use serde::Deserialize;
+
+use crate::config::units::{Dimension, parse_quantity};
+use crate::config::{Config, Pressure};
+use crate::error::{Error, Result};
+
+use super::biaxial::{read_sample, run_fresh, run_resume};
+
+/// Options of `cdlab sweep`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The sweep file (TOML), or `collect` followed by directories to merge into a report.
+    pub file: PathBuf,
+    /// With `collect`: the campaign directories to merge.
+    pub dirs: Vec<PathBuf>,
+    /// Run only the I-th of N disjoint parts, written `I/N` (0 <= I < N).
+    #[arg(long)]
+    pub shard: Option<String>,
+    /// Tests run at once (default: the number of cores).
+    #[arg(long)]
+    pub jobs: Option<usize>,
+}
+
+/// The sweep file.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SweepFile {
+    /// Base configuration file, relative to the sweep file (default: the built-in one).
+    base: Option<PathBuf>,
+    /// Campaign directory.
+    out: PathBuf,
+    /// Contact frictions (default: the paper's 13).
+    #[serde(default = "paper_mu")]
+    mu: Vec<f64>,
+    /// Confining stresses with units (default: the paper's 0.5, 1, 2, 4, 8 MPa).
+    #[serde(default = "paper_sigma3")]
+    sigma3: Vec<toml::Value>,
+    /// Sample seeds (one compacted sample each; default [1]).
+    #[serde(default = "one_seed")]
+    seeds: Vec<u64>,
+}
+
+fn paper_mu() -> Vec<f64> {
+    vec![0.01, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0, 1.2, 3.0, 6.0, 12.0]
+}
+fn paper_sigma3() -> Vec<toml::Value> {
+    ["0.5 MPa", "1 MPa", "2 MPa", "4 MPa", "8 MPa"]
+        .iter()
+        .map(|s| toml::Value::String(s.to_string()))
+        .collect()
+}
+fn one_seed() -> Vec<u64> {
+    vec![1]
+}
+
+/// One test of the grid.
+#[derive(Clone, Debug)]
+struct Point {
+    mu: f64,
+    sigma3: f64,
+    seed: u64,
+    dir: PathBuf,
+}
+
+fn parse_shard(s: &str) -> Result<(usize, usize)> {
+    let bad = || Error::invalid("--shard", s, "I/N with 0 <= I < N");
+    let (i, n) = s.split_once('/').ok_or_else(bad)?;
+    let (i, n) = (
+        i.parse::<usize>().map_err(|_| bad())?,
+        n.parse::<usize>().map_err(|_| bad())?,
+    );
+    if n == 0 || i >= n {
+        return Err(bad());
+    }
+    Ok((i, n))
+}
+
+/// Runs `cdlab sweep`.
+pub fn run(args: &Args) -> Result<()> {
+    if args.file.as_os_str() == "collect" {
+        return super::report::run(&super::report::Args {
+            dirs: args.dirs.clone(),
+            out: None,
+        });
+    }
+    let (shard, of) = args
+        .shard
+        .as_deref()
+        .map(parse_shard)
+        .transpose()?
+        .unwrap_or((0, 1));
+    let text = std::fs::read_to_string(&args.file).map_err(|e| Error::io(&args.file, e))?;
+    let sweep: SweepFile = toml::from_str(&text).map_err(|e| Error::Parse {
+        path: args.file.clone(),
+        line: 0,
+        message: e.to_string(),
+    })?;
+    let here = args.file.parent().unwrap_or(Path::new("."));
+    let mut base = match &sweep.base {
+        Some(p) => Config::load(here.join(p))?,
+        None => Config::default(),
+    };
+    let sigma3: Vec<f64> = sweep
+        .sigma3
+        .iter()
+        .map(|v| match v {
+            toml::Value::String(s) => {
+                parse_quantity(s, Dimension::Pressure).map_err(|e| Error::invalid("sigma3", s, &e.0))
+            }
+            toml::Value::Float(f) => Ok(*f),
+            toml::Value::Integer(i) => Ok(*i as f64),
+            other => Err(Error::invalid("sigma3", other, "a pressure such as \"8 MPa\"")),
+        })
+        .collect::<Result<_>>()?;
+    if sweep.mu.is_empty() || sigma3.is_empty() || sweep.seeds.is_empty() {
+        return Err(Error::Other(format!(
+            "{}: the grid is empty (mu, sigma3 and seeds need values)",
+            args.file.display()
+        )));
+    }
+    let mut grid = Vec::new();
+    for &seed in &sweep.seeds {
+        for &mu in &sweep.mu {
+            for &s3 in &sigma3 {
+                let dir = sweep.out.join(format!("seed{seed}_mu{mu}_s{}MPa", s3 / 1e6));
+                if grid.iter().any(|p: &Point| p.dir == dir) {
+                    return Err(Error::Other(format!(
+                        "duplicate point mu {mu}, sigma3 {s3} Pa, seed {seed}"
+                    )));
+                }
+                grid.push(Point {
+                    mu,
+                    sigma3: s3,
+                    seed,
+                    dir,
+                });
+            }
+        }
+    }
+    let mine: Vec<Point> = grid
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| k % of == shard)
+        .map(|(_, p)| p.clone())
+        .collect();
+    let jobs = args
+        .jobs
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+        .max(1);
+    eprintln!(
+        "sweep: {} tests in the grid, {} in this shard, {} at a time -> {}",
+        grid.len(),
+        mine.len(),
+        jobs,
+        sweep.out.display()
+    );
+    // One test per core: the solver itself stays on one thread.
+    base.solver.backend = crate::config::Backend::Cpu;
+    let queue = Mutex::new(mine.iter().cloned().collect::<VecDeque<Point>>());
+    let samples: Mutex<Vec<(u64, crate::model::Scene)>> = Mutex::new(Vec::new());
+    let done = Mutex::new((0usize, Vec::<(PathBuf, String)>::new()));
+    let total = mine.len();
+    std::thread::scope(|s| {
+        for _ in 0..jobs {
+            s.spawn(|| {
+                while let Some(p) = queue.lock().expect("queue").pop_front() {
+                    let outcome = run_point(&base, &sweep.out, &p, &samples);
+                    let mut d = done.lock().expect("progress");
+                    d.0 += 1;
+                    match outcome {
+                        Ok(line) => eprintln!("[{}/{total}] {}: {line}", d.0, p.dir.display()),
+                        Err(e) => {
+                            eprintln!("[{}/{total}] {}: FAILED: {e}", d.0, p.dir.display());
+                            d.1.push((p.dir.clone(), e.to_string()));
+                        }
+                    }
+                }
+            });
+        }
+    });
+    let failed = done.into_inner().expect("progress").1;
+    if failed.is_empty() {
+        eprintln!(
+            "sweep: all {total} tests of this shard finished; `cdlab report {}` analyses them",
+            sweep.out.display()
+        );
+        Ok(())
+    } else {
+        Err(Error::Other(format!(
+            "{} of {total} tests failed (the others finished): {failed:?}",
+            failed.len()
+        )))
+    }
+}
+
+/// Runs, resumes or skips one test; returns a one-line outcome.
+fn run_point(
+    base: &Config,
+    out: &Path,
+    p: &Point,
+    samples: &Mutex<Vec<(u64, crate::model::Scene)>>,
+) -> Result<String> {
+    if p.dir.join("summary.json").exists() {
+        return Ok("already finished, skipped".into());
+    }
+    let summary = if p.dir.join(crate::record::MCAP_FILE).exists() {
+        run_resume(&p.dir, Some("cpu"), true)?
+    } else {
+        let mut config = base.clone();
+        config.sample.seed = p.seed;
+        config.test.mu = p.mu;
+        config.test.sigma3 = Pressure(p.sigma3);
+        config.output.dir = p.dir.clone();
+        config.validate()?;
+        let scene = sample(&config, out, p.seed, samples)?;
+        run_fresh(&config, &p.dir, Some(scene), true)?
+    };
+    Ok(format!(
+        "peak sigma1 {:.3} MPa, residual {} MPa, {:.0} s",
+        summary.sigma1_peak_mpa,
+        summary
+            .sigma1_residual_mpa
+            .map_or("n/a".into(), |v| format!("{v:.3}")),
+        summary.wall_time_s
+    ))
+}
+
+/// The compacted sample of `seed`: from memory, from `out/samples/seedS.bin`, or prepared
+/// now (once: a second thread asking for the same seed waits on the lock).
+fn sample(
+    config: &Config,
+    out: &Path,
+    seed: u64,
+    samples: &Mutex<Vec<(u64, crate::model::Scene)>>,
+) -> Result<crate::model::Scene> {
+    let mut cache = samples.lock().expect("samples");
+    if let Some((_, s)) = cache.iter().find(|(k, _)| *k == seed) {
+        return Ok(s.clone());
+    }
+    let path = out.join("samples").join(format!("seed{seed}.bin"));
+    let scene = if path.exists() {
+        read_sample(&path)?
+    } else {
+        let dir = path.parent().expect("has a parent");
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        super::prepare::prepare_to(config, &path, true)?
+    };
+    cache.push((seed, scene.clone()));
+    Ok(scene)
+}

@@ -1,0 +1,70 @@
+//! A tiny campaign end to end: 2 frictions x 2 pressures on small samples, run as two
+//! shards, skipped when rerun, then analysed by `cdlab report`.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn cdlab(args: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args(args)
+        .output()
+        .expect("cdlab runs");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.success(), text)
+}
+
+#[test]
+fn tiny_sweep_runs_in_shards_skips_finished_tests_and_reports() {
+    let base: PathBuf = std::env::temp_dir().join(format!("cdlab-sweep-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&base);
+    std::fs::create_dir_all(&base).unwrap();
+    std::fs::write(
+        base.join("base.toml"),
+        "[sample]\ndisks = 300\n[solver]\ntol = 1e-3\n[test]\nstrip_thickness = \"3 m\"\nstrain_end = 0.004\n\
+         [output]\nseries_every = 10\nsnapshot_every = 0.0\n",
+    )
+    .unwrap();
+    let sweep = base.join("sweep.toml");
+    std::fs::write(
+        &sweep,
+        format!(
+            "base = \"base.toml\"\nout = \"{}\"\nmu = [0.1, 0.5]\nsigma3 = [\"1 MPa\", \"4 MPa\"]\n",
+            base.join("campaign").display()
+        ),
+    )
+    .unwrap();
+    let s = sweep.to_str().unwrap();
+    for shard in ["0/2", "1/2"] {
+        let (ok, text) = cdlab(&["sweep", s, "--shard", shard, "--jobs", "2"]);
+        assert!(ok, "shard {shard}: {text}");
+        assert!(text.contains("2 in this shard"), "{text}");
+    }
+    let (ok, text) = cdlab(&["sweep", s]);
+    assert!(
+        ok && text.matches("already finished, skipped").count() == 4,
+        "{text}"
+    );
+    let campaign = base.join("campaign");
+    let (ok, text) = cdlab(&["report", campaign.to_str().unwrap()]);
+    assert!(ok && text.contains("4 tests, 2 frictions"), "{text}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(campaign.join("report.json")).unwrap()).unwrap();
+    let rows = report["frictions"].as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    for r in rows {
+        // Two pressures per friction, a positive macroscopic friction (sigma1 > sigma3).
+        assert_eq!(r["tests"], 2);
+        assert!(r["mu_macro"].as_f64().unwrap() > 0.0, "{r}");
+    }
+    // An empty grid and a bad shard are rejected.
+    std::fs::write(&sweep, "out = \"x\"\nmu = []\n").unwrap();
+    let (ok, text) = cdlab(&["sweep", s]);
+    assert!(!ok && text.contains("empty"), "{text}");
+    let (ok, text) = cdlab(&["sweep", s, "--shard", "2/2"]);
+    assert!(!ok && text.contains("--shard"), "{text}");
+    let _ = std::fs::remove_dir_all(&base);
+}
