@@ -3,6 +3,7 @@
 
 pub mod biaxial;
 pub mod config;
+pub mod export;
 pub mod fc2d;
 pub mod info;
 pub mod prepare;
@@ -35,6 +36,8 @@ pub enum Command {
     /// Run a friction x pressure campaign (`sweep FILE.toml [--shard I/N]`), or merge
     /// campaign directories into one report (`sweep collect DIR...`).
     Sweep(sweep::Args),
+    /// Export a run's snapshots as VTK files (ParaView).
+    Export(export::Args),
     /// Print the version and build information.
     Version,
     /// Print the default configuration or check a configuration file.
@@ -52,6 +55,7 @@ pub fn main() -> i32 {
         Command::Prepare(args) => prepare::run(&args),
         Command::Report(args) => report::run(&args),
         Command::Sweep(args) => sweep::run(&args),
+        Command::Export(args) => export::run(&args),
         Command::Version => {
             println!("cdlab {}", env!("CARGO_PKG_VERSION"));
             Ok(())

@@ -86,6 +86,51 @@ pub fn strength(rows: &[SeriesRow], sigma3: f64) -> Strength {
     }
 }
 
+/// A stress-drop event: a fall of sigma_1 over consecutive rows with a concurrent
+/// contraction (protocol.md, "stress-drop events").
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct StressDrop {
+    /// Axial strain where the fall starts.
+    pub strain_start: f64,
+    /// Axial strain where it ends.
+    pub strain_end: f64,
+    /// Size of the fall of sigma_1 (Pa, positive).
+    pub drop_pa: f64,
+    /// Volumetric strain change over the fall (negative: contraction).
+    pub volumetric_change: f64,
+}
+
+/// The stress-drop events of the compression rows: maximal runs of rows along which sigma_1
+/// decreases at every row, whose total fall is at least `min_drop` (Pa), and over which the
+/// volumetric strain decreases (contraction).
+pub fn stress_drops(rows: &[SeriesRow], min_drop: f64) -> Vec<StressDrop> {
+    let comp: Vec<&SeriesRow> = rows.iter().filter(|r| r.phase == "compression").collect();
+    let mut events = Vec::new();
+    let mut k = 0;
+    while k + 1 < comp.len() {
+        if comp[k + 1].sigma1_pa >= comp[k].sigma1_pa {
+            k += 1;
+            continue;
+        }
+        let start = k;
+        while k + 1 < comp.len() && comp[k + 1].sigma1_pa < comp[k].sigma1_pa {
+            k += 1;
+        }
+        let (a, b) = (comp[start], comp[k]);
+        let drop = a.sigma1_pa - b.sigma1_pa;
+        let dv = b.volumetric_strain - a.volumetric_strain;
+        if drop >= min_drop && dv < 0.0 {
+            events.push(StressDrop {
+                strain_start: a.strain_axial,
+                strain_end: b.strain_axial,
+                drop_pa: drop,
+                volumetric_change: dv,
+            });
+        }
+    }
+    events
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -117,6 +162,27 @@ mod tests {
         // Windows of three rows contain the spike: (1 + 1 + 10) / 3 = 4.
         assert!((peak - 4.0).abs() < 1e-12, "{peak}");
         assert!((at - 0.001).abs() < 1e-12, "{at}");
+    }
+
+    #[test]
+    fn stress_drops_need_a_large_enough_fall_with_contraction() {
+        let mut r = rows(&[
+            (0.0, 10.0),
+            (0.001, 12.0),
+            (0.002, 11.0),
+            (0.003, 9.0),
+            (0.004, 10.0),
+            (0.005, 9.5),
+        ]);
+        for (row, v) in r.iter_mut().zip([0.0, 0.001, 0.0005, 0.0, 0.001, 0.002]) {
+            row.volumetric_strain = v;
+        }
+        // 12 -> 9 over strain 0.001-0.003 with dV -0.001: one event of 3; the fall 10 -> 9.5
+        // comes with dilation and is not an event.
+        let e = stress_drops(&r, 1.0);
+        assert_eq!(e.len(), 1);
+        assert!((e[0].drop_pa - 3.0).abs() < 1e-12 && (e[0].volumetric_change + 0.001).abs() < 1e-12);
+        assert!(stress_drops(&r, 3.5).is_empty());
     }
 
     #[test]

@@ -61,6 +61,9 @@ pub struct Summary {
     pub steps_per_second: f64,
     /// How each phase ended.
     pub phases: Vec<PhaseEnd>,
+    /// Stress-drop events: falls of sigma_1 of at least 5% of sigma3 with concurrent
+    /// contraction.
+    pub stress_drops: Vec<super::derived::StressDrop>,
 }
 
 impl Summary {
@@ -107,6 +110,7 @@ impl Summary {
             wall_time_s,
             steps_per_second: steps as f64 / wall_time_s.max(1e-9),
             phases: ends.to_vec(),
+            stress_drops: super::derived::stress_drops(rows, 0.05 * sigma3),
         }
     }
 

@@ -17,6 +17,7 @@
 mod reader;
 mod series;
 mod snapshot;
+pub mod vtk;
 mod writer;
 
 #[cfg(test)]
