@@ -23,6 +23,7 @@ fn params(method: Method) -> StepParams {
             max_iter: 1000,
             relax: 0.5,
             parallel: false,
+            parallel_min: cdlab::solver::default_parallel_min(),
         },
     }
 }

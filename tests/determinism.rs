@@ -34,6 +34,8 @@ fn run(seed: u64, method: Method, parallel: bool) -> (Scene, usize) {
     p.alert = 0.2;
     p.solver.tol = 1e-6;
     p.solver.parallel = parallel;
+    // Colors here hold about 1500 contacts: lower the threshold so the threads do run.
+    p.solver.parallel_min = 1024;
     let mut e = cdlab::engine::CpuEngine::new(p).unwrap();
     let mut largest_color = 0;
     for _ in 0..15 {

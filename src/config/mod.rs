@@ -165,6 +165,7 @@ impl Config {
                     max_iter: v.max_iter,
                     relax: v.jacobi_relax,
                     parallel: true,
+                    parallel_min: crate::solver::default_parallel_min(),
                 },
             },
             mu: t.mu,

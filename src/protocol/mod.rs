@@ -109,6 +109,7 @@ impl ProtocolParams {
                     max_iter: 1000,
                     relax: 0.5,
                     parallel: true,
+                    parallel_min: crate::solver::default_parallel_min(),
                 },
             },
             mu: 0.3,

@@ -14,9 +14,6 @@ use crate::contact::Contact;
 /// the number of threads.
 const CHUNK: usize = 256;
 
-/// Colors smaller than this are swept on the calling thread (spawning costs more).
-const PAR_MIN: usize = 4 * CHUNK;
-
 /// Updates one contact from the current velocities: solves the local law with its own
 /// impulse removed, applies the impulse change to both bodies and returns the squared
 /// change and the squared new impulse.
@@ -68,7 +65,8 @@ fn sweep_chunk(chunk: &mut [Contact], gv: SharedVel) -> (f64, f64) {
 
 /// One Gauss-Seidel sweep over `contacts` in order, where consecutive `ranges` are colors
 /// (a single range for plain order). Returns the chunked sums (change^2, impulse^2).
-fn sweep(contacts: &mut [Contact], ranges: &[u32], gv: &mut [DVec3], parallel: bool) -> (f64, f64) {
+/// Colors of at least `par_min` contacts are swept on several threads.
+fn sweep(contacts: &mut [Contact], ranges: &[u32], gv: &mut [DVec3], par_min: usize) -> (f64, f64) {
     let n_bodies = gv.len();
     let ptr = SharedVel(gv.as_mut_ptr());
     debug_assert!(
@@ -79,7 +77,7 @@ fn sweep(contacts: &mut [Contact], ranges: &[u32], gv: &mut [DVec3], parallel: b
     let mut total = (0.0, 0.0);
     for w in ranges.windows(2) {
         let part = &mut contacts[w[0] as usize..w[1] as usize];
-        let sums: Vec<(f64, f64)> = if parallel && part.len() >= PAR_MIN {
+        let sums: Vec<(f64, f64)> = if part.len() >= par_min {
             part.par_chunks_mut(CHUNK)
                 .map(|ch| sweep_chunk(ch, ptr))
                 .collect()
@@ -116,9 +114,14 @@ pub fn solve(
     gv: &mut [DVec3],
 ) -> SolveStats {
     let whole = [0, contacts.len() as u32];
-    let (ranges, parallel) = match params.method {
-        Method::Gs => (&whole[..], false),
-        Method::ColoredGs => (ranges, params.parallel),
+    let threaded = if params.parallel {
+        params.parallel_min
+    } else {
+        usize::MAX
+    };
+    let (ranges, par_min) = match params.method {
+        Method::Gs => (&whole[..], usize::MAX),
+        Method::ColoredGs => (ranges, threaded),
         Method::Jacobi => return jacobi(params, contacts, gv0, gv),
     };
     let mut stats = SolveStats {
@@ -126,7 +129,7 @@ pub fn solve(
         ..Default::default()
     };
     for it in 1..=params.max_iter {
-        let (d2, r2) = sweep(contacts, ranges, gv, parallel);
+        let (d2, r2) = sweep(contacts, ranges, gv, par_min);
         stats.iterations = it;
         stats.residual = relative_change(d2, r2);
         if stats.residual <= params.tol {
@@ -152,7 +155,7 @@ fn jacobi(params: &SolverParams, contacts: &mut [Contact], gv0: &[DVec3], gv: &m
             let (rn, rt) = law::solve(c.wnn, c.wtt, c.wnt, ufn, uft, c.mu);
             *out = (c.rn + omega * (rn - c.rn), c.rt + omega * (rt - c.rt));
         };
-        if params.parallel && contacts.len() >= PAR_MIN {
+        if params.parallel && contacts.len() >= params.parallel_min {
             contacts.par_iter().zip(fresh.par_iter_mut()).for_each(solve_one);
         } else {
             contacts.iter().zip(fresh.iter_mut()).for_each(solve_one);

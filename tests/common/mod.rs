@@ -23,6 +23,7 @@ pub fn tight(method: Method) -> StepParams {
             max_iter: 20_000,
             relax: 0.5,
             parallel: true,
+            parallel_min: cdlab::solver::default_parallel_min(),
         },
     }
 }
