@@ -1,6 +1,7 @@
 //! The `cdlab` command line. Each subcommand lives in its own file with an `Args` struct
 //! (clap) and a `run` function; this file only dispatches.
 
+pub mod bench;
 pub mod biaxial;
 pub mod config;
 pub mod export;
@@ -38,6 +39,8 @@ pub enum Command {
     Sweep(sweep::Args),
     /// Export a run's snapshots as VTK files (ParaView).
     Export(export::Args),
+    /// Measure time per step on the CPU and GPU paths (table, bench.json, bench.md).
+    Bench(bench::Args),
     /// Print the version and build information.
     Version,
     /// Print the default configuration or check a configuration file.
@@ -56,6 +59,7 @@ pub fn main() -> i32 {
         Command::Report(args) => report::run(&args),
         Command::Sweep(args) => sweep::run(&args),
         Command::Export(args) => export::run(&args),
+        Command::Bench(args) => bench::run(&args),
         Command::Version => {
             println!("cdlab {}", env!("CARGO_PKG_VERSION"));
             Ok(())

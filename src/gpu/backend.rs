@@ -98,7 +98,12 @@ impl GpuBackend {
         Ok(b)
     }
 
-    /// Work counts since creation.
+    /// Bytes allocated on the device for this sample.
+    pub fn device_bytes(&self) -> u64 {
+        self.bufs.device_bytes()
+    }
+
+    /// Work counts since the backend was created.
     pub fn counters(&self) -> GpuCounters {
         self.counters
     }

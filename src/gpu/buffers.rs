@@ -319,6 +319,25 @@ fn storage(device: &wgpu::Device, label: &str, bytes: u64, extra: wgpu::BufferUs
 }
 
 impl Buffers {
+    /// Bytes allocated on the device by these buffers.
+    pub fn device_bytes(&self) -> u64 {
+        [
+            &self.sim,
+            &self.args,
+            &self.disks,
+            &self.walls,
+            &self.vel,
+            &self.ints,
+            &self.contacts,
+            &self.floats,
+            &self.prev,
+            &self.indirect,
+        ]
+        .iter()
+        .map(|b| b.size())
+        .sum()
+    }
+
     /// Allocates every buffer for `p` (whose offsets [`layout`] fills) after checking the
     /// sizes against `limits`.
     pub fn new(
