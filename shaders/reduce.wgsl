@@ -51,7 +51,7 @@ const FORCE_THRESHOLD: f32 = 1e-6;
 // 0 mean R_n of loaded contacts, 1 rolling, 2 sliding, 3 zero-force, 4 disks with >= 2
 // force-carrying contacts, 5 free disks, 6 overlapping contacts, 7 overlap sum, 8 overlap
 // max, 9 kinetic energy, 10-11 strip x sums, 12-13 strip counts (counts as u32 bits),
-// 14 translational kinetic energy.
+// 14 translational kinetic energy, 15 that of the disks with two or more force contacts.
 @compute @workgroup_size(256)
 fn reduce_final(@builtin(local_invocation_index) t: u32) {
     let nd = sim.n_disks;
@@ -97,13 +97,17 @@ fn reduce_final(@builtin(local_invocation_index) t: u32) {
     workgroupBarrier();
     var ke = 0.0;
     var ket = 0.0;
+    var kec = 0.0;
     var sx = vec2<f32>(0.0);
     var sc = vec2<f32>(0.0);
     for (var k = t; k < nd; k += 256u) {
         let d = disks[k];
         if d.kind == KIND_FREE {
             atomicAdd(&cnt[4], 1u);
-            if ld(sim.o_per_disk + k) >= 2u { atomicAdd(&cnt[3], 1u); }
+            if ld(sim.o_per_disk + k) >= 2u {
+                atomicAdd(&cnt[3], 1u);
+                kec += 0.5 * d.mass * dot(vel_at(0u, k).xy, vel_at(0u, k).xy);
+            }
             let v = vel_at(0u, k);
             ket += 0.5 * d.mass * dot(v.xy, v.xy);
             ke += 0.5 * d.mass * dot(v.xy, v.xy) + 0.25 * d.mass * d.radius * d.radius * v.z * v.z;
@@ -112,6 +116,7 @@ fn reduce_final(@builtin(local_invocation_index) t: u32) {
         if d.strip > 0 { sx.y += d.x; sc.y += 1.0; }
     }
     let kes = wg_sum2(t, vec2<f32>(ke, ket));
+    let kcs = wg_sum2(t, vec2<f32>(kec, 0.0));
     let sxs = wg_sum2(t, sx);
     let scs = wg_sum2(t, sc);
     if t == 0u {
@@ -131,5 +136,6 @@ fn reduce_final(@builtin(local_invocation_index) t: u32) {
         floats[r + 12u] = scs.x;
         floats[r + 13u] = scs.y;
         floats[r + 14u] = kes.y;
+        floats[r + 15u] = kcs.x;
     }
 }

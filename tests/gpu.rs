@@ -215,6 +215,17 @@ fn gpu_reductions_equal_cpu_sums_of_the_same_contacts() {
     close(red.overlap_mean, cpu.overlap_mean, "overlap mean");
     close(red.overlap_max, cpu.overlap_max, "overlap max");
     close(red.kinetic_energy, cpu.kinetic_energy, "kinetic energy");
+    close(
+        red.translational_energy,
+        cpu.translational_energy,
+        "translational kinetic energy",
+    );
+    close(
+        red.connected_energy,
+        cpu.connected_energy,
+        "kinetic energy of connected disks",
+    );
+    assert!(cpu.connected_energy > 0.0 && cpu.connected_energy <= cpu.translational_energy);
     // Wall force of the last step: the run's average differs, so compare the last step's
     // impulse on a one-step run from the same state.
     let mut g1 = gpu_or_skip("reductions", &out, gpu_params(Method::ColoredGs)).unwrap();

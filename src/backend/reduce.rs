@@ -99,6 +99,9 @@ pub struct Reductions {
     pub kinetic_energy: f64,
     /// Translational part of the kinetic energy (J/m).
     pub translational_energy: f64,
+    /// Translational kinetic energy of the free disks with two or more force-carrying
+    /// contacts (J/m): the rattlers left out.
+    pub connected_energy: f64,
     /// Mean centre x of the left and right strips (m); NaN without strips.
     pub strip_mean_x: [f64; 2],
     /// Outer edges of the left and right strips (m), see [`strip_outer_edges`]; NaN
@@ -203,6 +206,11 @@ impl Accumulator {
         };
         r.kinetic_energy = d.kinetic_energy();
         r.translational_energy = d.translational_energy();
+        r.connected_energy = free
+            .iter()
+            .filter(|&&k| per_disk[k] >= 2)
+            .map(|&k| 0.5 * d.mass[k] * d.vel[k].length_squared())
+            .sum();
         let mut sx = [0.0f64; 2];
         let mut cnt = [0u32; 2];
         for (k, &s) in loading.strip.iter().enumerate() {

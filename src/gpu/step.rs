@@ -322,6 +322,7 @@ impl GpuBackend {
         red.overlap_max = f[r + 8] as f64;
         red.kinetic_energy = f[r + 9] as f64;
         red.translational_energy = f[r + 14] as f64;
+        red.connected_energy = f[r + 15] as f64;
         let has = |s: i8| loading.strip.contains(&s);
         // The outer edges need the positions: one download at the output interval.
         if !loading.strip.is_empty() {

@@ -136,7 +136,7 @@ impl<B: Backend> Lab<B> {
                     }
                 }
                 if row.strain_axial >= p.strain_end {
-                    let kinetic = red.translational_energy / (p.sigma3 * self.state.gauge.disk_area);
+                    let kinetic = red.connected_energy / (p.sigma3 * self.state.gauge.disk_area);
                     self.end_phase(&red, true, 0.0, kinetic, obs)?;
                     self.state.phase = Phase::Done;
                 }
@@ -165,7 +165,7 @@ impl<B: Backend> Lab<B> {
     ) -> Result<bool> {
         let eq = self.state.params.equilibrium;
         let imbalance = (pushed - applied).abs() / applied;
-        let kinetic = red.translational_energy / (sigma * self.state.gauge.disk_area);
+        let kinetic = red.connected_energy / (sigma * self.state.gauge.disk_area);
         let settled = kinetic < eq.kinetic_ratio && imbalance < eq.force_imbalance;
         let timeout = red.time - self.state.phase_start >= eq.max_time;
         if settled || timeout {

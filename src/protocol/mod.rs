@@ -20,9 +20,10 @@ use crate::model::Scene;
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Equilibrium {
     /// Threshold on the kinetic ratio `K / (sigma A)`: the translational kinetic energy of
-    /// the free disks over the phase's applied stress times the total disk area
-    /// (dimensionless). Spin is left out: a rattler spins on untouched forever without
-    /// doing work on the sample.
+    /// the free disks with two or more force-carrying contacts over the phase's applied
+    /// stress times the total disk area (dimensionless). Rattlers and spin are left out: a
+    /// rattler spins on, or slides along its frictionless cage, forever without doing work
+    /// on the sample (the 5000-disk compaction never settled while they counted).
     pub kinetic_ratio: f64,
     /// Relative imbalance between the force the contacts exert on a force-driven wall and
     /// the force applied to it, `|F_contacts - F_applied| / F_applied`, averaged over a check
