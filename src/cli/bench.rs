@@ -105,6 +105,7 @@ pub fn run(args: &Args) -> Result<()> {
     params.solver.tol = args.tol;
     params.validate()?;
     let mut cases = Vec::new();
+    let mut failures = Vec::new();
     for &n in &args.disks {
         let scene = sheared_sample(n)?;
         for b in &args.backend {
@@ -122,7 +123,14 @@ pub fn run(args: &Args) -> Result<()> {
                             counters: |g: &GpuBackend| Some((g.counters(), g.conv_every)),
                             device_mib: |g: &GpuBackend| g.device_bytes() as f64 / (1024.0 * 1024.0),
                         };
-                        measure(&mut g, &probe, n, args)?
+                        match measure(&mut g, &probe, n, args) {
+                            Ok(c) => c,
+                            Err(e) => {
+                                eprintln!("gpu, {n} disks: FAILED: {e}");
+                                failures.push(format!("gpu, {n} disks: {e}"));
+                                continue;
+                            }
+                        }
                     }
                     Err(e) => {
                         eprintln!("gpu, {n} disks: skipped: {e}");
@@ -139,7 +147,10 @@ pub fn run(args: &Args) -> Result<()> {
     let json = serde_json::to_string_pretty(&cases).map_err(|e| Error::Other(e.to_string()))?;
     let p = args.out.join("bench.json");
     std::fs::write(&p, json).map_err(|e| Error::io(&p, e))?;
-    let md = markdown(&cases, args);
+    let mut md = markdown(&cases, args);
+    for f in &failures {
+        md.push_str(&format!("\nFAILED: {f}\n"));
+    }
     let p = args.out.join("bench.md");
     std::fs::write(&p, &md).map_err(|e| Error::io(&p, e))?;
     println!("{md}");

@@ -173,6 +173,18 @@ impl GpuBackend {
         let n_colors = status[status::COLORS];
         self.n_contacts = n;
         self.color_offsets = status[status::WORDS..status::WORDS + n_colors as usize + 1].to_vec();
+        // The sweeps dispatch one range per color: ranges that do not tile 0..n mean the
+        // coloring did not finish, and dispatching them would ask for billions of groups.
+        let tiled = self.color_offsets.first() == Some(&0)
+            && self.color_offsets.last() == Some(&n)
+            && self.color_offsets.windows(2).all(|w| w[0] <= w[1]);
+        if n > 0 && !tiled {
+            return Err(Error::Gpu(format!(
+                "{}: the GPU coloring left {n} contacts in inconsistent color ranges ({n_colors} colors, \
+                 step {}); rerun with --backend cpu (or --resume on the CPU path)",
+                self.gpu.info.name, self.scene.step
+            )));
+        }
         let overlap = f32::from_bits(status[status::OVERLAP]) as f64;
         if overlap > self.params.overlap_limit {
             return Err(Error::Numerical {
