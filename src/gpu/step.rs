@@ -180,9 +180,9 @@ impl GpuBackend {
             && self.color_offsets.windows(2).all(|w| w[0] <= w[1]);
         if n > 0 && !tiled {
             return Err(Error::Gpu(format!(
-                "{}: the GPU coloring left {n} contacts in inconsistent color ranges ({n_colors} colors, \
+                "{}: the GPU coloring left {n} contacts in inconsistent color ranges ({n_colors} colors, offsets {:?}, \
                  step {}); rerun with --backend cpu (or --resume on the CPU path)",
-                self.gpu.info.name, self.scene.step
+                self.gpu.info.name, self.color_offsets, self.scene.step
             )));
         }
         let overlap = f32::from_bits(status[status::OVERLAP]) as f64;
