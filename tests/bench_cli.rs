@@ -1,24 +1,13 @@
 //! `cdlab bench` on a small sample: the report is written and holds sensible figures.
 
-use std::process::Command;
+mod common;
+
+use common::cdlab;
 
 #[test]
 fn bench_writes_its_report_and_rejects_bad_sizes() {
     let out = std::env::temp_dir().join(format!("cdlab-bench-{}", std::process::id()));
-    let run = |args: &[&str]| {
-        let o = Command::new(env!("CARGO_BIN_EXE_cdlab"))
-            .args(args)
-            .output()
-            .expect("cdlab runs");
-        (
-            o.status.success(),
-            format!(
-                "{}{}",
-                String::from_utf8_lossy(&o.stdout),
-                String::from_utf8_lossy(&o.stderr)
-            ),
-        )
-    };
+    let run = cdlab;
     let (ok, text) = run(&[
         "bench",
         "--disks",

@@ -1,21 +1,10 @@
 //! The command line end to end: a small biaxial run writes its record and summary, refuses
 //! to overwrite, resumes a record cut short to the same result, and rejects bad input.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn cdlab(args: &[&str]) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_cdlab"))
-        .args(args)
-        .output()
-        .expect("cdlab runs");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (out.status.success(), text)
-}
+use common::cdlab;
+use std::path::{Path, PathBuf};
 
 fn scratch(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("cdlab-cli-{}-{name}", std::process::id()));

@@ -1,21 +1,10 @@
 //! A tiny campaign end to end: 2 frictions x 2 pressures on small samples, run as two
 //! shards, skipped when rerun, then analysed by `cdlab report`.
 
-use std::path::PathBuf;
-use std::process::Command;
+mod common;
 
-fn cdlab(args: &[&str]) -> (bool, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_cdlab"))
-        .args(args)
-        .output()
-        .expect("cdlab runs");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (out.status.success(), text)
-}
+use common::cdlab;
+use std::path::PathBuf;
 
 #[test]
 fn tiny_sweep_runs_in_shards_skips_finished_tests_and_reports() {

@@ -115,3 +115,17 @@ pub fn angular_momentum(s: &Scene) -> f64 {
         })
         .sum()
 }
+
+/// Runs the `cdlab` binary; returns success and stdout + stderr.
+pub fn cdlab(args: &[&str]) -> (bool, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args(args)
+        .output()
+        .expect("cdlab runs");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.success(), text)
+}
