@@ -184,11 +184,12 @@ impl Test {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Equilibrium {
-    /// Threshold on K / (sigma A): kinetic energy over applied stress times disk area.
+    /// Threshold on K / (sigma A): translational kinetic energy of the connected disks over
+    /// the applied stress times the disk area.
     pub kinetic_ratio: f64,
     /// Threshold on |F_contacts - F_target| / F_target of the loaded wall.
     pub force_imbalance: f64,
-    /// Consecutive steps both criteria must hold.
+    /// Steps per check window: both criteria are evaluated at the end of each window.
     pub hold_steps: u64,
     /// Simulated-time cap of a phase (s).
     pub max_time: Duration,
