@@ -92,6 +92,17 @@ fn sweep(contacts: &mut [Contact], ranges: &[u32], gv: &mut [DVec3], par_min: us
     total
 }
 
+impl SolveStats {
+    /// Records iteration `it` with its sums (change^2, impulse^2) and tells whether the
+    /// relative change met `tol`.
+    fn record(&mut self, it: u32, d2: f64, r2: f64, tol: f64) -> bool {
+        self.iterations = it;
+        self.residual = relative_change(d2, r2);
+        self.converged = self.residual <= tol;
+        self.converged
+    }
+}
+
 /// Relative quadratic change of one iteration; 0 when nothing carries or changes impulse.
 fn relative_change(d2: f64, r2: f64) -> f64 {
     if d2 == 0.0 {
@@ -130,10 +141,7 @@ pub fn solve(
     };
     for it in 1..=params.max_iter {
         let (d2, r2) = sweep(contacts, ranges, gv, par_min);
-        stats.iterations = it;
-        stats.residual = relative_change(d2, r2);
-        if stats.residual <= params.tol {
-            stats.converged = true;
+        if stats.record(it, d2, r2, params.tol) {
             break;
         }
     }
@@ -169,10 +177,7 @@ fn jacobi(params: &SolverParams, contacts: &mut [Contact], gv0: &[DVec3], gv: &m
             c.rt = rt;
             c.apply(gv, rn, rt);
         }
-        stats.iterations = it;
-        stats.residual = relative_change(d2, r2);
-        if stats.residual <= params.tol {
-            stats.converged = true;
+        if stats.record(it, d2, r2, params.tol) {
             break;
         }
     }
