@@ -145,11 +145,55 @@ fn disk_side(scene: &Scene, k: usize) -> Side {
 /// contact records sorted by key, with frames, inverse masses, Delassus blocks and friction
 /// filled in and impulses at zero. Pairs in which neither disk is free are skipped: no
 /// impulse can change their motion.
+///
+/// This is the reference search over the whole grid; [`Neighbours::detect`] gives the same
+/// records from a list of nearby pairs kept across steps.
 pub fn detect(scene: &Scene, alert: f64, grid: &mut CellGrid, out: &mut Vec<Contact>) -> Result<()> {
     let d = &scene.disks;
-    let nd = d.len();
     let r_max = d.radius.iter().cloned().fold(0.0, f64::max);
     grid.build(&d.pos, 2.0 * r_max + alert)?;
+    let mut candidates: Vec<u32> = Vec::with_capacity(32);
+    emit_all(scene, alert, out, |p, partners| {
+        candidates.clear();
+        grid.for_neighbours(p, |q| {
+            if q > p {
+                candidates.push(q as u32);
+            }
+        });
+        for &q in &candidates {
+            push_if_near(scene, p, q as usize, alert, partners);
+        }
+    });
+    Ok(())
+}
+
+/// Adds `(q, gap, n)` to `partners` when disks p and q are within `alert` and at least one
+/// of them is free.
+#[inline]
+fn push_if_near(scene: &Scene, p: usize, q: usize, alert: f64, partners: &mut Vec<(u32, f64, DVec2)>) {
+    let d = &scene.disks;
+    if d.kind[p] != BodyKind::Free && d.kind[q] != BodyKind::Free {
+        return;
+    }
+    let delta = d.pos[p] - d.pos[q];
+    let reach = d.radius[p] + d.radius[q] + alert;
+    let dist2 = delta.length_squared();
+    if dist2 < reach * reach && dist2 > 0.0 {
+        let dist = dist2.sqrt();
+        partners.push((q as u32, dist - d.radius[p] - d.radius[q], delta / dist));
+    }
+}
+
+/// Builds the contact records disk by disk: `near(p, partners)` fills the disks q > p
+/// within the alert distance of p; their contacts and then p's wall contacts are emitted.
+fn emit_all(
+    scene: &Scene,
+    alert: f64,
+    out: &mut Vec<Contact>,
+    mut near: impl FnMut(usize, &mut Vec<(u32, f64, DVec2)>),
+) {
+    let d = &scene.disks;
+    let nd = d.len();
     out.clear();
     let mu_disk = scene.material.mu_disk;
     let active: Vec<(usize, &crate::model::Wall)> =
@@ -162,24 +206,9 @@ pub fn detect(scene: &Scene, alert: f64, grid: &mut CellGrid, out: &mut Vec<Cont
     let mut swapped: Vec<Contact> = Vec::new();
     for p in 0..nd {
         let free_p = d.kind[p] == BodyKind::Free;
-        let xp = d.pos[p];
-        let rp = d.radius[p];
+        let (xp, rp) = (d.pos[p], d.radius[p]);
         partners.clear();
-        grid.for_neighbours(p, |q| {
-            if q <= p {
-                return;
-            }
-            if !free_p && d.kind[q] != BodyKind::Free {
-                return;
-            }
-            let delta = xp - d.pos[q];
-            let reach = rp + d.radius[q] + alert;
-            let dist2 = delta.length_squared();
-            if dist2 < reach * reach && dist2 > 0.0 {
-                let dist = dist2.sqrt();
-                partners.push((q as u32, dist - rp - d.radius[q], delta / dist));
-            }
-        });
+        near(p, &mut partners);
         partners.sort_unstable_by_key(|e| e.0);
         for &(q, gap, n) in &partners {
             let q = q as usize;
@@ -235,7 +264,95 @@ pub fn detect(scene: &Scene, alert: f64, grid: &mut CellGrid, out: &mut Vec<Cont
         out.extend(b);
     }
     debug_assert!(out.windows(2).all(|w| w[0].key() < w[1].key()));
-    Ok(())
+}
+
+/// A list of nearby disk pairs (a Verlet list) kept across steps: every pair closer than
+/// the alert distance plus a skin when the list was built. It stays exact until some disk
+/// has moved half the skin from where it was then, so the grid search runs every few
+/// hundred steps instead of every step; in between, a step only measures the listed pairs.
+/// The records are the same, bit for bit and in the same order, as [`detect`]'s.
+#[derive(Clone, Debug, Default)]
+pub struct Neighbours {
+    grid: CellGrid,
+    /// `pairs[start[p]..start[p + 1]]`: the disks q > p near p, by increasing index.
+    start: Vec<u32>,
+    pairs: Vec<u32>,
+    built_at: Vec<DVec2>,
+    radius: Vec<f64>,
+    alert: f64,
+    skin: f64,
+    /// Grid searches made so far (for the benchmark report).
+    pub rebuilds: u64,
+}
+
+impl Neighbours {
+    /// Forgets the list: the next detection searches the grid.
+    pub fn invalidate(&mut self) {
+        self.built_at.clear();
+    }
+
+    /// Same contract as [`detect`]; `skin` (m) is the margin of the kept list.
+    pub fn detect(&mut self, scene: &Scene, alert: f64, skin: f64, out: &mut Vec<Contact>) -> Result<()> {
+        if self.stale(scene, alert, skin) {
+            self.rebuild(scene, alert, skin)?;
+        }
+        let (start, pairs) = (&self.start, &self.pairs);
+        emit_all(scene, alert, out, |p, partners| {
+            for &q in &pairs[start[p] as usize..start[p + 1] as usize] {
+                push_if_near(scene, p, q as usize, alert, partners);
+            }
+        });
+        Ok(())
+    }
+
+    fn stale(&self, scene: &Scene, alert: f64, skin: f64) -> bool {
+        let d = &scene.disks;
+        if self.built_at.len() != d.len()
+            || self.alert != alert
+            || self.skin != skin
+            || self.radius != d.radius
+        {
+            return true;
+        }
+        let limit2 = 0.25 * skin * skin;
+        // Written so that a NaN position also counts as moved (the rebuild then reports it).
+        d.pos
+            .iter()
+            .zip(&self.built_at)
+            .any(|(x, x0)| {
+                let moved2 = (*x - *x0).length_squared();
+                moved2.is_nan() || moved2 > limit2
+            })
+    }
+
+    fn rebuild(&mut self, scene: &Scene, alert: f64, skin: f64) -> Result<()> {
+        let d = &scene.disks;
+        let r_max = d.radius.iter().cloned().fold(0.0, f64::max);
+        let margin = alert + skin;
+        self.grid.build(&d.pos, 2.0 * r_max + margin)?;
+        self.start.clear();
+        self.pairs.clear();
+        self.start.push(0);
+        for p in 0..d.len() {
+            let first = self.pairs.len();
+            let (xp, rp) = (d.pos[p], d.radius[p]);
+            let pairs = &mut self.pairs;
+            self.grid.for_neighbours(p, |q| {
+                let reach = rp + d.radius[q] + margin;
+                if q > p && (xp - d.pos[q]).length_squared() < reach * reach {
+                    pairs.push(q as u32);
+                }
+            });
+            self.pairs[first..].sort_unstable();
+            self.start.push(self.pairs.len() as u32);
+        }
+        self.built_at.clone_from(&d.pos);
+        self.radius.clone_from(&d.radius);
+        self.alert = alert;
+        self.skin = skin;
+        self.rebuilds += 1;
+        Ok(())
+    }
 }
 
 fn make_contact(scene: &Scene, a: usize, b: usize, n: DVec2, gap: f64, mu: f64) -> Contact {
