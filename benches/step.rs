@@ -24,6 +24,7 @@ fn params(method: Method) -> StepParams {
             relax: 0.5,
             parallel: false,
             parallel_min: cdlab::solver::default_parallel_min(),
+            threads: 0,
         },
     }
 }

@@ -163,8 +163,11 @@ pub fn run(args: &Args) -> Result<()> {
         jobs,
         sweep.out.display()
     );
-    // One test per core: the solver itself stays on one thread.
+    // The cores are shared between the tests running at once: each solver gets its share
+    // (its sweeps wait for each other at barriers, which must not compete for one core).
     base.solver.backend = crate::config::Backend::Cpu;
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    base.solver.threads = (cores / jobs).max(1);
     let queue = Mutex::new(mine.iter().cloned().collect::<VecDeque<Point>>());
     let samples: Mutex<Vec<(u64, crate::model::Scene)>> = Mutex::new(Vec::new());
     let done = Mutex::new((0usize, Vec::<(PathBuf, String)>::new()));

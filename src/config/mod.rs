@@ -166,6 +166,7 @@ impl Config {
                     relax: v.jacobi_relax,
                     parallel: true,
                     parallel_min: crate::solver::default_parallel_min(),
+                    threads: v.threads,
                 },
             },
             mu: t.mu,
@@ -178,6 +179,7 @@ impl Config {
             strain_end: t.strain_end,
             equilibrium: Equilibrium {
                 kinetic_ratio: e.kinetic_ratio,
+                compaction_kinetic_ratio: e.compaction_kinetic_ratio,
                 force_imbalance: e.force_imbalance,
                 window: e.hold_steps.clamp(1, u32::MAX as u64) as u32,
                 max_time: e.max_time.si(),

@@ -97,6 +97,8 @@ pub struct Solver {
     pub overlap_limit: f64,
     /// Where the steps run.
     pub backend: Backend,
+    /// CPU threads of the colored Gauss-Seidel sweeps; 0 takes every core.
+    pub threads: usize,
 }
 
 impl Default for Solver {
@@ -112,6 +114,7 @@ impl Default for Solver {
             check_every: 1,
             overlap_limit: 0.05,
             backend: Backend::Auto,
+            threads: 0,
         }
     }
 }
@@ -187,6 +190,9 @@ pub struct Equilibrium {
     /// Threshold on K / (sigma A): translational kinetic energy of the connected disks over
     /// the applied stress times the disk area.
     pub kinetic_ratio: f64,
+    /// The same threshold for the frictionless compaction, whose packing creeps on at a
+    /// ratio of a few 1e-8 (see the default file).
+    pub compaction_kinetic_ratio: f64,
     /// Threshold on |F_contacts - F_target| / F_target of the loaded wall.
     pub force_imbalance: f64,
     /// Steps per check window: both criteria are evaluated at the end of each window.
@@ -199,6 +205,7 @@ impl Default for Equilibrium {
     fn default() -> Self {
         Equilibrium {
             kinetic_ratio: 1e-8,
+            compaction_kinetic_ratio: 1e-7,
             force_imbalance: 0.01,
             hold_steps: 200,
             max_time: Duration(60.0),

@@ -166,7 +166,11 @@ impl<B: Backend> Lab<B> {
         let eq = self.state.params.equilibrium;
         let imbalance = (pushed - applied).abs() / applied;
         let kinetic = red.connected_energy / (sigma * self.state.gauge.disk_area);
-        let settled = kinetic < eq.kinetic_ratio && imbalance < eq.force_imbalance;
+        let threshold = match self.state.phase {
+            Phase::Compaction => eq.compaction_kinetic_ratio,
+            _ => eq.kinetic_ratio,
+        };
+        let settled = kinetic < threshold && imbalance < eq.force_imbalance;
         let timeout = red.time - self.state.phase_start >= eq.max_time;
         if settled || timeout {
             self.end_phase(red, settled, imbalance, kinetic, obs)?;

@@ -5,6 +5,7 @@
 pub mod color;
 pub mod law;
 pub mod sweep;
+mod team;
 
 use crate::error::{Error, Result, check_positive};
 
@@ -50,13 +51,14 @@ pub struct SolverParams {
     pub relax: f64,
     /// Use several threads for colors and Jacobi (results are bit-identical either way).
     pub parallel: bool,
-    /// Smallest color (or Jacobi problem), in contacts, worth sweeping on several threads.
-    /// Measured on 2 cores: colors of about 2000 contacts (a 5000-disk sample) run slower in
-    /// parallel than on one thread (24 against 15 ns per contact update), the waking of
-    /// worker threads costing more than the work; the default engages only on samples of
-    /// tens of thousands of disks.
+    /// Smallest contact problem worth solving on several threads. Colored Gauss-Seidel
+    /// then runs on a team of `threads` threads started once per step, with a spin barrier
+    /// between colors; Jacobi on the rayon pool.
     #[serde(default = "default_parallel_min")]
     pub parallel_min: usize,
+    /// Threads of the colored Gauss-Seidel team; 0 means every available core.
+    #[serde(default)]
+    pub threads: usize,
 }
 
 impl Default for SolverParams {
@@ -68,16 +70,29 @@ impl Default for SolverParams {
             relax: 0.5,
             parallel: true,
             parallel_min: default_parallel_min(),
+            threads: 0,
         }
     }
 }
 
-/// Default of [`SolverParams::parallel_min`].
+/// Default of [`SolverParams::parallel_min`]. Below a few thousand contacts a color is a
+/// few chunks and the barriers between colors cost more than the halved work.
 pub fn default_parallel_min() -> usize {
-    16_384
+    4096
 }
 
 impl SolverParams {
+    /// Threads of the colored Gauss-Seidel team (1 when `parallel` is off).
+    pub fn team_size(&self) -> usize {
+        if !self.parallel {
+            return 1;
+        }
+        match self.threads {
+            0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+            n => n,
+        }
+    }
+
     /// Rejects a non-positive tolerance, a zero iteration cap and a relaxation outside (0, 1].
     pub fn validate(&self) -> Result<()> {
         check_positive("solver.tol", self.tol)?;

@@ -11,8 +11,9 @@ use crate::contact::Contact;
 
 /// Contacts per chunk in parallel sweeps and in every convergence sum: partial sums are
 /// always taken over the same chunks in the same order, so the result does not depend on
-/// the number of threads.
-const CHUNK: usize = 256;
+/// the number of threads. Small enough that a color of about a thousand contacts splits
+/// evenly between the members of a thread team (see [`super::team`]).
+pub(super) const CHUNK: usize = 64;
 
 /// Updates one contact from the current velocities: solves the local law with its own
 /// impulse removed, applies the impulse change to both bodies and returns the squared
@@ -48,11 +49,11 @@ unsafe fn update(c: &mut Contact, gv: *mut DVec3) -> (f64, f64) {
 /// A raw pointer to the velocities that may cross threads; soundness comes from the
 /// coloring (see [`update`]).
 #[derive(Clone, Copy)]
-struct SharedVel(*mut DVec3);
+pub(super) struct SharedVel(pub(super) *mut DVec3);
 unsafe impl Send for SharedVel {}
 unsafe impl Sync for SharedVel {}
 
-fn sweep_chunk(chunk: &mut [Contact], gv: SharedVel) -> (f64, f64) {
+pub(super) fn sweep_chunk(chunk: &mut [Contact], gv: SharedVel) -> (f64, f64) {
     let mut acc = (0.0, 0.0);
     for c in chunk {
         // SAFETY: indices come from detection over this `gv`; exclusivity from the caller.
@@ -64,9 +65,10 @@ fn sweep_chunk(chunk: &mut [Contact], gv: SharedVel) -> (f64, f64) {
 }
 
 /// One Gauss-Seidel sweep over `contacts` in order, where consecutive `ranges` are colors
-/// (a single range for plain order). Returns the chunked sums (change^2, impulse^2).
-/// Colors of at least `par_min` contacts are swept on several threads.
-fn sweep(contacts: &mut [Contact], ranges: &[u32], gv: &mut [DVec3], par_min: usize) -> (f64, f64) {
+/// (a single range for plain order), on the calling thread. Returns the chunked sums
+/// (change^2, impulse^2); [`super::team`] sweeps colors on several threads with the same
+/// chunks and the same order of summation.
+fn sweep(contacts: &mut [Contact], ranges: &[u32], gv: &mut [DVec3]) -> (f64, f64) {
     let n_bodies = gv.len();
     let ptr = SharedVel(gv.as_mut_ptr());
     debug_assert!(
@@ -77,14 +79,8 @@ fn sweep(contacts: &mut [Contact], ranges: &[u32], gv: &mut [DVec3], par_min: us
     let mut total = (0.0, 0.0);
     for w in ranges.windows(2) {
         let part = &mut contacts[w[0] as usize..w[1] as usize];
-        let sums: Vec<(f64, f64)> = if part.len() >= par_min {
-            part.par_chunks_mut(CHUNK)
-                .map(|ch| sweep_chunk(ch, ptr))
-                .collect()
-        } else {
-            part.chunks_mut(CHUNK).map(|ch| sweep_chunk(ch, ptr)).collect()
-        };
-        for (d, r) in sums {
+        for ch in part.chunks_mut(CHUNK) {
+            let (d, r) = sweep_chunk(ch, ptr);
             total.0 += d;
             total.1 += r;
         }
@@ -125,22 +121,24 @@ pub fn solve(
     gv: &mut [DVec3],
 ) -> SolveStats {
     let whole = [0, contacts.len() as u32];
-    let threaded = if params.parallel {
-        params.parallel_min
-    } else {
-        usize::MAX
-    };
-    let (ranges, par_min) = match params.method {
-        Method::Gs => (&whole[..], usize::MAX),
-        Method::ColoredGs => (ranges, threaded),
+    let ranges = match params.method {
+        Method::Gs => &whole[..],
+        Method::ColoredGs => ranges,
         Method::Jacobi => return jacobi(params, contacts, gv0, gv),
     };
     let mut stats = SolveStats {
         colors: (ranges.len() - 1) as u32,
         ..Default::default()
     };
+    let team = params.team_size();
+    if params.method == Method::ColoredGs && team > 1 && contacts.len() >= params.parallel_min {
+        super::team::sweep_iterations(contacts, ranges, gv, team, params.max_iter, |it, d2, r2| {
+            stats.record(it, d2, r2, params.tol)
+        });
+        return stats;
+    }
     for it in 1..=params.max_iter {
-        let (d2, r2) = sweep(contacts, ranges, gv, par_min);
+        let (d2, r2) = sweep(contacts, ranges, gv);
         if stats.record(it, d2, r2, params.tol) {
             break;
         }

@@ -24,6 +24,7 @@ pub fn tight(method: Method) -> StepParams {
             relax: 0.5,
             parallel: true,
             parallel_min: cdlab::solver::default_parallel_min(),
+            threads: 0,
         },
     }
 }
