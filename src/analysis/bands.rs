@@ -43,7 +43,10 @@ pub struct Band {
     /// `(peak - background) / (peak + background)` of that profile, in [0, 1]: 0 for a
     /// uniform field, 1 for a band in an undeformed sample.
     pub contrast: f64,
-    /// Mean local shear strain in the band's peak bin (over the interval).
+    /// The band's strength `(peak - background) x width` over the chance level
+    /// `null_strength_m` of the report: above 1 for a band; capped at 1e6.
+    pub significance: f64,
+    /// Local shear strain of the profile's peak bin (over the interval).
     pub peak_shear: f64,
     /// Median of the profile: the shear strain outside the band (over the interval).
     pub background_shear: f64,
@@ -70,15 +73,15 @@ pub struct ShearBands {
     pub shear_mean: f64,
     /// Contrast below which a side reports no band.
     pub min_contrast: f64,
-    /// The contrast reached by chance: the largest best-candidate contrast over shuffles of
-    /// the same local strain values among the disks (no spatial order). A band's contrast
-    /// must exceed it; on a few hundred disks it is often near 0.5.
-    pub null_contrast: f64,
+    /// The chance level of a band's strength `(peak - background) x width` (m): the largest
+    /// one found when the same local strain values are shuffled among the disks (no spatial
+    /// order). Each band's `significance` is its strength over this.
+    pub null_strength_m: f64,
     /// The bands found: none, one, or two conjugate bands (one per side of the axis).
     pub bands: Vec<Band>,
     /// The best candidate of each side that is not a band (contrast below `min_contrast`
-    /// or `null_contrast`, or angle at the end of the scan), so a reader can judge how close
-    /// it came.
+    /// or significance at most 1, or angle at the end of the scan), so a reader can judge
+    /// how close it came.
     pub rejected: Vec<Band>,
 }
 
@@ -126,11 +129,12 @@ pub fn select(snaps: &[Snapshot], from: Option<f64>, to: Option<f64>) -> Result<
     Ok((a, b))
 }
 
-fn band(c: &Candidate, d_mean: f64) -> Band {
+fn band(c: &Candidate, d_mean: f64, null: f64) -> Band {
     Band {
         angle_deg: c.angle_deg,
         width_diameters: c.width_m / d_mean,
         contrast: c.contrast,
+        significance: detect::significance(c, null),
         peak_shear: c.peak_shear,
         background_shear: c.background_shear,
         centre_x_m: c.centre_m.x,
@@ -156,13 +160,13 @@ pub fn analyse_pair(a: &Snapshot, b: &Snapshot, opts: &BandOptions) -> Result<Sh
         )));
     }
     let shear_mean = points.iter().map(|p| p.1).sum::<f64>() / points.len() as f64;
-    let null = detect::null_contrast(&points, d_mean, &opts.detect);
+    let null = detect::null_strength(&points, d_mean, &opts.detect);
     let (mut bands, mut rejected) = (Vec::new(), Vec::new());
     for c in detect::scan(&points, d_mean, &opts.detect).into_iter().flatten() {
         if detect::is_band(&c, &opts.detect, null) {
-            bands.push(band(&c, d_mean));
+            bands.push(band(&c, d_mean, null));
         } else {
-            rejected.push(band(&c, d_mean));
+            rejected.push(band(&c, d_mean, null));
         }
     }
     Ok(ShearBands {
@@ -173,7 +177,7 @@ pub fn analyse_pair(a: &Snapshot, b: &Snapshot, opts: &BandOptions) -> Result<Sh
         disks_with_value: points.len(),
         shear_mean,
         min_contrast: opts.detect.min_contrast,
-        null_contrast: null,
+        null_strength_m: null,
         bands,
         rejected,
     })
@@ -204,15 +208,23 @@ impl ShearBands {
             self.shear_mean
         );
         s.push_str(&format!(
-            "  {:<10} {:>14} {:>17} {:>10} {:>12} {:>12} {:>22}\n",
-            "", "angle (deg)", "width (diameters)", "contrast", "peak shear", "background", "centre (m)"
+            "  {:<10} {:>12} {:>18} {:>9} {:>13} {:>12} {:>12} {:>20}\n",
+            "",
+            "angle (deg)",
+            "width (diameters)",
+            "contrast",
+            "significance",
+            "peak shear",
+            "background",
+            "centre (m)"
         ));
         let mut row = |what: &str, b: &Band| {
             s.push_str(&format!(
-                "  {what:<10} {:>+14.1} {:>17.2} {:>10.3} {:>12.4} {:>12.4} {:>22}\n",
+                "  {what:<10} {:>+12.1} {:>18.2} {:>9.3} {:>13.2} {:>12.4} {:>12.4} {:>20}\n",
                 b.angle_deg,
                 b.width_diameters,
                 b.contrast,
+                b.significance,
                 b.peak_shear,
                 b.background_shear,
                 format!("({:.2}, {:.2})", b.centre_x_m, b.centre_y_m)
@@ -226,10 +238,11 @@ impl ShearBands {
         }
         s.push_str(&format!(
             "  angle from the axial (vertical) direction, + rising towards +x; contrast = \
-             (peak - background) / (peak + background), bands need >= {:.2} and > {:.3} (reached \
-             by chance on shuffled values); {}\n",
+             (peak - background) / (peak + background), needs >= {:.2}; significance = \
+             (peak - background) x width over its chance level {:.3e} m (shuffled values), \
+             needs > 1; {}\n",
             self.min_contrast,
-            self.null_contrast,
+            self.null_strength_m,
             match self.bands.len() {
                 0 => "no band found".to_string(),
                 1 => "one band".to_string(),

@@ -10,9 +10,12 @@
 //! both found. Its width is the full width at half maximum of that peak above the
 //! background. Its contrast, `(peak - background) / (peak + background)`, is 0 for a
 //! uniform field and 1 for a band in an undeformed sample. Noise alone makes peaks too (the
-//! scan keeps the best of many angles and bins), so the contrast is compared with the one
-//! reached by the same values shuffled among the disks ([`null_contrast`]): a side reports
-//! a band only above both that chance level and `min_contrast`.
+//! scan keeps the best of many angles and bins), so each candidate's strength, its peak
+//! area `(peak - background) x width`, is compared with the largest one found in the same
+//! values shuffled among the disks ([`null_strength`]): a side reports a band only when it
+//! stands above that chance level and its contrast reaches `min_contrast`. The area, not
+//! the contrast, is compared: a chance spike is one bin wide, and where the background is
+//! exactly 0 (synthetic fields) any spike has contrast 1.
 
 use glam::DVec2;
 
@@ -30,7 +33,7 @@ pub struct DetectOptions {
     pub min_bin_fraction: f64,
     /// Smallest contrast reported as a band.
     pub min_contrast: f64,
-    /// Shuffles of the values for [`null_contrast`] (0: no chance level).
+    /// Shuffles of the values for [`null_strength`] (0: no chance level).
     pub null_shuffles: usize,
 }
 
@@ -61,6 +64,8 @@ pub struct Candidate {
     pub peak_shear: f64,
     /// Median of the profile (the shear strain outside the band).
     pub background_shear: f64,
+    /// `(peak - background) x width_m` (m): what is compared with the chance level.
+    pub strength_m: f64,
     /// Mean centre of the disks of the peak bin (m): a point on the band's axis.
     pub centre_m: DVec2,
     /// The profile falls to half maximum on both sides of the peak (a band across the
@@ -138,7 +143,8 @@ fn median(v: &mut [f64]) -> f64 {
 }
 
 /// The candidate of one profile, and its score (the peak's excess over the background).
-fn candidate(bins: &[Bin], theta_deg: f64) -> Option<(f64, Candidate)> {
+/// `scale` is the largest shear of the field.
+fn candidate(bins: &[Bin], theta_deg: f64, scale: f64) -> Option<(f64, Candidate)> {
     if bins.len() < 3 {
         return None;
     }
@@ -163,7 +169,9 @@ fn candidate(bins: &[Bin], theta_deg: f64) -> Option<(f64, Candidate)> {
         .map(|j| cross(j, j - 1));
     let closed = left.is_some() && right.is_some();
     let width_m = right.unwrap_or(bins[bins.len() - 1].p) - left.unwrap_or(bins[0].p);
-    let contrast = if peak + background > 0.0 {
+    // A peak within round-off of the background (a rigid region's 1e-16 strains next to
+    // exact zeros) is no contrast at all, however small the background.
+    let contrast = if peak - background > 1e-9 * scale {
         ((peak - background) / (peak + background)).clamp(0.0, 1.0)
     } else {
         0.0
@@ -174,6 +182,7 @@ fn candidate(bins: &[Bin], theta_deg: f64) -> Option<(f64, Candidate)> {
         contrast,
         peak_shear: peak,
         background_shear: background,
+        strength_m: (peak - background) * width_m,
         centre_m: bins[k].centre,
         closed,
     };
@@ -193,10 +202,11 @@ pub fn scan(points: &[(DVec2, f64)], d_mean: f64, opts: &DetectOptions) -> [Opti
     }
     let step = opts.angle_step_deg.clamp(0.01, 45.0);
     let n = (90.0 / step).ceil() as usize;
+    let scale = points.iter().map(|p| p.1.abs()).fold(0.0, f64::max);
     let side = |sign: f64| {
         (1..n)
             .map(|k| sign * k as f64 * step)
-            .filter_map(|th| candidate(&profile(points, th, bin, opts), th))
+            .filter_map(|th| candidate(&profile(points, th, bin, opts), th, scale))
             .filter(|(_, c)| c.closed)
             .max_by(|a, b| a.0.total_cmp(&b.0))
             .map(|(_, c)| c)
@@ -204,21 +214,33 @@ pub fn scan(points: &[(DVec2, f64)], d_mean: f64, opts: &DetectOptions) -> [Opti
     [side(1.0), side(-1.0)]
 }
 
-/// Whether a candidate counts as a band: contrast at least `min_contrast` and above the
-/// chance level `null` ([`null_contrast`]), and an angle
-/// inside the scan (a best angle at the first or last step is the tail of a band lying
-/// outside that side's range, e.g. a conjugate's reflection near the axis).
+/// The significance of a candidate: its strength over the chance level `null`
+/// ([`null_strength`]); capped at 1e6 (a chance level of 0, e.g. a uniform field).
+pub fn significance(c: &Candidate, null: f64) -> f64 {
+    if c.strength_m <= 0.0 {
+        0.0
+    } else if c.strength_m >= 1e6 * null {
+        1e6
+    } else {
+        c.strength_m / null
+    }
+}
+
+/// Whether a candidate counts as a band: contrast at least `min_contrast`, significance
+/// above 1, and an angle inside the scan (a best angle at the first or last step is the
+/// tail of a band lying outside that side's range, e.g. a conjugate's reflection near the
+/// axis).
 pub fn is_band(c: &Candidate, opts: &DetectOptions, null: f64) -> bool {
     let step = opts.angle_step_deg.clamp(0.01, 45.0);
     let a = c.angle_deg.abs();
-    c.contrast >= opts.min_contrast && c.contrast > null && a > 1.5 * step && a < 90.0 - 1.5 * step
+    c.contrast >= opts.min_contrast && significance(c, null) > 1.0 && a > 1.5 * step && a < 90.0 - 1.5 * step
 }
 
-/// The contrast a field without bands reaches by chance: the largest contrast of the best
-/// candidates found in `shuffles` copies of `points` whose shear values are randomly
-/// permuted among the disk centres (same values, same positions, no spatial order). A
-/// band's contrast should stand above it. Deterministic (fixed seed).
-pub fn null_contrast(points: &[(DVec2, f64)], d_mean: f64, opts: &DetectOptions) -> f64 {
+/// The strength a field without bands reaches by chance: the largest strength of the best
+/// candidates found in `opts.null_shuffles` copies of `points` whose shear values are
+/// randomly permuted among the disk centres (same values, same positions, no spatial
+/// order). Deterministic (fixed seed).
+pub fn null_strength(points: &[(DVec2, f64)], d_mean: f64, opts: &DetectOptions) -> f64 {
     let mut state: u64 = 0x5EED_BA4D_5EED_BA4D;
     let mut next = move || {
         // SplitMix64: enough to decorrelate values from positions.
@@ -238,7 +260,7 @@ pub fn null_contrast(points: &[(DVec2, f64)], d_mean: f64, opts: &DetectOptions)
             shuffled[j].1 = v;
         }
         for c in scan(&shuffled, d_mean, opts).into_iter().flatten() {
-            worst = worst.max(c.contrast);
+            worst = worst.max(c.strength_m);
         }
     }
     worst
