@@ -187,7 +187,7 @@ fn finish(
     let outcome = lab.run(&mut obs);
     obs.finish();
     outcome?;
-    let summary = Summary::new(
+    let mut summary = Summary::new(
         &obs.rows,
         &obs.ends,
         config.test.sigma3.si(),
@@ -197,6 +197,18 @@ fn finish(
         started.elapsed().as_secs_f64(),
     );
     obs.recorder.finish()?;
+    // From the record just closed: the snapshots are not kept in memory during the run.
+    summary.shear_bands = match read_run(dir)
+        .and_then(|rec| crate::analysis::bands::analyse_run(&rec, None, None, &Default::default()))
+    {
+        Ok(b) => Some(b),
+        Err(e) => {
+            if !quiet {
+                eprintln!("no shear-band analysis: {e}");
+            }
+            None
+        }
+    };
     write_summary(dir, &summary)?;
     Ok(summary)
 }

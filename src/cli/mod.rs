@@ -1,6 +1,7 @@
 //! The `cdlab` command line. Each subcommand lives in its own file with an `Args` struct
 //! (clap) and a `run` function; this file only dispatches.
 
+pub mod bands;
 pub mod bench;
 pub mod biaxial;
 pub mod config;
@@ -39,6 +40,9 @@ pub enum Command {
     Sweep(sweep::Args),
     /// Export a run's snapshots as VTK files (ParaView).
     Export(export::Args),
+    /// Shear bands of a recorded run: angle from the axial direction, width in mean
+    /// diameters (`bands RUN [--from E --to E]`).
+    Bands(bands::Args),
     /// Measure time per step on the CPU and GPU paths (table, bench.json, bench.md).
     Bench(bench::Args),
     /// Print the version and build information.
@@ -59,6 +63,7 @@ pub fn main() -> i32 {
         Command::Report(args) => report::run(&args),
         Command::Sweep(args) => sweep::run(&args),
         Command::Export(args) => export::run(&args),
+        Command::Bands(args) => bands::run(&args),
         Command::Bench(args) => bench::run(&args),
         Command::Version => {
             println!("cdlab {}", env!("CARGO_PKG_VERSION"));

@@ -64,6 +64,10 @@ pub struct Summary {
     /// Stress-drop events: falls of sigma_1 of at least 5% of sigma3 with concurrent
     /// contraction.
     pub stress_drops: Vec<super::derived::StressDrop>,
+    /// Shear bands over the last snapshot interval (`crate::analysis::bands`); null when
+    /// the run recorded fewer than two snapshots or the analysis could not run.
+    #[serde(default)]
+    pub shear_bands: Option<crate::analysis::bands::ShearBands>,
 }
 
 impl Summary {
@@ -111,6 +115,7 @@ impl Summary {
             steps_per_second: steps as f64 / wall_time_s.max(1e-9),
             phases: ends.to_vec(),
             stress_drops: super::derived::stress_drops(rows, 0.05 * sigma3),
+            shear_bands: None,
         }
     }
 
@@ -185,6 +190,10 @@ impl Summary {
             "wall time",
             format!("{:.1} s ({:.0} steps/s)", self.wall_time_s, self.steps_per_second),
         );
+        match &self.shear_bands {
+            Some(b) => s.push_str(&format!("  shear bands\n{}", b.table())),
+            None => s.push_str("  shear bands                        n/a (fewer than two snapshots)\n"),
+        }
         s
     }
 }
