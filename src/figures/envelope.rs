@@ -26,7 +26,7 @@ fn check(report: &Report) -> Result<()> {
 
 /// Color of friction number `k` of `n`: the sequential map, stopping short of its pale
 /// yellow end, which would vanish on white.
-fn friction_color(k: usize, n: usize) -> RGBColor {
+pub fn friction_color(k: usize, n: usize) -> RGBColor {
     SEQUENTIAL.at(if n > 1 {
         0.85 * k as f64 / (n - 1) as f64
     } else {
