@@ -576,6 +576,40 @@ fn mu_macro_against_friction_shows_points_and_fits() {
     );
 }
 
+#[test]
+fn short_campaign_without_residual_still_draws() {
+    // Two frictions, tests stopped before strain 0.05: no residual, no saturation fit.
+    let tests: Vec<TestPoint> = [0.1, 0.5]
+        .into_iter()
+        .flat_map(|mu| {
+            [1.0, 4.0].map(|s3| TestPoint {
+                dir: PathBuf::new(),
+                mu,
+                sigma3_mpa: s3,
+                sigma1_peak_mpa: 2.5 * s3,
+                sigma1_residual_mpa: None,
+            })
+        })
+        .collect();
+    let rep = analyse(&tests, vec![]);
+    let (svg, ()) = render_svg(&EnvelopeFigure { report: &rep }).unwrap();
+    let doc = roxmltree::Document::parse(&svg).unwrap();
+    let open = svg_elements(&doc, "circle", None)
+        .into_iter()
+        .filter(|n| n.attribute("fill") == Some("none"))
+        .count();
+    assert_eq!(open, 1, "no residual marker, only the legend's open circle");
+    let (svg, ()) = render_svg(&MuMacroFigure { report: &rep }).unwrap();
+    let doc = roxmltree::Document::parse(&svg).unwrap();
+    let peak = svg_elements(&doc, "circle", Some(("fill", &hex(LINE_COLORS[0])))).len();
+    assert_eq!(peak, 3, "two peak markers and the legend's");
+    let fits = svg_elements(&doc, "polyline", Some(("stroke", &hex(LINE_COLORS[0]))))
+        .iter()
+        .filter(|n| points(n).len() == 200)
+        .count();
+    assert_eq!(fits, 0, "two frictions give no saturation fit, so no curve");
+}
+
 /// Writes a synthetic run (record only) with snapshots at strains 0, 0.05 and 0.1.
 fn synthetic_run(dir: &Path, with_snapshots: bool) {
     let config = cdlab::config::Config::default();
