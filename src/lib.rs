@@ -6,6 +6,7 @@
 //!
 //! Module map (dependencies point down the list):
 //! - [`cli`]: the `cdlab` command line;
+//! - [`figures`]: PNG and SVG figures of runs, snapshots and campaign reports;
 //! - [`analysis`]: fits of the campaign (Mohr-Coulomb envelopes, friction saturation);
 //! - [`record`]: run records (MCAP + CSV), written during a run and read back;
 //! - [`config`]: the run configuration (TOML with units);
@@ -29,6 +30,7 @@ pub mod contact;
 pub mod engine;
 pub mod error;
 pub mod fc2d;
+pub mod figures;
 pub mod gpu;
 pub mod measure;
 pub mod model;

@@ -9,6 +9,7 @@ pub mod export;
 pub mod fc2d;
 pub mod info;
 pub mod prepare;
+pub mod render;
 pub mod report;
 pub mod run;
 pub mod sweep;
@@ -43,6 +44,9 @@ pub enum Command {
     /// Shear bands of a recorded run: angle from the axial direction, width in mean
     /// diameters (`bands RUN [--from E --to E]`).
     Bands(bands::Args),
+    /// Draw a run's figures: a snapshot (`--at STRAIN --field NAME -o FIG.png|svg`) or the
+    /// curves against axial strain (`--curves -o DIR`).
+    Render(render::Args),
     /// Measure time per step on the CPU and GPU paths (table, bench.json, bench.md).
     Bench(bench::Args),
     /// Print the version and build information.
@@ -64,6 +68,7 @@ pub fn main() -> i32 {
         Command::Sweep(args) => sweep::run(&args),
         Command::Export(args) => export::run(&args),
         Command::Bands(args) => bands::run(&args),
+        Command::Render(args) => render::run(&args),
         Command::Bench(args) => bench::run(&args),
         Command::Version => {
             println!("cdlab {}", env!("CARGO_PKG_VERSION"));

@@ -1,10 +1,13 @@
 //! `cdlab report DIR...`: the campaign analysis of the finished tests below the given
-//! directories, written as `report.json` and `report.csv` into the first one.
+//! directories, written as `report.json` and `report.csv` into the first one, with the
+//! figures `envelope` (Mohr-Coulomb envelopes) and `mu_macro` (macroscopic against contact
+//! friction), each as PNG and SVG.
 
 use std::path::PathBuf;
 
 use crate::analysis::report::{analyse, collect};
 use crate::error::{Error, Result};
+use crate::figures::{EnvelopeFigure, MuMacroFigure, save_both};
 
 /// Options of `cdlab report`.
 #[derive(clap::Args, Debug)]
@@ -12,7 +15,8 @@ pub struct Args {
     /// Run directories, or directories holding runs (searched recursively).
     #[arg(required = true)]
     pub dirs: Vec<PathBuf>,
-    /// Where to write report.json and report.csv (default: the first directory).
+    /// Where to write report.json, report.csv and the figures (default: the first
+    /// directory).
     #[arg(long)]
     pub out: Option<PathBuf>,
 }
@@ -39,8 +43,19 @@ pub fn run(args: &Args) -> Result<()> {
     std::fs::write(&p, json).map_err(|e| Error::io(&p, e))?;
     let p = out.join("report.csv");
     std::fs::write(&p, report.csv()).map_err(|e| Error::io(&p, e))?;
+    // The tables are the report; a figure that cannot be drawn (every friction 0 has no
+    // place on a log axis) is said, not fatal.
+    let figures = [
+        save_both(&EnvelopeFigure { report: &report }, &out, "envelope"),
+        save_both(&MuMacroFigure { report: &report }, &out, "mu_macro"),
+    ];
+    for f in figures {
+        if let Err(e) = f {
+            eprintln!("warning: figure not written: {e}");
+        }
+    }
     println!(
-        "{} tests, {} frictions -> {}\n{}",
+        "{} tests, {} frictions -> {} (report.json, report.csv, envelope.png/svg, mu_macro.png/svg)\n{}",
         points.len(),
         report.frictions.len(),
         out.display(),

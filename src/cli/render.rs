@@ -1,0 +1,141 @@
+//! `cdlab render RUN --at STRAIN --field NAME -o FIG` draws the snapshot nearest a strain;
+//! `cdlab render RUN --curves -o DIR` draws the stress-strain and contact-count curves.
+
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+use crate::figures::{self, ContactsFigure, Field, Format, SnapshotFigure, StressStrainFigure};
+use crate::record::{RunRecord, Snapshot, read_run};
+
+/// Options of `cdlab render`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The run directory (or its run.mcap).
+    pub run: PathBuf,
+    /// Draw the snapshot nearest this axial strain (a fraction, e.g. 0.09).
+    #[arg(long, conflicts_with = "curves", required_unless_present = "curves")]
+    pub at: Option<f64>,
+    /// With --at: displacement, rotation, velocity or forces.
+    #[arg(long, default_value = "displacement")]
+    pub field: String,
+    /// Draw the curves against axial strain (stress_strain and contacts, PNG and SVG) into
+    /// the directory given by -o.
+    #[arg(long)]
+    pub curves: bool,
+    /// Output: a .png or .svg file with --at, a directory with --curves.
+    #[arg(short, long)]
+    pub out: PathBuf,
+    /// Height of a snapshot's plot area in pixels (the width follows the sample's aspect).
+    #[arg(long, default_value_t = 900)]
+    pub height: u32,
+}
+
+/// Runs `cdlab render`.
+pub fn run(args: &Args) -> Result<()> {
+    match args.at {
+        Some(at) => snapshot(args, at),
+        None => curves(args),
+    }
+}
+
+/// The index of the snapshot nearest `at`. Several snapshots share strain 0 (the end of
+/// each preparation phase): the last of them is the start of the compression.
+pub fn nearest_snapshot(snaps: &[Snapshot], at: f64) -> Option<usize> {
+    let mut best: Option<(usize, f64)> = None;
+    for (k, s) in snaps.iter().enumerate() {
+        let d = (s.strain - at).abs();
+        if best.is_none_or(|(_, b)| d <= b) {
+            best = Some((k, d));
+        }
+    }
+    best.map(|(k, _)| k)
+}
+
+/// The snapshot that rotations of snapshot `k` are measured from: the one of least strain
+/// before it (the last of equals, nearest the compression's start). None for the first.
+pub fn rotation_reference(snaps: &[Snapshot], k: usize) -> Option<&Snapshot> {
+    snaps[..k.min(snaps.len())]
+        .iter()
+        .rev()
+        .min_by(|a, b| a.strain.total_cmp(&b.strain))
+}
+
+fn snapshot(args: &Args, at: f64) -> Result<()> {
+    if !at.is_finite() {
+        return Err(Error::invalid("--at", at, "must be a finite axial strain"));
+    }
+    let field: Field = args.field.parse()?;
+    Format::from_path(&args.out)?;
+    if args.height < 50 {
+        return Err(Error::invalid(
+            "--height",
+            args.height,
+            "must be at least 50 pixels",
+        ));
+    }
+    let rec = read_run(&args.run)?;
+    let k = nearest_snapshot(&rec.snapshots, at)
+        .ok_or_else(|| Error::Other(format!("{}: the run holds no snapshot", args.run.display())))?;
+    let snap = &rec.snapshots[k];
+    // Rotations count from the snapshot nearest the start of the compression recorded
+    // before the one drawn (the record keeps total rotations since the deposition).
+    let reference = rotation_reference(&rec.snapshots, k);
+    let fig = SnapshotFigure {
+        snap,
+        reference,
+        field,
+        plot_height: args.height,
+    };
+    figures::save(&fig, &args.out)?;
+    println!(
+        "{} at axial strain {:.5} (requested {at}; snapshot {} of {}, t = {:.4} s) -> {}",
+        field.name(),
+        snap.strain,
+        k + 1,
+        rec.snapshots.len(),
+        snap.time_s,
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// A title naming the run's friction, confining stress and size.
+fn run_title(rec: &RunRecord, run: &Path) -> String {
+    match rec.config() {
+        Ok(c) => format!(
+            "μ = {}, σ₃ = {} MPa, {} disks",
+            c.test.mu,
+            c.test.sigma3.0 / 1e6,
+            c.sample.disks
+        ),
+        Err(_) => run.display().to_string(),
+    }
+}
+
+fn curves(args: &Args) -> Result<()> {
+    let rec = read_run(&args.run)?;
+    std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
+    let title = run_title(&rec, &args.run);
+    let written = [
+        figures::save_both(
+            &StressStrainFigure {
+                rows: &rec.series,
+                title: title.clone(),
+            },
+            &args.out,
+            "stress_strain",
+        )?,
+        figures::save_both(
+            &ContactsFigure {
+                rows: &rec.series,
+                title,
+            },
+            &args.out,
+            "contacts",
+        )?,
+    ];
+    for p in written.iter().flatten() {
+        println!("{}", p.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,193 @@
+//! Curves of one run against axial strain: the stress-strain curve with the volumetric
+//! strain, and the contact counts. Only the compression phase is drawn (axial strain is
+//! defined from its start).
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use super::{Figure, LABEL, LINE_COLORS, TICK, draw_err};
+use crate::error::{Error, Result};
+use crate::record::SeriesRow;
+
+/// Figure size in pixels: a landscape page-width plot.
+pub const CURVE_SIZE: (u32, u32) = (900, 600);
+
+/// The rows of the compression phase with a finite axial strain.
+fn compression(rows: &[SeriesRow]) -> Result<Vec<&SeriesRow>> {
+    let c: Vec<&SeriesRow> = rows
+        .iter()
+        .filter(|r| r.phase == "compression" && r.strain_axial.is_finite())
+        .collect();
+    if c.is_empty() {
+        return Err(Error::Other(
+            "the run has no series row of the compression phase: nothing to plot against axial strain".into(),
+        ));
+    }
+    Ok(c)
+}
+
+/// A range that contains `values` with a margin of 5% of their spread (or +-1 around a
+/// single value); `from_zero` makes it start at 0 when all values are non-negative.
+pub(crate) fn padded_range(values: impl Iterator<Item = f64>, from_zero: bool) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in values.filter(|v| v.is_finite()) {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    if from_zero && lo >= 0.0 {
+        lo = 0.0;
+    }
+    let pad = if hi > lo {
+        0.05 * (hi - lo)
+    } else {
+        lo.abs().max(1.0)
+    };
+    (if from_zero && lo == 0.0 { 0.0 } else { lo - pad }, hi + pad)
+}
+
+/// sigma_1 (MPa, left axis) and volumetric strain (right axis) against axial strain.
+#[derive(Clone, Debug)]
+pub struct StressStrainFigure<'a> {
+    /// The run's series (any phases; only compression rows are drawn).
+    pub rows: &'a [SeriesRow],
+    /// Title (e.g. the run's friction and confining stress).
+    pub title: String,
+}
+
+impl Figure for StressStrainFigure<'_> {
+    type Output = ();
+
+    fn size(&self) -> (u32, u32) {
+        CURVE_SIZE
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
+        let rows = compression(self.rows)?;
+        let strain = |r: &&SeriesRow| r.strain_axial;
+        let (x0, x1) = padded_range(rows.iter().map(strain), true);
+        let (s0, s1) = padded_range(rows.iter().map(|r| r.sigma1_pa / 1e6), true);
+        let (v0, v1) = padded_range(rows.iter().map(|r| r.volumetric_strain), false);
+        let mut chart = ChartBuilder::on(root)
+            .caption(&self.title, LABEL)
+            .margin(15)
+            .x_label_area_size(55)
+            .y_label_area_size(75)
+            .right_y_label_area_size(90)
+            .build_cartesian_2d(x0..x1, s0..s1)
+            .map_err(draw_err)?
+            .set_secondary_coord(x0..x1, v0..v1);
+        chart
+            .configure_mesh()
+            .x_desc("axial strain ε_z (-)")
+            .y_desc("axial stress σ₁ (MPa)")
+            .label_style(TICK)
+            .axis_desc_style(LABEL)
+            .light_line_style(WHITE)
+            .draw()
+            .map_err(draw_err)?;
+        chart
+            .configure_secondary_axes()
+            .y_desc("volumetric strain ΔV/V₀ (-, dilation +)")
+            .label_style(TICK)
+            .axis_desc_style(LABEL)
+            .draw()
+            .map_err(draw_err)?;
+        let (c1, c2) = (LINE_COLORS[0], LINE_COLORS[1]);
+        chart
+            .draw_series(LineSeries::new(
+                rows.iter().map(|r| (r.strain_axial, r.sigma1_pa / 1e6)),
+                c1.stroke_width(2),
+            ))
+            .map_err(draw_err)?
+            .label("σ₁ (MPa, left axis)")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 25, y)], c1.stroke_width(2)));
+        chart
+            .draw_secondary_series(LineSeries::new(
+                rows.iter().map(|r| (r.strain_axial, r.volumetric_strain)),
+                c2.stroke_width(2),
+            ))
+            .map_err(draw_err)?
+            .label("ΔV/V₀ (-, right axis)")
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 25, y)], c2.stroke_width(2)));
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::LowerRight)
+            .label_font(LABEL)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(draw_err)?;
+        Ok(())
+    }
+}
+
+/// Rolling, sliding and zero-force contact counts against axial strain.
+#[derive(Clone, Debug)]
+pub struct ContactsFigure<'a> {
+    /// The run's series (any phases; only compression rows are drawn).
+    pub rows: &'a [SeriesRow],
+    /// Title.
+    pub title: String,
+}
+
+impl Figure for ContactsFigure<'_> {
+    type Output = ();
+
+    fn size(&self) -> (u32, u32) {
+        CURVE_SIZE
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
+        let rows = compression(self.rows)?;
+        type Count = fn(&SeriesRow) -> u64;
+        let series: [(&str, Count, RGBColor); 3] = [
+            ("rolling", |r| r.n_rolling, LINE_COLORS[0]),
+            ("sliding", |r| r.n_sliding, LINE_COLORS[3]),
+            ("zero-force", |r| r.n_zero_force, LINE_COLORS[2]),
+        ];
+        let (x0, x1) = padded_range(rows.iter().map(|r| r.strain_axial), true);
+        let (y0, y1) = padded_range(
+            rows.iter()
+                .flat_map(|r| series.iter().map(move |s| s.1(r) as f64)),
+            true,
+        );
+        let mut chart = ChartBuilder::on(root)
+            .caption(&self.title, LABEL)
+            .margin(15)
+            .x_label_area_size(55)
+            .y_label_area_size(85)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(draw_err)?;
+        chart
+            .configure_mesh()
+            .x_desc("axial strain ε_z (-)")
+            .y_desc("contacts (count)")
+            .label_style(TICK)
+            .axis_desc_style(LABEL)
+            .light_line_style(WHITE)
+            .draw()
+            .map_err(draw_err)?;
+        for (name, get, color) in series {
+            chart
+                .draw_series(LineSeries::new(
+                    rows.iter().map(|r| (r.strain_axial, get(r) as f64)),
+                    color.stroke_width(2),
+                ))
+                .map_err(draw_err)?
+                .label(name)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 25, y)], color.stroke_width(2)));
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::MiddleRight)
+            .label_font(LABEL)
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(draw_err)?;
+        Ok(())
+    }
+}

@@ -1,0 +1,305 @@
+//! One snapshot drawn to scale (the paper's Figures 4, 7, 8 and 10).
+//!
+//! The plot keeps equal scales on x and y: the pixel size of the plot area is computed from
+//! the sample's extent, and disks are filled polygons in data coordinates (plotters' circles
+//! take integer pixel radii, which would distort the small disks of a large sample).
+
+use std::str::FromStr;
+
+use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
+use plotters::prelude::*;
+
+use super::colormap::{SEQUENTIAL, Scale, draw_colorbar};
+use super::{Figure, LABEL, TICK, draw_err, network};
+use crate::error::{Error, Result};
+use crate::record::Snapshot;
+
+/// What a snapshot figure shows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Field {
+    /// Disks colored by the magnitude of their displacement since the start of compression.
+    Displacement,
+    /// Disks colored by their rotation (diverging map centered on 0).
+    Rotation,
+    /// The disks' velocities as arrows.
+    Velocity,
+    /// The force network: bars between the centres of contacting bodies.
+    Forces,
+}
+
+impl Field {
+    /// Every field, in the order of the documentation.
+    pub const ALL: [Field; 4] = [
+        Field::Displacement,
+        Field::Rotation,
+        Field::Velocity,
+        Field::Forces,
+    ];
+
+    /// The name used on the command line and in file names.
+    pub fn name(self) -> &'static str {
+        match self {
+            Field::Displacement => "displacement",
+            Field::Rotation => "rotation",
+            Field::Velocity => "velocity",
+            Field::Forces => "forces",
+        }
+    }
+}
+
+impl FromStr for Field {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Field> {
+        Field::ALL
+            .into_iter()
+            .find(|f| f.name() == s)
+            .ok_or_else(|| Error::invalid("--field", s, "one of displacement, rotation, velocity, forces"))
+    }
+}
+
+/// How data coordinates (m) map to the pixels of a drawn snapshot figure.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Frame {
+    /// Pixel x of the data point x = 0.
+    pub px0: f64,
+    /// Pixel y of the data point y = 0 (pixel rows grow downwards).
+    pub py0: f64,
+    /// Pixels per metre along x.
+    pub sx: f64,
+    /// Pixels per metre along y (equal to `sx` up to rounding: the figure keeps the aspect).
+    pub sy: f64,
+}
+
+impl Frame {
+    /// The pixel (column, row) of the data point (x, y) in metres.
+    pub fn to_pixel(&self, x: f64, y: f64) -> (f64, f64) {
+        (self.px0 + self.sx * x, self.py0 - self.sy * y)
+    }
+}
+
+/// A snapshot figure: the sample at one instant with one [`Field`].
+#[derive(Clone, Debug)]
+pub struct SnapshotFigure<'a> {
+    /// The snapshot to draw.
+    pub snap: &'a Snapshot,
+    /// The snapshot rotations are measured from (in practice the first one of the
+    /// compression), when it has the same disks; otherwise rotations are the recorded totals.
+    pub reference: Option<&'a Snapshot>,
+    /// What to show.
+    pub field: Field,
+    /// Height of the plot area in pixels; the width follows from the sample's aspect.
+    pub plot_height: u32,
+}
+
+// Layout in pixels. Fixed sizes make the plot area, and so the equal aspect, exact.
+const TITLE_H: u32 = 60;
+const MARGIN: u32 = 15;
+const LEFT: u32 = 70;
+const BOTTOM: u32 = 55;
+const PANEL_W: u32 = 190;
+
+/// Data extent (m): x0, x1, y0, y1, padded so that no disk touches the frame.
+fn extent(snap: &Snapshot) -> (f64, f64, f64, f64) {
+    let mut e = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    for d in &snap.disks {
+        e = (
+            e.0.min(d.x - d.r),
+            e.1.max(d.x + d.r),
+            e.2.min(d.y - d.r),
+            e.3.max(d.y + d.r),
+        );
+    }
+    let pad = 0.02 * (e.1 - e.0).max(e.3 - e.2);
+    (e.0 - pad, e.1 + pad, e.2 - pad, e.3 + pad)
+}
+
+impl SnapshotFigure<'_> {
+    /// Plot area width for the sample's aspect (at least 1 pixel).
+    fn plot_width(&self) -> u32 {
+        let (x0, x1, y0, y1) = extent(self.snap);
+        ((self.plot_height as f64 * (x1 - x0) / (y1 - y0)).round() as u32).max(1)
+    }
+
+    /// The rotation of every disk (rad), relative to the reference when it has the same
+    /// disks.
+    fn rotations(&self) -> Vec<f64> {
+        match self.rotation_reference() {
+            Some(r) => self
+                .snap
+                .disks
+                .iter()
+                .zip(&r.disks)
+                .map(|(d, d0)| d.theta - d0.theta)
+                .collect(),
+            None => self.snap.disks.iter().map(|d| d.theta).collect(),
+        }
+    }
+
+    /// The reference of the rotations, if it fits this snapshot.
+    fn rotation_reference(&self) -> Option<&Snapshot> {
+        self.reference.filter(|r| r.disks.len() == self.snap.disks.len())
+    }
+}
+
+/// The value at quantile `q` of `|v|` (0 for an empty list).
+fn abs_quantile(v: &[f64], q: f64) -> f64 {
+    let mut a: Vec<f64> = v.iter().map(|x| x.abs()).filter(|x| x.is_finite()).collect();
+    if a.is_empty() {
+        return 0.0;
+    }
+    a.sort_by(f64::total_cmp);
+    a[((a.len() - 1) as f64 * q).round() as usize]
+}
+
+/// A disk outline as a polygon in data coordinates, with enough vertices that the edges
+/// stay below a pixel or so at `px_per_m`.
+pub(crate) fn disk_polygon(x: f64, y: f64, r: f64, px_per_m: f64) -> Vec<(f64, f64)> {
+    let n = ((r * px_per_m).round() as usize).clamp(12, 48);
+    (0..n)
+        .map(|k| {
+            let a = std::f64::consts::TAU * k as f64 / n as f64;
+            (x + r * a.cos(), y + r * a.sin())
+        })
+        .collect()
+}
+
+/// Color of the disk outlines.
+pub const OUTLINE: RGBColor = RGBColor(110, 110, 110);
+
+/// The chart type of a snapshot figure.
+pub(crate) type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+impl Figure for SnapshotFigure<'_> {
+    type Output = Frame;
+
+    fn size(&self) -> (u32, u32) {
+        (
+            LEFT + self.plot_width() + 2 * MARGIN + PANEL_W,
+            TITLE_H + self.plot_height + 2 * MARGIN + BOTTOM,
+        )
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<Frame> {
+        let snap = self.snap;
+        if snap.disks.is_empty() {
+            return Err(Error::Other(format!(
+                "the snapshot at axial strain {:.4} holds no disk",
+                snap.strain
+            )));
+        }
+        let (w, _) = self.size();
+        let (title, body) = root.split_vertically(TITLE_H);
+        let (plot_area, panel) = body.split_horizontally(w - PANEL_W);
+        let what = match (self.field, self.rotation_reference()) {
+            (Field::Displacement, _) => "displacement since the start of compression".to_string(),
+            (Field::Rotation, Some(r)) => format!("rotation since axial strain {:.5}", r.strain),
+            (Field::Rotation, None) => "rotation since the start of the run".to_string(),
+            (Field::Velocity, _) => "velocity field".to_string(),
+            (Field::Forces, _) => "force network".to_string(),
+        };
+        // Two lines: a tall sample leaves a narrow figure.
+        let lines = [
+            what,
+            format!(
+                "axial strain {:.5}, t = {:.4} s, {} disks",
+                snap.strain,
+                snap.time_s,
+                snap.disks.len()
+            ),
+        ];
+        for (k, line) in lines.into_iter().enumerate() {
+            title
+                .draw(&Text::new(line, (MARGIN as i32, 10 + 24 * k as i32), LABEL))
+                .map_err(draw_err)?;
+        }
+
+        // The x range is widened to the rounded plot width so both axes keep one scale.
+        let (x0, _, y0, y1) = extent(snap);
+        let x1 = x0 + (y1 - y0) * self.plot_width() as f64 / self.plot_height as f64;
+        let mut chart = ChartBuilder::on(&plot_area)
+            .margin(MARGIN)
+            .x_label_area_size(BOTTOM)
+            .y_label_area_size(LEFT)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(draw_err)?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_desc("x (m)")
+            .y_desc("y (m)")
+            .label_style(TICK)
+            .axis_desc_style(LABEL)
+            .draw()
+            .map_err(draw_err)?;
+        let frame = frame_of(&chart, (x0, x1, y0, y1));
+
+        match self.field {
+            Field::Displacement => {
+                let mag: Vec<f64> = snap.disks.iter().map(|d| d.dx.hypot(d.dy)).collect();
+                let hi = mag.iter().cloned().fold(0.0, f64::max);
+                let scale = Scale::new(SEQUENTIAL, 0.0, hi);
+                draw_disks(&mut chart, snap, frame.sx, |k| scale.color(mag[k]))?;
+                draw_colorbar(&panel, &scale, "displacement magnitude (m)")?;
+            }
+            Field::Rotation => {
+                let rot = self.rotations();
+                // The 99th percentile sets the range: a few disks spinning freely at the
+                // boundary would otherwise leave the whole sample near-white.
+                let scale = Scale::symmetric(abs_quantile(&rot, 0.99));
+                draw_disks(&mut chart, snap, frame.sx, |k| scale.color(rot[k]))?;
+                draw_colorbar(&panel, &scale, "rotation (rad, counterclockwise +)")?;
+            }
+            Field::Velocity => {
+                draw_disks(&mut chart, snap, frame.sx, |_| network::DISK_BACKGROUND)?;
+                let key = network::draw_velocities(&mut chart, snap)?;
+                network::draw_key(&panel, &key)?;
+            }
+            Field::Forces => {
+                draw_disks(&mut chart, snap, frame.sx, |_| network::DISK_BACKGROUND)?;
+                let key = network::draw_forces(&mut chart, snap)?;
+                network::draw_key(&panel, &key)?;
+            }
+        }
+        Ok(frame)
+    }
+}
+
+/// The pixel frame of a chart whose data range is (x0, x1, y0, y1).
+fn frame_of<DB: DrawingBackend>(chart: &Chart<'_, DB>, (x0, x1, y0, y1): (f64, f64, f64, f64)) -> Frame {
+    let (a, b) = (chart.backend_coord(&(x0, y0)), chart.backend_coord(&(x1, y1)));
+    let sx = (b.0 - a.0) as f64 / (x1 - x0);
+    let sy = (a.1 - b.1) as f64 / (y1 - y0);
+    Frame {
+        px0: a.0 as f64 - sx * x0,
+        py0: a.1 as f64 + sy * y0,
+        sx,
+        sy,
+    }
+}
+
+/// Fills every disk with `color(k)`; outlines them in grey when they are big enough on
+/// screen for an outline not to hide the fill.
+pub(crate) fn draw_disks<DB: DrawingBackend>(
+    chart: &mut Chart<'_, DB>,
+    snap: &Snapshot,
+    px_per_m: f64,
+    color: impl Fn(usize) -> RGBColor,
+) -> Result<()> {
+    chart
+        .draw_series(
+            snap.disks
+                .iter()
+                .enumerate()
+                .map(|(k, d)| Polygon::new(disk_polygon(d.x, d.y, d.r, px_per_m), color(k).filled())),
+        )
+        .map_err(draw_err)?;
+    chart
+        .draw_series(snap.disks.iter().filter(|d| d.r * px_per_m >= 4.0).map(|d| {
+            let mut p = disk_polygon(d.x, d.y, d.r, px_per_m);
+            p.push(p[0]);
+            PathElement::new(p, OUTLINE.stroke_width(1))
+        }))
+        .map_err(draw_err)?;
+    Ok(())
+}
