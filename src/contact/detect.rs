@@ -316,13 +316,10 @@ impl Neighbours {
         }
         let limit2 = 0.25 * skin * skin;
         // Written so that a NaN position also counts as moved (the rebuild then reports it).
-        d.pos
-            .iter()
-            .zip(&self.built_at)
-            .any(|(x, x0)| {
-                let moved2 = (*x - *x0).length_squared();
-                moved2.is_nan() || moved2 > limit2
-            })
+        d.pos.iter().zip(&self.built_at).any(|(x, x0)| {
+            let moved2 = (*x - *x0).length_squared();
+            moved2.is_nan() || moved2 > limit2
+        })
     }
 
     fn rebuild(&mut self, scene: &Scene, alert: f64, skin: f64) -> Result<()> {
