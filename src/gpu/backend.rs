@@ -5,7 +5,9 @@
 
 use glam::DVec2;
 
-use super::buffers::{ARGS_STRIDE, Buffers, Capacity, GpuContact, GpuDisk, GpuWall, SimParams, args_slots};
+use super::buffers::{
+    ARGS_STRIDE, Buffers, Capacity, GpuContact, GpuDisk, GpuWall, SimParams, args_slots, round_slot,
+};
 use super::device::{GpuDevice, open};
 use super::pipeline::Pipelines;
 use crate::backend::reduce::{Reductions, zero_gap_tolerance};
@@ -32,6 +34,8 @@ pub struct GpuCounters {
     pub readbacks: u64,
     /// Solver iterations.
     pub iterations: u64,
+    /// Coloring rounds (Jones-Plassmann-Luby) of the steps taken.
+    pub color_rounds: u64,
 }
 
 /// The GPU backend (f32 kernels, positions relative to the sample centre).
@@ -61,6 +65,9 @@ pub struct GpuBackend {
     pub(super) n_contacts: u32,
     pub(super) color_offsets: Vec<u32>,
     pub(super) loading: Loading,
+    /// Coloring rounds recorded per step: the last step's count with a margin (rounds
+    /// beyond need cost an empty dispatch each; too few redo the step with twice as many).
+    pub(super) rounds_hint: u32,
 }
 
 impl GpuBackend {
@@ -93,6 +100,7 @@ impl GpuBackend {
             n_contacts: 0,
             color_offsets: Vec::new(),
             loading: Loading::default(),
+            rounds_hint: 16,
         };
         b.set_scene(&scene)?;
         Ok(b)
@@ -172,6 +180,9 @@ impl GpuBackend {
         put(3, s.o_inc_count, s.n_bodies);
         for c in 0..self.cap.colors {
             put(4 + c as usize, c, 0);
+        }
+        for r in 1..=self.cap.rounds {
+            put(round_slot(self.cap, r) as usize, r, 0);
         }
         q.write_buffer(&self.bufs.args, 0, bytemuck::cast_slice(&table));
     }

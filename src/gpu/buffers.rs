@@ -134,6 +134,10 @@ pub struct SimParams {
     pub strip_sum_r1: f32,
     pub gap_tol: f32,
     pub pad: f32,
+    pub o_color: u32,
+    pub o_left: u32,
+    pub max_rounds: u32,
+    pub pad1: u32,
 }
 
 /// Status words read back after detection and coloring (indices into the status region).
@@ -148,6 +152,8 @@ pub mod status {
     pub const OVERLAP: usize = 4;
     /// Coloring rounds.
     pub const ROUNDS: usize = 5;
+    /// Contacts left uncolored after the recorded coloring rounds.
+    pub const LEFT: usize = 7;
     /// Indirect dispatch size of per-contact kernels (3 words).
     pub const ARGS: usize = 8;
     /// Words before the color offsets.
@@ -169,6 +175,9 @@ pub struct Capacity {
     pub cells: u32,
     /// Colors.
     pub colors: u32,
+    /// Coloring rounds that can be recorded in one step (one argument slot and one
+    /// counter each).
+    pub rounds: u32,
 }
 
 impl Capacity {
@@ -180,6 +189,7 @@ impl Capacity {
             contacts: (4 * nd + nw * 16 + 256) as u32,
             cells: (4 * nd + 1024) as u32,
             colors: 64,
+            rounds: 32,
         }
     }
 }
@@ -218,12 +228,14 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
     p.o_dcount = take(&mut o, nd + 1);
     p.o_inc_count = take(&mut o, nb + 1);
     p.o_inc_fill = take(&mut o, nb);
+    p.o_left = take(&mut o, cap.rounds + 1);
     let clear_len = o;
     p.o_items = take(&mut o, nd);
     p.o_cell_of = take(&mut o, nd);
     p.o_slots = take(&mut o, nd * cap.k_slots);
     p.o_inc_list = take(&mut o, 2 * cap.contacts);
     p.o_order = take(&mut o, cap.contacts);
+    p.o_color = take(&mut o, cap.contacts);
     p.o_per_disk = take(&mut o, nd);
     let ints_len = o.max(1);
     let mut f = 0u32;
@@ -239,6 +251,7 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
     p.cap_contacts = cap.contacts;
     p.cap_cells = cap.cells;
     p.max_colors = cap.colors;
+    p.max_rounds = cap.rounds;
     Layout {
         ints_len,
         clear_len,
@@ -274,9 +287,15 @@ pub struct Buffers {
     pub layout: Layout,
 }
 
-/// Number of per-dispatch argument slots: 4 fixed ones and one per color.
+/// Number of per-dispatch argument slots: 4 fixed ones, one per color, one per coloring
+/// round.
 pub fn args_slots(cap: Capacity) -> u32 {
-    4 + cap.colors
+    4 + cap.colors + cap.rounds
+}
+
+/// Argument slot of coloring round `r` (1-based; its `a` is `r`).
+pub fn round_slot(cap: Capacity, r: u32) -> u32 {
+    4 + cap.colors + r - 1
 }
 
 /// Checks one buffer size against the adapter's limits; the error names the limit, the

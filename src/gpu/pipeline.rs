@@ -20,7 +20,16 @@ const ENTRY_POINTS: &[(&str, &[&str])] = &[
     ),
     (
         "color.wgsl",
-        &["incidence_count", "incidence_fill", "incidence_sort", "color_jpl"],
+        &[
+            "incidence_count",
+            "incidence_fill",
+            "incidence_sort",
+            "color_init",
+            "color_round",
+            "color_count",
+            "color_offsets",
+            "color_scatter",
+        ],
     ),
     (
         "solve.wgsl",
@@ -154,4 +163,4 @@ fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
 
 /// Size check of the uniform parameters against the WGSL struct (a layout mismatch would
 /// silently scramble every kernel).
-const _: () = assert!(size_of::<SimParams>() == 192);
+const _: () = assert!(size_of::<SimParams>() == 208);

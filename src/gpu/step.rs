@@ -2,9 +2,11 @@
 //! `CpuEngine::step`), and the run loop with its few readbacks:
 //!
 //! 1. submission A: clear, free velocities, grid, detection, compaction with warm start,
-//!    incidence lists, warm-start gather, coloring; then one readback of the status words
-//!    (contact count, overflows, colors and their offsets, largest overlap). On overflow
-//!    the capacities grow and A is recorded again (nothing in A changes the state).
+//!    incidence lists, warm-start gather, coloring (one dispatch per round, as many rounds
+//!    as the last step needed plus a margin); then one readback of the status words
+//!    (contact count, overflows, colors and their offsets, contacts left uncolored,
+//!    largest overlap). On overflow, or when the rounds were too few, the capacities grow
+//!    and A is recorded again (nothing in A changes the state).
 //! 2. submissions B: `conv_every` iterations (one dispatch per color, or three for
 //!    Jacobi) and a convergence reduction; one readback of two floats each.
 //! 3. submission C: integration, wall impulses, saving the impulses for the warm start.
@@ -12,7 +14,7 @@
 //! At the end of a run, one more submission reduces counts, overlaps and energies.
 
 use super::backend::GpuBackend;
-use super::buffers::{ARGS_STRIDE, status};
+use super::buffers::{ARGS_STRIDE, round_slot, status};
 use crate::backend::{Loading, Reductions};
 use crate::error::{Error, Result};
 use crate::solver::Method;
@@ -60,8 +62,14 @@ impl<'a> Rec<'a> {
 
     /// Dispatches entry point `name` over the contacts (indirect: the count is on the GPU).
     fn go_contacts(&mut self, name: &str) {
+        self.go_contacts_with(name, 0);
+    }
+
+    /// [`Rec::go_contacts`] with argument slot `slot`.
+    fn go_contacts_with(&mut self, name: &str, slot: u32) {
         self.pass.set_pipeline(self.b.pipes.get(name));
-        self.pass.set_bind_group(1, &self.b.bind.1, &[0]);
+        self.pass
+            .set_bind_group(1, &self.b.bind.1, &[(slot as u64 * ARGS_STRIDE) as u32]);
         self.pass.dispatch_workgroups_indirect(&self.b.bufs.indirect, 0);
         self.dispatches += 1;
     }
@@ -118,6 +126,7 @@ impl GpuBackend {
         let nb = self.sim.n_bodies;
         // Submission A, redone after a growth.
         let status = loop {
+            let rounds = self.rounds_hint.clamp(1, self.cap.rounds);
             let mut enc = self.gpu.device.create_command_encoder(&Default::default());
             let mut d = 0;
             {
@@ -143,7 +152,13 @@ impl GpuBackend {
                 r.go_contacts("incidence_fill");
                 r.go("incidence_sort", 0, groups(nb));
                 r.go("gather", 0, groups(nb));
-                r.go("color_jpl", 0, 1);
+                r.go_contacts("color_init");
+                for k in 1..=rounds {
+                    r.go_contacts_with("color_round", round_slot(self.cap, k));
+                }
+                r.go_contacts("color_count");
+                r.go("color_offsets", round_slot(self.cap, rounds), 1);
+                r.go_contacts("color_scatter");
                 d += r.dispatches;
             }
             self.counters.dispatches += d;
@@ -163,12 +178,23 @@ impl GpuBackend {
             if st[status::COLORS] > cap.colors {
                 cap.colors = 2 * st[status::COLORS];
             }
-            if cap == self.cap {
+            // Too few rounds recorded: redo with twice as many (rare, the hint follows the
+            // last step's count).
+            let unfinished = n <= cap.contacts && st[status::LEFT] > 0;
+            if unfinished {
+                self.rounds_hint = 2 * rounds;
+                cap.rounds = cap.rounds.max(self.rounds_hint);
+            }
+            if cap == self.cap && !unfinished {
                 break st;
             }
-            self.grow(cap)?;
+            if cap != self.cap {
+                self.grow(cap)?;
+            }
             self.counters.redone += 1;
         };
+        let rounds = status[status::ROUNDS];
+        self.rounds_hint = rounds + 2 + rounds / 4;
         let n = status[status::CONTACTS];
         let n_colors = status[status::COLORS];
         self.n_contacts = n;
@@ -211,6 +237,7 @@ impl GpuBackend {
         self.submit(enc);
         self.counters.steps += 1;
         self.counters.iterations += iterations as u64;
+        self.counters.color_rounds += rounds as u64;
         Ok(StepInfo {
             iterations,
             converged,
