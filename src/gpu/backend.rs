@@ -14,7 +14,7 @@ use crate::backend::reduce::{Reductions, zero_gap_tolerance};
 use crate::backend::{Backend, ContactRecord, Loading};
 use crate::contact::Contact;
 use crate::engine::StepParams;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::model::{BodyKind, Scene, WallDrive};
 use crate::solver::Method;
 
@@ -80,10 +80,10 @@ impl GpuBackend {
     pub fn with_device(gpu: GpuDevice, scene: Scene, params: StepParams) -> Result<Self> {
         params.validate()?;
         scene.validate()?;
-        let pipes = Pipelines::new(&gpu.device)?;
+        let pipes = Pipelines::new(&gpu)?;
         let cap = Capacity::initial(scene.disks.len(), scene.walls.len());
         let mut sim = SimParams::default();
-        let bufs = Buffers::new(&gpu.device, &gpu.limits, &mut sim, cap)?;
+        let bufs = Buffers::new(&gpu, &mut sim, cap)?;
         let bind = pipes.bind(&gpu.device, &bufs);
         let mut b = GpuBackend {
             gpu,
@@ -191,7 +191,7 @@ impl GpuBackend {
     /// impulses and the run's accumulators (the growing regions come after them).
     pub(super) fn grow(&mut self, cap: Capacity) -> Result<()> {
         let mut sim = self.sim;
-        let bufs = Buffers::new(&self.gpu.device, &self.gpu.limits, &mut sim, cap)?;
+        let bufs = Buffers::new(&self.gpu, &mut sim, cap)?;
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         let old = &self.bufs;
         for (a, b) in [
@@ -208,6 +208,7 @@ impl GpuBackend {
         }
         self.gpu.queue.submit([enc.finish()]);
         self.counters.submissions += 1;
+        self.gpu.check("copying the state into the grown buffers")?;
         self.bufs = bufs;
         self.sim = sim;
         self.cap = cap;
@@ -238,16 +239,19 @@ impl GpuBackend {
         staging.map_async(wgpu::MapMode::Read, .., move |r| {
             let _ = tx.send(r);
         });
-        self.gpu
-            .device
+        let gpu = &self.gpu;
+        gpu.device
             .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))?;
+            .map_err(|e| gpu.failure("waiting for the device", e))?;
+        // Errors of the work just waited for (validation, out of memory, device lost) come
+        // first: they explain a failed mapping.
+        gpu.check("running the time step")?;
         rx.recv()
-            .map_err(|e| Error::Gpu(e.to_string()))?
-            .map_err(|e| Error::Gpu(format!("mapping a readback buffer: {e}")))?;
+            .map_err(|e| gpu.failure("reading back a result", e))?
+            .map_err(|e| gpu.failure("mapping a readback buffer", e))?;
         let bytes = staging
             .get_mapped_range(..)
-            .map_err(|e| Error::Gpu(format!("{e:?}")))?
+            .map_err(|e| gpu.failure("reading a mapped buffer", format!("{e:?}")))?
             .to_vec();
         staging.unmap();
         self.counters.readbacks += 1;
@@ -388,7 +392,7 @@ impl Backend for GpuBackend {
             self.fill_params();
             let cap = Capacity::initial(d.len(), scene.walls.len());
             let mut sim = self.sim;
-            self.bufs = Buffers::new(&self.gpu.device, &self.gpu.limits, &mut sim, cap)?;
+            self.bufs = Buffers::new(&self.gpu, &mut sim, cap)?;
             self.sim = sim;
             self.cap = cap;
             self.bind = self.pipes.bind(&self.gpu.device, &self.bufs);

@@ -9,6 +9,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use super::device::GpuDevice;
 use crate::error::{Error, Result};
 
 /// A disk (64 bytes).
@@ -358,13 +359,10 @@ impl Buffers {
     }
 
     /// Allocates every buffer for `p` (whose offsets [`layout`] fills) after checking the
-    /// sizes against `limits`.
-    pub fn new(
-        device: &wgpu::Device,
-        limits: &wgpu::Limits,
-        p: &mut SimParams,
-        cap: Capacity,
-    ) -> Result<Self> {
+    /// sizes against the device's limits, inside error scopes (a device out of memory gives
+    /// [`Error::Gpu`] naming the adapter).
+    pub fn new(gpu: &GpuDevice, p: &mut SimParams, cap: Capacity) -> Result<Self> {
+        let limits = &gpu.limits;
         let layout = layout(p, cap);
         let nd = p.n_disks as usize;
         let sizes = [
@@ -379,7 +377,7 @@ impl Buffers {
             check_size(what, bytes, nd, limits, true)?;
         }
         let none = wgpu::BufferUsages::empty();
-        Ok(Buffers {
+        gpu.scoped("allocating the sample's buffers", |device| Buffers {
             sim: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("sim"),
                 size: size_of::<SimParams>() as u64,

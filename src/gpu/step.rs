@@ -116,9 +116,12 @@ impl GpuBackend {
         self.finish_reductions(red, loading)
     }
 
-    fn submit(&mut self, enc: wgpu::CommandEncoder) {
+    /// Submits `enc`; validation errors of the recording (a dispatch beyond the adapter's
+    /// limits, say) are reported by wgpu on the spot and end the run here.
+    fn submit(&mut self, enc: wgpu::CommandEncoder) -> Result<()> {
         self.gpu.queue.submit([enc.finish()]);
         self.counters.submissions += 1;
+        self.gpu.check("submitting the time step")
     }
 
     fn step_once(&mut self) -> Result<StepInfo> {
@@ -162,7 +165,7 @@ impl GpuBackend {
                 d += r.dispatches;
             }
             self.counters.dispatches += d;
-            self.submit(enc);
+            self.submit(enc)?;
             let words = status::WORDS as u64 + self.cap.colors as u64 + 1;
             let ints = self.bufs.ints.clone();
             let bytes = self.download(&ints, 4 * self.sim.o_status as u64, 4 * words)?;
@@ -205,11 +208,14 @@ impl GpuBackend {
             && self.color_offsets.last() == Some(&n)
             && self.color_offsets.windows(2).all(|w| w[0] <= w[1]);
         if n > 0 && !tiled {
-            return Err(Error::Gpu(format!(
-                "{}: the GPU coloring left {n} contacts in inconsistent color ranges ({n_colors} colors, offsets {:?}, \
-                 step {}); rerun with --backend cpu (or --resume on the CPU path)",
-                self.gpu.info.name, self.color_offsets, self.scene.step
-            )));
+            return Err(self.gpu.failure(
+                &format!("step {}", self.scene.step),
+                format!(
+                    "the GPU coloring left {n} contacts in inconsistent color ranges ({n_colors} colors, \
+                     offsets {:?})",
+                    self.color_offsets
+                ),
+            ));
         }
         let overlap = f32::from_bits(status[status::OVERLAP]) as f64;
         if overlap > self.params.overlap_limit {
@@ -234,7 +240,7 @@ impl GpuBackend {
             drop(r);
             self.counters.dispatches += d;
         }
-        self.submit(enc);
+        self.submit(enc)?;
         self.counters.steps += 1;
         self.counters.iterations += iterations as u64;
         self.counters.color_rounds += rounds as u64;
@@ -280,7 +286,7 @@ impl GpuBackend {
                 drop(r);
                 self.counters.dispatches += d;
             }
-            self.submit(enc);
+            self.submit(enc)?;
             done += batch;
             let floats = self.bufs.floats.clone();
             let bytes = self.download(&floats, 4 * self.sim.f_conv as u64, 8)?;
@@ -318,7 +324,7 @@ impl GpuBackend {
             drop(r);
             self.counters.dispatches += d;
         }
-        self.submit(enc);
+        self.submit(enc)?;
         let floats = self.bufs.floats.clone();
         let keep = self.bufs.layout.floats_keep as u64;
         let bytes = self.download(&floats, 0, 4 * keep)?;
