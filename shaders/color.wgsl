@@ -97,14 +97,38 @@ fn scan_body(b: u32, k: u32, pk: u32, base: u32, r: u32) -> Scan {
     return out;
 }
 
-// Round 0 of the coloring: every contact uncolored. ints[o_left + r] counts the contacts
-// still uncolored after round r (the counters are cleared with the step's scratch).
+// Round 0 of the coloring: the seeds (design.md: seeded with last step's colors, so that
+// most contacts keep theirs). A persisting contact keeps the color it brought from the
+// warm start unless a neighbour with the same seed beats it; new contacts and the losers
+// start uncolored. The kept seeds share no body (of two equal neighbours the loser drops),
+// and the rounds only add colors around them. ints[o_left + r] counts the contacts still
+// uncolored after round r (the counters are cleared with the step's scratch).
 @compute @workgroup_size(64)
-fn color_init(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn color_seed(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
     if k >= n_contacts() { return; }
-    st(sim.o_color + k, UNSET);
-    atomicAdd(&ints[sim.o_left], 1u);
+    let c = contacts[k];
+    var keep = c.color < sim.max_colors;
+    if keep {
+        let pk = priority(c);
+        for (var side = 0u; side < 2u && keep; side++) {
+            let b = select(c.j, c.i, side == 0u);
+            if !select(moves_j(c), moves_i(c), side == 0u) { continue; }
+            for (var s = ld(sim.o_inc_count + b); s < ld(sim.o_inc_count + b + 1u); s++) {
+                let e = ld(sim.o_inc_list + s);
+                if e != k && contacts[e].color == c.color && beats(priority(contacts[e]), e, pk, k) {
+                    keep = false;
+                    break;
+                }
+            }
+        }
+    }
+    if keep {
+        st(sim.o_color + k, c.color);
+    } else {
+        st(sim.o_color + k, UNSET);
+        atomicAdd(&ints[sim.o_left], 1u);
+    }
 }
 
 // Jones-Plassmann-Luby round r = args.a (one dispatch per round, one thread per contact,
@@ -175,12 +199,12 @@ fn color_offsets() {
         sum += v;
     }
     st(sim.o_color_count + n_colors, sum);
+    // Rounds that colored something: none when every seed was kept.
     let last = args.a;
     var rounds = last;
-    for (var r = 1u; r <= last; r++) {
+    for (var r = 0u; r <= last; r++) {
         if ld(sim.o_left + r) == 0u { rounds = r; break; }
     }
-    if n_contacts() == 0u { rounds = 0u; }
     st(sim.o_status + ST_ROUNDS, rounds);
     st(sim.o_status + ST_LEFT, ld(sim.o_left + last));
 }

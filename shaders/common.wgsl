@@ -77,7 +77,7 @@ struct Contact {
 @group(0) @binding(5) var<storage, read_write> contacts: array<Contact>;
 @group(0) @binding(6) var<storage, read_write> floats: array<f32>;
 // Previous step's contacts for the warm start: offsets per disk (n_disks + 1), then
-// records (disk_j, rn bits, rt bits) in key order.
+// records (disk_j, rn bits, rt bits, color) in key order.
 @group(0) @binding(7) var<storage, read_write> prev: array<u32>;
 @group(1) @binding(0) var<uniform> args: Args;
 

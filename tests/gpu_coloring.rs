@@ -85,3 +85,74 @@ fn gpu_colors_a_graph_beyond_the_per_thread_loop_budget() {
         contacts.len()
     );
 }
+
+#[test]
+fn gpu_coloring_is_seeded_with_the_last_steps_colors() {
+    // A settled packing (hexagonal, equal disks in contact, no gravity, nothing moving):
+    // every contact persists from step to step.
+    let s = hex(20, 20);
+    let mut p = gpu_params(Method::ColoredGs);
+    p.solver.max_iter = 8;
+    let Some(mut g) = gpu_or_skip("seeded coloring", &s, p) else {
+        return;
+    };
+    g.run(1, &Loading::default()).unwrap();
+    let first = g.raw_contacts().unwrap();
+    let rounds_first = g.counters().color_rounds;
+    // Expected: the first step colors from scratch, so at least 2 rounds (a graph with
+    // edges cannot be colored in one: the winners of round 1 leave their neighbours).
+    assert!(rounds_first >= 2, "first step: {rounds_first} rounds");
+    g.run(3, &Loading::default()).unwrap();
+    let later = g.raw_contacts().unwrap();
+    // Expected: 0 more rounds (every contact persists and keeps its color, no seed
+    // conflicts since the last coloring was valid) and the same colors.
+    assert_eq!(
+        g.counters().color_rounds,
+        rounds_first,
+        "rounds after the first step"
+    );
+    let colors = |v: &[GpuContact]| v.iter().map(|c| (c.i, c.j, c.color)).collect::<Vec<_>>();
+    assert_eq!(colors(&later), colors(&first));
+}
+
+#[test]
+fn gpu_seeded_coloring_stays_valid_while_contacts_change() {
+    // A jittered lattice with random velocities in a box: contacts open and close, so
+    // seeds meet new contacts and each other every step.
+    let s = lattice(16, 3);
+    let mut p = gpu_params(Method::ColoredGs);
+    p.solver.max_iter = 50;
+    let Some(mut g) = gpu_or_skip("seeded coloring, changing contacts", &s, p) else {
+        return;
+    };
+    let mut keys = Vec::new();
+    for step in 0..10 {
+        let red = g.run(1, &Loading::default()).unwrap();
+        let contacts = g.raw_contacts().unwrap();
+        check_coloring(&contacts, contacts.iter().map(|c| c.color + 1).max().unwrap_or(0));
+        // Expected: no more non-empty colors than a greedy coloring may use, the maximum
+        // degree plus one (degree: the other contacts at the two disks).
+        let mut per_body = std::collections::HashMap::new();
+        for c in &contacts {
+            let (mi, mj) = moves(c);
+            for (b, m) in [(c.i, mi), (c.j, mj)] {
+                if m {
+                    *per_body.entry(b).or_insert(0u32) += 1;
+                }
+            }
+        }
+        let degree = contacts
+            .iter()
+            .map(|c| per_body.get(&c.i).unwrap_or(&1) + per_body.get(&c.j).unwrap_or(&1) - 2)
+            .max()
+            .unwrap_or(0);
+        assert!(
+            red.colors_mean <= (degree + 1) as f64,
+            "step {step}: {} colors for degree {degree}",
+            red.colors_mean
+        );
+        keys.push(contacts.iter().map(|c| (c.i, c.j)).collect::<Vec<_>>());
+    }
+    // The contacts did change (else this test would only repeat the settled one).
+    assert_ne!(keys.first(), keys.last(), "the contact set never changed");
+}

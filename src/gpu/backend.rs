@@ -42,7 +42,8 @@ pub struct GpuCounters {
 ///
 /// Differences from the CPU backend, by design: `Method::Gs` (sequential order) has no
 /// parallel form and runs as colored Gauss-Seidel; the coloring is Jones-Plassmann-Luby
-/// (more colors than the CPU's greedy one, not seeded with the last step's colors);
+/// seeded with the last step's colors (persisting contacts keep theirs, so a color can
+/// stay empty; empty colors cost no dispatch and are not counted);
 /// convergence is checked every [`GpuBackend::conv_every`] iterations, so iteration counts
 /// are multiples of it (set it to 1 for CPU-comparable counts); a capacity growth drops
 /// nothing (the step is redone) and keeps the warm start.

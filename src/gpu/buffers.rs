@@ -258,7 +258,8 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
         clear_len,
         floats_len: f,
         floats_keep,
-        prev_len: nd + 1 + 3 * cap.contacts,
+        // Per contact: partner, R_n, R_t, color (detect.wgsl, PREV_STRIDE).
+        prev_len: nd + 1 + 4 * cap.contacts,
     }
 }
 

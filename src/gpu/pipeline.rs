@@ -25,7 +25,7 @@ const ENTRY_POINTS: &[(&str, &[&str])] = &[
             "incidence_count",
             "incidence_fill",
             "incidence_sort",
-            "color_init",
+            "color_seed",
             "color_round",
             "color_count",
             "color_offsets",

@@ -155,7 +155,7 @@ impl GpuBackend {
                 r.go_contacts("incidence_fill");
                 r.go("incidence_sort", 0, groups(nb));
                 r.go("gather", 0, groups(nb));
-                r.go_contacts("color_init");
+                r.go_contacts("color_seed");
                 for k in 1..=rounds {
                     r.go_contacts_with("color_round", round_slot(self.cap, k));
                 }
@@ -197,7 +197,8 @@ impl GpuBackend {
             self.counters.redone += 1;
         };
         let rounds = status[status::ROUNDS];
-        self.rounds_hint = rounds + 2 + rounds / 4;
+        // New contacts need a few rounds even when the last step needed none.
+        self.rounds_hint = rounds + rounds / 4 + 4;
         let n = status[status::CONTACTS];
         let n_colors = status[status::COLORS];
         self.n_contacts = n;
@@ -250,7 +251,9 @@ impl GpuBackend {
             colors: if self.params.solver.method == Method::Jacobi {
                 0
             } else {
-                n_colors
+                // Seeded colors can leave a color empty: it costs no dispatch, and is not
+                // counted, so that dispatches per iteration equal the colors reported.
+                self.color_offsets.windows(2).filter(|w| w[1] > w[0]).count() as u32
             },
         })
     }
