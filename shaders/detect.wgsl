@@ -165,7 +165,11 @@ fn build_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
             c.bias_n = max((c.gap + (1.0 - sim.theta) * sim.dt * u.x) / (sim.theta * sim.dt), 0.0);
         } else {
             c.bias_n = sim.e_n * min(u.x, 0.0);
-            atomicMax(&ints[sim.o_status + ST_OVERLAP], bitcast<u32>(-c.gap));
+            // Not for an exact zero gap: -0.0 has the sign bit set, its bits would exceed
+            // every positive overlap's and hide them from the host's overlap limit.
+            if c.gap < 0.0 {
+                atomicMax(&ints[sim.o_status + ST_OVERLAP], bitcast<u32>(-c.gap));
+            }
         }
         c.bias_t = sim.e_t * u.y;
         // Warm start: both lists are sorted by partner, so one forward walk finds it. A
