@@ -156,3 +156,28 @@ fn gpu_seeded_coloring_stays_valid_while_contacts_change() {
     // The contacts did change (else this test would only repeat the settled one).
     assert_ne!(keys.first(), keys.last(), "the contact set never changed");
 }
+
+#[test]
+fn gpu_solver_iteration_costs_one_dispatch_per_color() {
+    // The same first step run to 10 and to 20 iterations (a tolerance no f32 run reaches,
+    // so both stop at their cap), convergence checked every iteration.
+    let s = lattice(12, 11);
+    let mut per_run = Vec::new();
+    for cap in [10u32, 20] {
+        let mut p = gpu_params(Method::ColoredGs);
+        p.solver.tol = 1e-30;
+        p.solver.max_iter = cap;
+        let Some(mut g) = gpu_or_skip("dispatches per iteration", &s, p) else {
+            return;
+        };
+        g.conv_every = 1;
+        let red = g.run(1, &Loading::default()).unwrap();
+        assert_eq!(red.iterations_sum, cap as u64, "the run stops at its cap");
+        per_run.push((g.counters().dispatches, red.colors_mean));
+    }
+    let ((d10, colors), (d20, colors20)) = (per_run[0], per_run[1]);
+    assert_eq!(colors, colors20, "same state, same coloring");
+    // Expected: the 10 extra iterations cost one dispatch per color each plus one
+    // convergence reduction each (conv_every = 1), and nothing else.
+    assert_eq!(d20 - d10, 10 * (colors as u64 + 1), "{colors} colors");
+}
