@@ -185,6 +185,17 @@ impl GpuBackend {
             // last step's count).
             let unfinished = n <= cap.contacts && st[status::LEFT] > 0;
             if unfinished {
+                // Colors carry their round in 16 bits (color.wgsl); JPL needs about as many
+                // rounds as the largest clique has contacts, far below that.
+                if 2 * rounds > 0xffff {
+                    return Err(self.gpu.failure(
+                        &format!("step {}", self.scene.step),
+                        format!(
+                            "the coloring left {} contacts after {rounds} rounds",
+                            st[status::LEFT]
+                        ),
+                    ));
+                }
                 self.rounds_hint = 2 * rounds;
                 cap.rounds = cap.rounds.max(self.rounds_hint);
             }
