@@ -1,6 +1,6 @@
 // Phase 4: graph coloring of the contacts (CPU twin: solver::color::color_contacts, which
 // is greedy; here Jones-Plassmann-Luby). Two contacts conflict when they share a body that
-// an impulse can move. Steps: per-body incidence lists (count, scan.wgsl, fill, sort),
+// an impulse can move. Steps: per-body incidence lists (count, scan.wgsl, fill, rank),
 // then one dispatch per coloring round, then count, offsets and scatter of the contact
 // indices by color into `order`.
 
@@ -20,34 +20,37 @@ fn incidence_fill(@builtin(global_invocation_id) gid: vec3<u32>) {
     let c = contacts[k];
     if moves_i(c) {
         let s = ld(sim.o_inc_count + c.i) + atomicAdd(&ints[sim.o_inc_fill + c.i], 1u);
-        st(sim.o_inc_list + s, k);
+        st(sim.o_inc_tmp + s, k);
     }
     if moves_j(c) {
         let s = ld(sim.o_inc_count + c.j) + atomicAdd(&ints[sim.o_inc_fill + c.j], 1u);
-        st(sim.o_inc_list + s, k);
+        st(sim.o_inc_tmp + s, k);
     }
 }
 
-// Sorts each body's incidence list by contact index, so that every sum over a body's
-// contacts (warm start, Jacobi gather) runs in a fixed order and the step is reproducible.
-@compute @workgroup_size(64)
-fn incidence_sort(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let b = gid.x;
-    if b >= sim.n_bodies { return; }
+// Puts contact k at its rank (by contact index) in the sorted incidence list of each body
+// it moves, so that every sum over a body's contacts (warm start, Jacobi gather) runs in a
+// fixed order and the step is reproducible. One thread per contact scans its bodies'
+// unsorted lists: a force-driven wall touching m disks costs m iterations per thread,
+// where a per-body insertion sort cost up to m^2 / 2 in one thread, past llvmpipe's
+// per-invocation loop budget (65,535) from about 360 wall contacts.
+fn rank_in(b: u32, k: u32) {
     let lo = ld(sim.o_inc_count + b);
     let hi = ld(sim.o_inc_count + b + 1u);
-    for (var s = lo + 1u; s < hi; s++) {
-        let v = ld(sim.o_inc_list + s);
-        var r = s;
-        loop {
-            if r == lo { break; }
-            let u = ld(sim.o_inc_list + r - 1u);
-            if u < v { break; }
-            st(sim.o_inc_list + r, u);
-            r -= 1u;
-        }
-        st(sim.o_inc_list + r, v);
+    var rank = 0u;
+    for (var s = lo; s < hi; s++) {
+        if ld(sim.o_inc_tmp + s) < k { rank++; }
     }
+    st(sim.o_inc_list + lo + rank, k);
+}
+
+@compute @workgroup_size(64)
+fn incidence_rank(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if k >= n_contacts() { return; }
+    let c = contacts[k];
+    if moves_i(c) { rank_in(c.i, k); }
+    if moves_j(c) { rank_in(c.j, k); }
 }
 
 // Random but reproducible priority of a contact: a hash of its key, so a persisting

@@ -181,3 +181,49 @@ fn gpu_solver_iteration_costs_one_dispatch_per_color() {
     // convergence reduction each (conv_every = 1), and nothing else.
     assert_eq!(d20 - d10, 10 * (colors as u64 + 1), "{colors} colors");
 }
+
+#[test]
+fn gpu_force_driven_wall_with_hundreds_of_contacts() {
+    // 400 disks side by side (not touching each other) resting on a force-driven floor:
+    // the floor's incidence list holds 400 contacts, past the 362 at which sorting it
+    // in one thread (m^2 / 2 steps) could exceed llvmpipe's per-invocation loop budget.
+    let m = 400;
+    let mut s = common::scene(0.3);
+    for k in 0..m {
+        s.disks
+            .push(glam::DVec2::new(1.02 * k as f64, 0.5), 0.5, common::RHO)
+            .unwrap();
+    }
+    let mut floor = floor_at(0.0);
+    floor.drive = cdlab::model::WallDrive::Force {
+        mass: 1000.0,
+        force: 0.0,
+    };
+    s.walls.push(floor);
+    s.gravity = glam::DVec2::new(0.0, -G);
+    let mut p = gpu_params(Method::ColoredGs);
+    p.solver.max_iter = 2;
+    let Some(mut g) = gpu_or_skip("force-driven wall", &s, p) else {
+        return;
+    };
+    let red = g.run(1, &Loading::default()).unwrap();
+    let contacts = g.raw_contacts().unwrap();
+    // Expected: one contact per disk, all on the floor, so pairwise in conflict: 400
+    // colors, each used once.
+    assert_eq!(contacts.len(), m);
+    assert_eq!(check_coloring(&contacts, m as u32), m);
+    assert_eq!(red.colors_mean, m as f64);
+    // Expected: the floor's velocity is what the impulses of its 400 contacts give it, so
+    // its incidence list (which the warm-start gather and the sweeps go through) held all of
+    // them: no applied force and no gravity on a wall, its normal +y, so the disks push
+    // it down by sum R_n over its mass.
+    let sum: f64 = contacts.iter().map(|c| c.rn as f64).sum();
+    assert!(sum > 0.0, "the disks press on the floor");
+    let out = g.scene().unwrap();
+    let want = -sum / 1000.0;
+    let got = out.walls[0].vel.y;
+    assert!(
+        (got - want).abs() <= 1e-4 * want.abs(),
+        "floor velocity {got} m/s, from the contact impulses {want} m/s"
+    );
+}

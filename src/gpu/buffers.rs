@@ -138,7 +138,7 @@ pub struct SimParams {
     pub o_color: u32,
     pub o_left: u32,
     pub max_rounds: u32,
-    pub pad1: u32,
+    pub o_inc_tmp: u32,
 }
 
 /// Status words read back after detection and coloring (indices into the status region).
@@ -235,6 +235,7 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
     p.o_cell_of = take(&mut o, nd);
     p.o_slots = take(&mut o, nd * cap.k_slots);
     p.o_inc_list = take(&mut o, 2 * cap.contacts);
+    p.o_inc_tmp = take(&mut o, 2 * cap.contacts);
     p.o_order = take(&mut o, cap.contacts);
     p.o_color = take(&mut o, cap.contacts);
     p.o_per_disk = take(&mut o, nd);

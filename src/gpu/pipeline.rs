@@ -24,7 +24,7 @@ const ENTRY_POINTS: &[(&str, &[&str])] = &[
         &[
             "incidence_count",
             "incidence_fill",
-            "incidence_sort",
+            "incidence_rank",
             "color_seed",
             "color_round",
             "color_count",

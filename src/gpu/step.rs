@@ -153,7 +153,7 @@ impl GpuBackend {
                 r.go_contacts("incidence_count");
                 r.go("scan", 3, 1);
                 r.go_contacts("incidence_fill");
-                r.go("incidence_sort", 0, groups(nb));
+                r.go_contacts("incidence_rank");
                 r.go("gather", 0, groups(nb));
                 r.go_contacts("color_seed");
                 for k in 1..=rounds {
