@@ -21,6 +21,7 @@ const ST_COLORS: u32 = 3u;        // colors used
 const ST_OVERLAP: u32 = 4u;       // largest overlap, f32 bits (positive floats sort as u32)
 const ST_ROUNDS: u32 = 5u;        // coloring rounds
 const ST_CELLS_NEED: u32 = 6u;    // grid cells wanted
+const ST_LEFT: u32 = 7u;          // contacts left uncolored after the recorded rounds
 const ST_WORDS: u32 = 16u;        // status words; color offsets follow them
 
 struct Sim {
@@ -36,6 +37,7 @@ struct Sim {
     gx: f32, gy: f32, mu_disk: f32, mu_wall: f32,
     e_n: f32, e_t: f32, sigma3: f32, relax: f32,
     strip_sum_r0: f32, strip_sum_r1: f32, gap_tol: f32, _pad: f32,
+    o_color: u32, o_left: u32, max_rounds: u32, o_inc_tmp: u32,
 }
 
 // Per-dispatch arguments (a region to scan, a color to sweep), bound at a dynamic offset.
@@ -75,7 +77,7 @@ struct Contact {
 @group(0) @binding(5) var<storage, read_write> contacts: array<Contact>;
 @group(0) @binding(6) var<storage, read_write> floats: array<f32>;
 // Previous step's contacts for the warm start: offsets per disk (n_disks + 1), then
-// records (disk_j, rn bits, rt bits) in key order.
+// records (disk_j, rn bits, rt bits, color) in key order.
 @group(0) @binding(7) var<storage, read_write> prev: array<u32>;
 @group(1) @binding(0) var<uniform> args: Args;
 

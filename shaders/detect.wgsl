@@ -165,19 +165,26 @@ fn build_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
             c.bias_n = max((c.gap + (1.0 - sim.theta) * sim.dt * u.x) / (sim.theta * sim.dt), 0.0);
         } else {
             c.bias_n = sim.e_n * min(u.x, 0.0);
-            atomicMax(&ints[sim.o_status + ST_OVERLAP], bitcast<u32>(-c.gap));
+            // Not for an exact zero gap: -0.0 has the sign bit set, its bits would exceed
+            // every positive overlap's and hide them from the host's overlap limit.
+            if c.gap < 0.0 {
+                atomicMax(&ints[sim.o_status + ST_OVERLAP], bitcast<u32>(-c.gap));
+            }
         }
         c.bias_t = sim.e_t * u.y;
-        // Warm start: both lists are sorted by partner, so one forward walk finds it.
+        // Warm start: both lists are sorted by partner, so one forward walk finds it. A
+        // persisting contact also brings its last color, the coloring's seed.
         c.rn = 0.0;
         c.rt = 0.0;
         loop {
             if cursor >= p1 { break; }
-            let pq = prev[nd + 1u + 3u * cursor];
+            let at = nd + 1u + PREV_STRIDE * cursor;
+            let pq = prev[at];
             if pq > q { break; }
             if pq == q {
-                c.rn = bitcast<f32>(prev[nd + 2u + 3u * cursor]);
-                c.rt = clamp(bitcast<f32>(prev[nd + 3u + 3u * cursor]), -c.mu * c.rn, c.mu * c.rn);
+                c.rn = bitcast<f32>(prev[at + 1u]);
+                c.rt = clamp(bitcast<f32>(prev[at + 2u]), -c.mu * c.rn, c.mu * c.rn);
+                c.color = prev[at + 3u];
             }
             cursor++;
         }
@@ -185,7 +192,11 @@ fn build_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
 }
 
-// Saves this step's impulses (by disk, in key order) for the next step's warm start.
+// Words per contact in the warm-start records: partner, R_n bits, R_t bits, color.
+const PREV_STRIDE: u32 = 4u;
+
+// Saves this step's impulses and colors (by disk, in key order) for the next step's warm
+// start and coloring seed.
 @compute @workgroup_size(64)
 fn save_prev(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
@@ -193,8 +204,10 @@ fn save_prev(@builtin(global_invocation_id) gid: vec3<u32>) {
     if k <= nd { prev[k] = min(ld(sim.o_dcount + k), sim.cap_contacts); }
     if k < n_contacts() {
         let c = contacts[k];
-        prev[nd + 1u + 3u * k] = c.disk_j;
-        prev[nd + 2u + 3u * k] = bitcast<u32>(c.rn);
-        prev[nd + 3u + 3u * k] = bitcast<u32>(c.rt);
+        let at = nd + 1u + PREV_STRIDE * k;
+        prev[at] = c.disk_j;
+        prev[at + 1u] = bitcast<u32>(c.rn);
+        prev[at + 2u] = bitcast<u32>(c.rt);
+        prev[at + 3u] = c.color;
     }
 }

@@ -13,8 +13,12 @@ var<workgroup> scan_tmp: array<u32, 256>;
 
 // Exclusive prefix sum of ints[args.a .. args.a + args.b], the total written at
 // ints[args.a + args.b]. One workgroup walks the region in blocks of 256 with a carry: the
-// regions scanned (cells, disks, bodies, colors) are a few times the disk count, so one
-// workgroup keeps the pass simple and deterministic at a cost far below the solver's.
+// regions scanned (cells, disks, bodies) are a few times the disk count, so one workgroup
+// keeps the pass simple and deterministic at a cost far below the solver's. Its limit:
+// llvmpipe (lavapipe) ends every loop of an invocation after 65,535 iterations in all, and
+// a block costs 9 (the walk and the 8 steps of the tree), so a region may hold up to
+// 7,281 blocks (1.86 million words): the cell region of 466,000 disks, more than the
+// contact buffer of lavapipe's 128 MiB binding allows (300,000 disks).
 @compute @workgroup_size(256)
 fn scan(@builtin(local_invocation_index) t: u32) {
     let base = args.a;

@@ -342,6 +342,28 @@ fn gpu_runs_are_reproducible() {
     assert_eq!(sa.disks.vel, sb.disks.vel);
 }
 
+#[test]
+fn gpu_overlap_limit_holds_beside_an_exactly_touching_pair() {
+    // Two disks touching exactly (gap 0.0 in f32: integer coordinates once centred on
+    // (-3, 5.9)) and two overlapping by 0.2 m, four times the limit (0.05 m, `tight`).
+    let mut s = scene(0.3);
+    for (x, y) in [(-6.0, 0.0), (-4.0, 0.0), (0.0, 10.0), (0.0, 11.8)] {
+        s.disks.push(DVec2::new(x, y), 1.0, RHO).unwrap();
+    }
+    let Some(mut g) = gpu_or_skip("overlap limit", &s, gpu_params(Method::ColoredGs)) else {
+        return;
+    };
+    // Expected: the step stops on the 0.2 m overlap. The zero gap's -0.0 once outranked it
+    // in the device's running maximum (as u32 bits), and the step went on.
+    let e = g
+        .run(1, &Loading::default())
+        .expect_err("a 0.2 m overlap exceeds 0.05 m");
+    assert!(
+        matches!(e, cdlab::Error::Numerical { .. }) && e.to_string().contains("overlap 2.0"),
+        "{e}"
+    );
+}
+
 /// Timing and work counts on a larger sample (not part of the default suite:
 /// `cargo test --test gpu -- --ignored --nocapture`).
 #[test]

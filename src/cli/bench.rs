@@ -54,6 +54,10 @@ pub struct Case {
     pub ns_per_contact_update: f64,
     /// Mean colors per step.
     pub colors_per_step: f64,
+    /// GPU: coloring rounds per step (0 when every contact kept its last color).
+    pub color_rounds_per_step: f64,
+    /// GPU: steps redone after a capacity grew or the coloring needed more rounds.
+    pub redone_steps: u64,
     /// GPU: dispatches, submissions and readbacks per step (0 on the CPU).
     pub dispatches_per_step: f64,
     /// See `dispatches_per_step`.
@@ -172,6 +176,13 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, args: &Args)
     let after = (probe.counters)(backend);
     let steps = red.steps.max(1) as f64;
     let iterations = red.iterations_sum as f64 / steps;
+    let (rounds, redone) = match (before, after) {
+        (Some((a, _)), Some((b, _))) => (
+            (b.color_rounds - a.color_rounds) as f64 / steps,
+            b.redone - a.redone,
+        ),
+        _ => (0.0, 0),
+    };
     let (dispatches, submissions, readbacks, fixed) = match (before, after) {
         (Some(a), Some(b)) => {
             let ((a, every), (b, _)) = (a, b);
@@ -198,6 +209,8 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, args: &Args)
         ms_per_step: secs / steps * 1e3,
         ns_per_contact_update: secs * 1e9 / (red.iterations_sum.max(1) as f64 * red.candidates.max(1) as f64),
         colors_per_step: red.colors_mean,
+        color_rounds_per_step: rounds,
+        redone_steps: redone,
         dispatches_per_step: dispatches,
         submissions_per_step: submissions,
         readbacks_per_step: readbacks,
@@ -209,7 +222,7 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, args: &Args)
 
 fn line(c: &Case) -> String {
     format!(
-        "{:<40} {:>6} disks {:>7} contacts {:>7.1} it/step {:>9.2} ms/step {:>7.2} ns/update {:>6.1} colors {:>8.1} dispatches/step ({:.1} fixed) {:>5.1} submissions/step {:>5.1} readbacks/step host {:>7.1} MiB device {:>7.1} MiB",
+        "{:<40} {:>6} disks {:>7} contacts {:>7.1} it/step {:>9.2} ms/step {:>7.2} ns/update {:>6.1} colors {:>5.1} rounds/step {} redone {:>8.1} dispatches/step ({:.1} fixed) {:>5.1} submissions/step {:>5.1} readbacks/step host {:>7.1} MiB device {:>7.1} MiB",
         c.backend,
         c.disks,
         c.contacts,
@@ -217,6 +230,8 @@ fn line(c: &Case) -> String {
         c.ms_per_step,
         c.ns_per_contact_update,
         c.colors_per_step,
+        c.color_rounds_per_step,
+        c.redone_steps,
         c.dispatches_per_step,
         c.fixed_dispatches_per_step,
         c.submissions_per_step,
@@ -231,12 +246,15 @@ fn markdown(cases: &[Case], args: &Args) -> String {
         "# cdlab bench\n\nConfined dense sample under shear (deposit closed by walls, top wall at 0.5 m/s, friction 0.3), tolerance {}, {} warm-up and {} measured steps per case.\n\n",
         args.tol, args.warmup, args.steps
     );
-    s.push_str("| backend | disks | contacts | iterations/step | ms/step | ns/contact update | colors | dispatches/step | fixed dispatches/step | submissions/step | readbacks/step | host peak (MiB) | device (MiB) |\n");
-    s.push_str("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
+    s.push_str("| backend | disks | contacts | iterations/step | ms/step | ns/contact update | colors | coloring rounds/step | steps redone | dispatches/step | fixed dispatches/step | submissions/step | readbacks/step | host peak (MiB) | device (MiB) |\n");
+    s.push_str(
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+    );
     for c in cases {
         s.push_str(&format!(
-            "| {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |\n",
+            "| {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |\n",
             c.backend, c.disks, c.contacts, c.iterations_per_step, c.ms_per_step, c.ns_per_contact_update, c.colors_per_step,
+            c.color_rounds_per_step, c.redone_steps,
             c.dispatches_per_step, c.fixed_dispatches_per_step, c.submissions_per_step, c.readbacks_per_step, c.host_peak_mib, c.device_mib
         ));
     }

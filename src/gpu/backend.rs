@@ -5,14 +5,16 @@
 
 use glam::DVec2;
 
-use super::buffers::{ARGS_STRIDE, Buffers, Capacity, GpuContact, GpuDisk, GpuWall, SimParams, args_slots};
+use super::buffers::{
+    ARGS_STRIDE, Buffers, Capacity, GpuContact, GpuDisk, GpuWall, SimParams, args_slots, round_slot,
+};
 use super::device::{GpuDevice, open};
 use super::pipeline::Pipelines;
 use crate::backend::reduce::{Reductions, zero_gap_tolerance};
 use crate::backend::{Backend, ContactRecord, Loading};
 use crate::contact::Contact;
 use crate::engine::StepParams;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::model::{BodyKind, Scene, WallDrive};
 use crate::solver::Method;
 
@@ -32,13 +34,16 @@ pub struct GpuCounters {
     pub readbacks: u64,
     /// Solver iterations.
     pub iterations: u64,
+    /// Coloring rounds (Jones-Plassmann-Luby) of the steps taken.
+    pub color_rounds: u64,
 }
 
 /// The GPU backend (f32 kernels, positions relative to the sample centre).
 ///
 /// Differences from the CPU backend, by design: `Method::Gs` (sequential order) has no
 /// parallel form and runs as colored Gauss-Seidel; the coloring is Jones-Plassmann-Luby
-/// (more colors than the CPU's greedy one, not seeded with the last step's colors);
+/// seeded with the last step's colors (persisting contacts keep theirs, so a color can
+/// stay empty; empty colors cost no dispatch and are not counted);
 /// convergence is checked every [`GpuBackend::conv_every`] iterations, so iteration counts
 /// are multiples of it (set it to 1 for CPU-comparable counts); a capacity growth drops
 /// nothing (the step is redone) and keeps the warm start.
@@ -61,6 +66,9 @@ pub struct GpuBackend {
     pub(super) n_contacts: u32,
     pub(super) color_offsets: Vec<u32>,
     pub(super) loading: Loading,
+    /// Coloring rounds recorded per step: the last step's count with a margin (rounds
+    /// beyond need cost an empty dispatch each; too few redo the step with twice as many).
+    pub(super) rounds_hint: u32,
 }
 
 impl GpuBackend {
@@ -73,10 +81,10 @@ impl GpuBackend {
     pub fn with_device(gpu: GpuDevice, scene: Scene, params: StepParams) -> Result<Self> {
         params.validate()?;
         scene.validate()?;
-        let pipes = Pipelines::new(&gpu.device)?;
+        let pipes = Pipelines::new(&gpu)?;
         let cap = Capacity::initial(scene.disks.len(), scene.walls.len());
         let mut sim = SimParams::default();
-        let bufs = Buffers::new(&gpu.device, &gpu.limits, &mut sim, cap)?;
+        let bufs = Buffers::new(&gpu, &mut sim, cap)?;
         let bind = pipes.bind(&gpu.device, &bufs);
         let mut b = GpuBackend {
             gpu,
@@ -93,6 +101,7 @@ impl GpuBackend {
             n_contacts: 0,
             color_offsets: Vec::new(),
             loading: Loading::default(),
+            rounds_hint: 16,
         };
         b.set_scene(&scene)?;
         Ok(b)
@@ -173,6 +182,9 @@ impl GpuBackend {
         for c in 0..self.cap.colors {
             put(4 + c as usize, c, 0);
         }
+        for r in 1..=self.cap.rounds {
+            put(round_slot(self.cap, r) as usize, r, 0);
+        }
         q.write_buffer(&self.bufs.args, 0, bytemuck::cast_slice(&table));
     }
 
@@ -180,7 +192,7 @@ impl GpuBackend {
     /// impulses and the run's accumulators (the growing regions come after them).
     pub(super) fn grow(&mut self, cap: Capacity) -> Result<()> {
         let mut sim = self.sim;
-        let bufs = Buffers::new(&self.gpu.device, &self.gpu.limits, &mut sim, cap)?;
+        let bufs = Buffers::new(&self.gpu, &mut sim, cap)?;
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         let old = &self.bufs;
         for (a, b) in [
@@ -197,6 +209,7 @@ impl GpuBackend {
         }
         self.gpu.queue.submit([enc.finish()]);
         self.counters.submissions += 1;
+        self.gpu.check("copying the state into the grown buffers")?;
         self.bufs = bufs;
         self.sim = sim;
         self.cap = cap;
@@ -227,16 +240,19 @@ impl GpuBackend {
         staging.map_async(wgpu::MapMode::Read, .., move |r| {
             let _ = tx.send(r);
         });
-        self.gpu
-            .device
+        let gpu = &self.gpu;
+        gpu.device
             .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))?;
+            .map_err(|e| gpu.failure("waiting for the device", e))?;
+        // Errors of the work just waited for (validation, out of memory, device lost) come
+        // first: they explain a failed mapping.
+        gpu.check("running the time step")?;
         rx.recv()
-            .map_err(|e| Error::Gpu(e.to_string()))?
-            .map_err(|e| Error::Gpu(format!("mapping a readback buffer: {e}")))?;
+            .map_err(|e| gpu.failure("reading back a result", e))?
+            .map_err(|e| gpu.failure("mapping a readback buffer", e))?;
         let bytes = staging
             .get_mapped_range(..)
-            .map_err(|e| Error::Gpu(format!("{e:?}")))?
+            .map_err(|e| gpu.failure("reading a mapped buffer", format!("{e:?}")))?
             .to_vec();
         staging.unmap();
         self.counters.readbacks += 1;
@@ -377,7 +393,7 @@ impl Backend for GpuBackend {
             self.fill_params();
             let cap = Capacity::initial(d.len(), scene.walls.len());
             let mut sim = self.sim;
-            self.bufs = Buffers::new(&self.gpu.device, &self.gpu.limits, &mut sim, cap)?;
+            self.bufs = Buffers::new(&self.gpu, &mut sim, cap)?;
             self.sim = sim;
             self.cap = cap;
             self.bind = self.pipes.bind(&self.gpu.device, &self.bufs);

@@ -9,6 +9,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use super::device::GpuDevice;
 use crate::error::{Error, Result};
 
 /// A disk (64 bytes).
@@ -134,6 +135,10 @@ pub struct SimParams {
     pub strip_sum_r1: f32,
     pub gap_tol: f32,
     pub pad: f32,
+    pub o_color: u32,
+    pub o_left: u32,
+    pub max_rounds: u32,
+    pub o_inc_tmp: u32,
 }
 
 /// Status words read back after detection and coloring (indices into the status region).
@@ -148,6 +153,8 @@ pub mod status {
     pub const OVERLAP: usize = 4;
     /// Coloring rounds.
     pub const ROUNDS: usize = 5;
+    /// Contacts left uncolored after the recorded coloring rounds.
+    pub const LEFT: usize = 7;
     /// Indirect dispatch size of per-contact kernels (3 words).
     pub const ARGS: usize = 8;
     /// Words before the color offsets.
@@ -169,6 +176,9 @@ pub struct Capacity {
     pub cells: u32,
     /// Colors.
     pub colors: u32,
+    /// Coloring rounds that can be recorded in one step (one argument slot and one
+    /// counter each).
+    pub rounds: u32,
 }
 
 impl Capacity {
@@ -180,6 +190,7 @@ impl Capacity {
             contacts: (4 * nd + nw * 16 + 256) as u32,
             cells: (4 * nd + 1024) as u32,
             colors: 64,
+            rounds: 32,
         }
     }
 }
@@ -218,12 +229,15 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
     p.o_dcount = take(&mut o, nd + 1);
     p.o_inc_count = take(&mut o, nb + 1);
     p.o_inc_fill = take(&mut o, nb);
+    p.o_left = take(&mut o, cap.rounds + 1);
     let clear_len = o;
     p.o_items = take(&mut o, nd);
     p.o_cell_of = take(&mut o, nd);
     p.o_slots = take(&mut o, nd * cap.k_slots);
     p.o_inc_list = take(&mut o, 2 * cap.contacts);
+    p.o_inc_tmp = take(&mut o, 2 * cap.contacts);
     p.o_order = take(&mut o, cap.contacts);
+    p.o_color = take(&mut o, cap.contacts);
     p.o_per_disk = take(&mut o, nd);
     let ints_len = o.max(1);
     let mut f = 0u32;
@@ -239,12 +253,14 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
     p.cap_contacts = cap.contacts;
     p.cap_cells = cap.cells;
     p.max_colors = cap.colors;
+    p.max_rounds = cap.rounds;
     Layout {
         ints_len,
         clear_len,
         floats_len: f,
         floats_keep,
-        prev_len: nd + 1 + 3 * cap.contacts,
+        // Per contact: partner, R_n, R_t, color (detect.wgsl, PREV_STRIDE).
+        prev_len: nd + 1 + 4 * cap.contacts,
     }
 }
 
@@ -274,9 +290,15 @@ pub struct Buffers {
     pub layout: Layout,
 }
 
-/// Number of per-dispatch argument slots: 4 fixed ones and one per color.
+/// Number of per-dispatch argument slots: 4 fixed ones, one per color, one per coloring
+/// round.
 pub fn args_slots(cap: Capacity) -> u32 {
-    4 + cap.colors
+    4 + cap.colors + cap.rounds
+}
+
+/// Argument slot of coloring round `r` (1-based; its `a` is `r`).
+pub fn round_slot(cap: Capacity, r: u32) -> u32 {
+    4 + cap.colors + r - 1
 }
 
 /// Checks one buffer size against the adapter's limits; the error names the limit, the
@@ -339,13 +361,10 @@ impl Buffers {
     }
 
     /// Allocates every buffer for `p` (whose offsets [`layout`] fills) after checking the
-    /// sizes against `limits`.
-    pub fn new(
-        device: &wgpu::Device,
-        limits: &wgpu::Limits,
-        p: &mut SimParams,
-        cap: Capacity,
-    ) -> Result<Self> {
+    /// sizes against the device's limits, inside error scopes (a device out of memory gives
+    /// [`Error::Gpu`] naming the adapter).
+    pub fn new(gpu: &GpuDevice, p: &mut SimParams, cap: Capacity) -> Result<Self> {
+        let limits = &gpu.limits;
         let layout = layout(p, cap);
         let nd = p.n_disks as usize;
         let sizes = [
@@ -360,7 +379,7 @@ impl Buffers {
             check_size(what, bytes, nd, limits, true)?;
         }
         let none = wgpu::BufferUsages::empty();
-        Ok(Buffers {
+        gpu.scoped("allocating the sample's buffers", |device| Buffers {
             sim: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("sim"),
                 size: size_of::<SimParams>() as u64,

@@ -4,11 +4,31 @@
 //! virtual) and falls back to a software one (Mesa lavapipe, WARP) with a one-line
 //! warning, so the GPU path runs on any machine with a Vulkan driver.
 
+use std::sync::{Arc, Mutex};
+
 use crate::error::{Error, Result};
 
 /// The message of a missing adapter: what to install for the software fallback.
 pub const NO_ADAPTER: &str = "no GPU adapter found; install a GPU driver, or for the software \
      Vulkan fallback: apt-get install mesa-vulkan-drivers libvulkan1 (then WGPU_BACKEND=vulkan)";
+
+/// The wgpu errors of a device not caught by an error scope (validation, out of memory,
+/// internal) and its loss, kept for the next [`GpuDevice::check`]. Installed in place of
+/// wgpu's default handler, which panics: a failing device must end the run with an error
+/// the user can act on, and leave the records written so far intact.
+#[derive(Clone, Debug, Default)]
+pub struct ErrorLog(Arc<Mutex<Vec<String>>>);
+
+impl ErrorLog {
+    fn push(&self, message: String) {
+        // A poisoned lock only means another thread panicked while pushing: keep logging.
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).push(message);
+    }
+
+    fn take(&self) -> Vec<String> {
+        std::mem::take(&mut *self.0.lock().unwrap_or_else(|e| e.into_inner()))
+    }
+}
 
 /// An opened device with what the backend needs to know about it.
 pub struct GpuDevice {
@@ -20,6 +40,58 @@ pub struct GpuDevice {
     pub info: wgpu::AdapterInfo,
     /// The limits the device was opened with (the adapter's own).
     pub limits: wgpu::Limits,
+    /// Errors reported outside error scopes, and the device's loss.
+    pub errors: ErrorLog,
+}
+
+impl GpuDevice {
+    /// The error that ends a run on this device: names the adapter, what was being done,
+    /// wgpu's message, and the way out.
+    pub fn failure(&self, during: &str, detail: impl std::fmt::Display) -> Error {
+        Error::Gpu(format!(
+            "{} ({:?}): {during}: {detail}; rerun with --backend cpu (or continue the run on the \
+             CPU path with --resume DIR)",
+            self.info.name, self.info.backend
+        ))
+    }
+
+    /// Err with the errors reported since the last check (outside any error scope, or the
+    /// device's loss), else Ok.
+    pub fn check(&self, during: &str) -> Result<()> {
+        let errors = self.errors.take();
+        if errors.is_empty() {
+            Ok(())
+        } else {
+            Err(self.failure(during, errors.join("; ")))
+        }
+    }
+
+    /// Runs `f` (resource or pipeline creation) inside error scopes for validation,
+    /// out-of-memory and internal errors, and returns the first error they caught.
+    pub fn scoped<T>(&self, during: &str, f: impl FnOnce(&wgpu::Device) -> T) -> Result<T> {
+        let filters = [
+            wgpu::ErrorFilter::OutOfMemory,
+            wgpu::ErrorFilter::Validation,
+            wgpu::ErrorFilter::Internal,
+        ];
+        let scopes: Vec<_> = filters.iter().map(|f| self.device.push_error_scope(*f)).collect();
+        let out = f(&self.device);
+        // Scopes pop innermost first.
+        let caught: Vec<String> = scopes
+            .into_iter()
+            .rev()
+            .filter_map(|s| pollster::block_on(s.pop()))
+            .map(|e| match e {
+                wgpu::Error::OutOfMemory { .. } => "out of device memory".to_string(),
+                e => e.to_string(),
+            })
+            .collect();
+        if let Some(first) = caught.first() {
+            return Err(self.failure(during, first));
+        }
+        self.check(during)?;
+        Ok(out)
+    }
 }
 
 /// One adapter as listed by `cdlab info`.
@@ -115,10 +187,26 @@ pub fn open() -> Result<GpuDevice> {
         ..Default::default()
     }))
     .map_err(|e| Error::Gpu(format!("cannot open {}: {e}", info.name)))?;
+    let errors = ErrorLog::default();
+    let log = errors.clone();
+    device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+        log.push(match e {
+            wgpu::Error::OutOfMemory { .. } => "out of device memory".to_string(),
+            e => e.to_string(),
+        })
+    }));
+    let log = errors.clone();
+    device.set_device_lost_callback(move |reason, message| {
+        // Dropping the device reports a loss too: that one is no failure.
+        if reason != wgpu::DeviceLostReason::Destroyed {
+            log.push(format!("device lost ({reason:?}): {message}"));
+        }
+    });
     Ok(GpuDevice {
         device,
         queue,
         info,
         limits,
+        errors,
     })
 }

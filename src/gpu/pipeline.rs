@@ -6,6 +6,7 @@
 use std::collections::HashMap;
 
 use super::buffers::{Buffers, SimParams};
+use super::device::GpuDevice;
 use super::{SHADERS, compose};
 use crate::error::{Error, Result};
 
@@ -20,7 +21,16 @@ const ENTRY_POINTS: &[(&str, &[&str])] = &[
     ),
     (
         "color.wgsl",
-        &["incidence_count", "incidence_fill", "incidence_sort", "color_jpl"],
+        &[
+            "incidence_count",
+            "incidence_fill",
+            "incidence_rank",
+            "color_seed",
+            "color_round",
+            "color_count",
+            "color_offsets",
+            "color_scatter",
+        ],
     ),
     (
         "solve.wgsl",
@@ -59,9 +69,14 @@ fn entry(binding: u32, ty: wgpu::BufferBindingType, dynamic: bool) -> wgpu::Bind
 }
 
 impl Pipelines {
-    /// Compiles every shader and creates every pipeline. A shader error is a bug in the
-    /// crate (the naga test catches it first), reported as [`Error::Gpu`].
-    pub fn new(device: &wgpu::Device) -> Result<Self> {
+    /// Compiles every shader and creates every pipeline inside error scopes: a shader the
+    /// driver rejects (a bug in the crate, or a driver that cannot take it) comes back as
+    /// [`Error::Gpu`] naming the adapter, not as wgpu's panic.
+    pub fn new(gpu: &GpuDevice) -> Result<Self> {
+        gpu.scoped("compiling the compute shaders", Self::create)?
+    }
+
+    fn create(device: &wgpu::Device) -> Result<Self> {
         let storage = wgpu::BufferBindingType::Storage { read_only: false };
         let mut entries = vec![entry(0, wgpu::BufferBindingType::Uniform, false)];
         entries.extend((1..=7).map(|b| entry(b, storage, false)));
@@ -154,4 +169,4 @@ fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
 
 /// Size check of the uniform parameters against the WGSL struct (a layout mismatch would
 /// silently scramble every kernel).
-const _: () = assert!(size_of::<SimParams>() == 192);
+const _: () = assert!(size_of::<SimParams>() == 208);

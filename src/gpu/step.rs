@@ -2,9 +2,11 @@
 //! `CpuEngine::step`), and the run loop with its few readbacks:
 //!
 //! 1. submission A: clear, free velocities, grid, detection, compaction with warm start,
-//!    incidence lists, warm-start gather, coloring; then one readback of the status words
-//!    (contact count, overflows, colors and their offsets, largest overlap). On overflow
-//!    the capacities grow and A is recorded again (nothing in A changes the state).
+//!    incidence lists, warm-start gather, coloring (one dispatch per round, as many rounds
+//!    as the last step needed plus a margin); then one readback of the status words
+//!    (contact count, overflows, colors and their offsets, contacts left uncolored,
+//!    largest overlap). On overflow, or when the rounds were too few, the capacities grow
+//!    and A is recorded again (nothing in A changes the state).
 //! 2. submissions B: `conv_every` iterations (one dispatch per color, or three for
 //!    Jacobi) and a convergence reduction; one readback of two floats each.
 //! 3. submission C: integration, wall impulses, saving the impulses for the warm start.
@@ -12,7 +14,7 @@
 //! At the end of a run, one more submission reduces counts, overlaps and energies.
 
 use super::backend::GpuBackend;
-use super::buffers::{ARGS_STRIDE, status};
+use super::buffers::{ARGS_STRIDE, round_slot, status};
 use crate::backend::{Loading, Reductions};
 use crate::error::{Error, Result};
 use crate::solver::Method;
@@ -60,8 +62,14 @@ impl<'a> Rec<'a> {
 
     /// Dispatches entry point `name` over the contacts (indirect: the count is on the GPU).
     fn go_contacts(&mut self, name: &str) {
+        self.go_contacts_with(name, 0);
+    }
+
+    /// [`Rec::go_contacts`] with argument slot `slot`.
+    fn go_contacts_with(&mut self, name: &str, slot: u32) {
         self.pass.set_pipeline(self.b.pipes.get(name));
-        self.pass.set_bind_group(1, &self.b.bind.1, &[0]);
+        self.pass
+            .set_bind_group(1, &self.b.bind.1, &[(slot as u64 * ARGS_STRIDE) as u32]);
         self.pass.dispatch_workgroups_indirect(&self.b.bufs.indirect, 0);
         self.dispatches += 1;
     }
@@ -108,9 +116,12 @@ impl GpuBackend {
         self.finish_reductions(red, loading)
     }
 
-    fn submit(&mut self, enc: wgpu::CommandEncoder) {
+    /// Submits `enc`; validation errors of the recording (a dispatch beyond the adapter's
+    /// limits, say) are reported by wgpu on the spot and end the run here.
+    fn submit(&mut self, enc: wgpu::CommandEncoder) -> Result<()> {
         self.gpu.queue.submit([enc.finish()]);
         self.counters.submissions += 1;
+        self.gpu.check("submitting the time step")
     }
 
     fn step_once(&mut self) -> Result<StepInfo> {
@@ -118,6 +129,7 @@ impl GpuBackend {
         let nb = self.sim.n_bodies;
         // Submission A, redone after a growth.
         let status = loop {
+            let rounds = self.rounds_hint.clamp(1, self.cap.rounds);
             let mut enc = self.gpu.device.create_command_encoder(&Default::default());
             let mut d = 0;
             {
@@ -141,13 +153,19 @@ impl GpuBackend {
                 r.go_contacts("incidence_count");
                 r.go("scan", 3, 1);
                 r.go_contacts("incidence_fill");
-                r.go("incidence_sort", 0, groups(nb));
+                r.go_contacts("incidence_rank");
                 r.go("gather", 0, groups(nb));
-                r.go("color_jpl", 0, 1);
+                r.go_contacts("color_seed");
+                for k in 1..=rounds {
+                    r.go_contacts_with("color_round", round_slot(self.cap, k));
+                }
+                r.go_contacts("color_count");
+                r.go("color_offsets", round_slot(self.cap, rounds), 1);
+                r.go_contacts("color_scatter");
                 d += r.dispatches;
             }
             self.counters.dispatches += d;
-            self.submit(enc);
+            self.submit(enc)?;
             let words = status::WORDS as u64 + self.cap.colors as u64 + 1;
             let ints = self.bufs.ints.clone();
             let bytes = self.download(&ints, 4 * self.sim.o_status as u64, 4 * words)?;
@@ -163,12 +181,35 @@ impl GpuBackend {
             if st[status::COLORS] > cap.colors {
                 cap.colors = 2 * st[status::COLORS];
             }
-            if cap == self.cap {
+            // Too few rounds recorded: redo with twice as many (rare, the hint follows the
+            // last step's count).
+            let unfinished = n <= cap.contacts && st[status::LEFT] > 0;
+            if unfinished {
+                // Colors carry their round in 16 bits (color.wgsl); JPL needs about as many
+                // rounds as the largest clique has contacts, far below that.
+                if 2 * rounds > 0xffff {
+                    return Err(self.gpu.failure(
+                        &format!("step {}", self.scene.step),
+                        format!(
+                            "the coloring left {} contacts after {rounds} rounds",
+                            st[status::LEFT]
+                        ),
+                    ));
+                }
+                self.rounds_hint = 2 * rounds;
+                cap.rounds = cap.rounds.max(self.rounds_hint);
+            }
+            if cap == self.cap && !unfinished {
                 break st;
             }
-            self.grow(cap)?;
+            if cap != self.cap {
+                self.grow(cap)?;
+            }
             self.counters.redone += 1;
         };
+        let rounds = status[status::ROUNDS];
+        // New contacts need a few rounds even when the last step needed none.
+        self.rounds_hint = rounds + rounds / 4 + 4;
         let n = status[status::CONTACTS];
         let n_colors = status[status::COLORS];
         self.n_contacts = n;
@@ -179,11 +220,14 @@ impl GpuBackend {
             && self.color_offsets.last() == Some(&n)
             && self.color_offsets.windows(2).all(|w| w[0] <= w[1]);
         if n > 0 && !tiled {
-            return Err(Error::Gpu(format!(
-                "{}: the GPU coloring left {n} contacts in inconsistent color ranges ({n_colors} colors, offsets {:?}, \
-                 step {}); rerun with --backend cpu (or --resume on the CPU path)",
-                self.gpu.info.name, self.color_offsets, self.scene.step
-            )));
+            return Err(self.gpu.failure(
+                &format!("step {}", self.scene.step),
+                format!(
+                    "the GPU coloring left {n} contacts in inconsistent color ranges ({n_colors} colors, \
+                     offsets {:?})",
+                    self.color_offsets
+                ),
+            ));
         }
         let overlap = f32::from_bits(status[status::OVERLAP]) as f64;
         if overlap > self.params.overlap_limit {
@@ -208,16 +252,19 @@ impl GpuBackend {
             drop(r);
             self.counters.dispatches += d;
         }
-        self.submit(enc);
+        self.submit(enc)?;
         self.counters.steps += 1;
         self.counters.iterations += iterations as u64;
+        self.counters.color_rounds += rounds as u64;
         Ok(StepInfo {
             iterations,
             converged,
             colors: if self.params.solver.method == Method::Jacobi {
                 0
             } else {
-                n_colors
+                // Seeded colors can leave a color empty: it costs no dispatch, and is not
+                // counted, so that dispatches per iteration equal the colors reported.
+                self.color_offsets.windows(2).filter(|w| w[1] > w[0]).count() as u32
             },
         })
     }
@@ -253,7 +300,7 @@ impl GpuBackend {
                 drop(r);
                 self.counters.dispatches += d;
             }
-            self.submit(enc);
+            self.submit(enc)?;
             done += batch;
             let floats = self.bufs.floats.clone();
             let bytes = self.download(&floats, 4 * self.sim.f_conv as u64, 8)?;
@@ -291,7 +338,7 @@ impl GpuBackend {
             drop(r);
             self.counters.dispatches += d;
         }
-        self.submit(enc);
+        self.submit(enc)?;
         let floats = self.bufs.floats.clone();
         let keep = self.bufs.layout.floats_keep as u64;
         let bytes = self.download(&floats, 0, 4 * keep)?;

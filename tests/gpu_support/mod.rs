@@ -25,6 +25,19 @@ pub fn gpu_or_skip(test: &str, scene: &Scene, params: StepParams) -> Option<GpuB
     }
 }
 
+/// An opened device, or `None` with a visible SKIPPED line (same rule as [`gpu_or_skip`]).
+pub fn device_or_skip(test: &str) -> Option<cdlab::gpu::device::GpuDevice> {
+    match cdlab::gpu::device::open() {
+        Ok(d) => Some(d),
+        Err(cdlab::Error::Gpu(msg)) if std::env::var("CDLAB_REQUIRE_GPU").as_deref() != Ok("1") => {
+            let line = format!("SKIPPED (no GPU adapter): {test}: {msg}\n");
+            let _ = std::io::Write::write_all(&mut std::io::stderr(), line.as_bytes());
+            None
+        }
+        Err(e) => panic!("{test}: {e}"),
+    }
+}
+
 /// Tight solver settings for the GPU: f32 impulses stop changing at a relative 1e-7, so a
 /// tolerance of 1e-6 is the tightest the convergence test can certify; iterations are
 /// checked one by one so the GPU stops at the same iteration as a converged CPU run would.
