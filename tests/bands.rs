@@ -6,7 +6,7 @@ use cdlab::analysis::bands::{
     BandOptions, StrainOptions, analyse_pair, analyse_run, local_shear, local_strain, mean_diameter, select,
 };
 use cdlab::record::{DiskRecord, RunRecord, Snapshot};
-use common::{Rng, cdlab};
+use common::{Rng, cdlab, small_config};
 use glam::{DMat2, DVec2};
 
 /// A disordered, non-overlapping sample of about `nx * ny` disks: a jittered square lattice
@@ -212,16 +212,8 @@ fn bad_input_gives_messages_or_no_value_not_nan() {
 fn a_tiny_run_reports_shear_bands_in_its_summary() {
     let dir = std::env::temp_dir().join(format!("cdlab-bands-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    let cfg = dir.join("tiny.toml");
-    // The quick configuration of tests/cli.rs, with three snapshots over 0.6% strain.
-    std::fs::write(
-        &cfg,
-        "[sample]\ndisks = 400\n[solver]\ntol = 1e-3\nbackend = \"cpu\"\n\
-         [test]\nstrip_thickness = \"3 m\"\nstrain_end = 0.006\n\
-         [output]\nseries_every = 10\nsnapshot_every = 0.003\ncheckpoint_every = 500\n",
-    )
-    .unwrap();
+    // The quick configuration of the CLI tests: three snapshots over 0.6% strain.
+    let cfg = small_config(&dir);
     let out = dir.join("run");
     let (ok, text) = cdlab(&[
         "biaxial",

@@ -3,27 +3,13 @@
 
 mod common;
 
-use common::cdlab;
-use std::path::{Path, PathBuf};
+use common::{cdlab, small_config};
+use std::path::PathBuf;
 
 fn scratch(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("cdlab-cli-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     d
-}
-
-/// A small, quick configuration: 400 disks, thin strips, 0.6% strain, frequent checkpoints.
-fn small_config(dir: &Path) -> PathBuf {
-    std::fs::create_dir_all(dir).unwrap();
-    let p = dir.join("small.toml");
-    std::fs::write(
-        &p,
-        "[sample]\ndisks = 400\n[solver]\ntol = 1e-3\nbackend = \"cpu\"\n\
-         [test]\nstrip_thickness = \"3 m\"\nstrain_end = 0.006\n\
-         [output]\nseries_every = 10\nsnapshot_every = 0.003\ncheckpoint_every = 500\n",
-    )
-    .unwrap();
-    p
 }
 
 #[test]

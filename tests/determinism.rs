@@ -34,6 +34,15 @@ fn run(seed: u64, method: Method, parallel: bool) -> (Scene, usize) {
 
 fn run_on(seed: u64, method: Method, parallel: bool, threads: usize) -> (Scene, usize) {
     let mut s = dense(seed);
+    // The right wall pushes on the sample with its column of glued disks: their contacts
+    // share the wall and form the serial group of the colored sweeps.
+    s.walls[3].drive = cdlab::model::WallDrive::Force {
+        mass: 5e4,
+        force: 2e5,
+    };
+    for b in 0..50 {
+        s.disks.glue(49 * 50 + b, 3);
+    }
     let mut p = tight(method);
     p.alert = 0.2;
     p.solver.tol = 1e-6;
@@ -45,6 +54,12 @@ fn run_on(seed: u64, method: Method, parallel: bool, threads: usize) -> (Scene, 
     let mut largest_color = 0;
     for _ in 0..15 {
         e.step(&mut s).unwrap();
+        if method == Method::ColoredGs {
+            assert!(
+                e.last_range_is_serial(),
+                "the glued column's contacts form a serial group"
+            );
+        }
         largest_color = largest_color.max(
             e.color_ranges()
                 .windows(2)

@@ -65,6 +65,7 @@ pub struct CpuEngine {
     gv: Vec<DVec3>,
     masks: Vec<u64>,
     ranges: Vec<u32>,
+    serial_last: bool,
 }
 
 impl CpuEngine {
@@ -81,6 +82,7 @@ impl CpuEngine {
             gv: Vec::new(),
             masks: Vec::new(),
             ranges: Vec::new(),
+            serial_last: false,
         })
     }
 
@@ -92,6 +94,12 @@ impl CpuEngine {
     /// Color ranges of the last step (`ranges[c]..ranges[c+1]`), empty unless colored.
     pub fn color_ranges(&self) -> &[u32] {
         &self.ranges
+    }
+
+    /// True when the last color range of the last step was a serial group (the contacts
+    /// of force-driven walls, see [`color_contacts`]).
+    pub fn last_range_is_serial(&self) -> bool {
+        self.serial_last
     }
 
     /// Replaces the warm-start impulses by `(key, R_n, R_t)` triples (see [`Contact::key`]).
@@ -121,14 +129,17 @@ impl CpuEngine {
         self.velocities(scene);
         self.prepare_contacts(scene);
         self.ranges.clear();
+        self.serial_last = false;
         if p.solver.method == Method::ColoredGs {
-            self.ranges = color_contacts(&mut self.contacts, scene.n_bodies(), &mut self.masks);
+            (self.ranges, self.serial_last) =
+                color_contacts(&mut self.contacts, scene.n_bodies(), &mut self.masks);
         }
         let t_solve = std::time::Instant::now();
         let solve = sweep::solve(
             &p.solver,
             &mut self.contacts,
             &self.ranges,
+            self.serial_last,
             &self.gv0,
             &mut self.gv,
         );

@@ -111,12 +111,15 @@ fn relative_change(d2: f64, r2: f64) -> f64 {
 }
 
 /// Solves the contact problem. For colored Gauss-Seidel `ranges` gives the color
-/// boundaries (contacts must be sorted by color); it is ignored otherwise. `gv0` are the
-/// free velocities (needed by Jacobi, which rebuilds the velocities every iteration).
+/// boundaries (contacts must be sorted by color) and `serial_last` says whether the last
+/// range is a serial group (contacts sharing a force-driven wall); both are ignored
+/// otherwise. `gv0` are the free velocities (needed by Jacobi, which rebuilds the
+/// velocities every iteration).
 pub fn solve(
     params: &SolverParams,
     contacts: &mut [Contact],
     ranges: &[u32],
+    serial_last: bool,
     gv0: &[DVec3],
     gv: &mut [DVec3],
 ) -> SolveStats {
@@ -132,9 +135,15 @@ pub fn solve(
     };
     let team = params.team_size();
     if params.method == Method::ColoredGs && team > 1 && contacts.len() >= params.parallel_min {
-        super::team::sweep_iterations(contacts, ranges, gv, team, params.max_iter, |it, d2, r2| {
-            stats.record(it, d2, r2, params.tol)
-        });
+        super::team::sweep_iterations(
+            contacts,
+            ranges,
+            serial_last,
+            gv,
+            team,
+            params.max_iter,
+            |it, d2, r2| stats.record(it, d2, r2, params.tol),
+        );
         return stats;
     }
     for it in 1..=params.max_iter {

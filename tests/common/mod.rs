@@ -130,3 +130,17 @@ pub fn cdlab(args: &[&str]) -> (bool, String) {
     );
     (out.status.success(), text)
 }
+
+/// A small, quick configuration: 400 disks, thin strips, 0.6% strain, frequent checkpoints.
+pub fn small_config(dir: &std::path::Path) -> std::path::PathBuf {
+    std::fs::create_dir_all(dir).unwrap();
+    let p = dir.join("small.toml");
+    std::fs::write(
+        &p,
+        "[sample]\ndisks = 400\n[solver]\ntol = 1e-3\nbackend = \"cpu\"\n\
+         [test]\nstrip_thickness = \"3 m\"\nstrain_end = 0.006\n\
+         [output]\nseries_every = 10\nsnapshot_every = 0.003\ncheckpoint_every = 500\n",
+    )
+    .unwrap();
+    p
+}
