@@ -5,7 +5,7 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::{Figure, LABEL, LINE_COLORS, TICK, draw_err};
+use super::{Figure, LABEL, LINE_COLORS, TICK, draw_err, draw_legend};
 use crate::error::{Error, Result};
 use crate::record::SeriesRow;
 
@@ -112,15 +112,11 @@ impl Figure for StressStrainFigure<'_> {
             .map_err(draw_err)?
             .label("ΔV/V₀ (-, right axis)")
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 25, y)], c2.stroke_width(2)));
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::LowerRight)
-            .label_font(LABEL)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(draw_err)?;
-        Ok(())
+        draw_legend(
+            chart.configure_series_labels(),
+            SeriesLabelPosition::LowerRight,
+            LABEL,
+        )
     }
 }
 
@@ -180,14 +176,10 @@ impl Figure for ContactsFigure<'_> {
                 .label(name)
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 25, y)], color.stroke_width(2)));
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::MiddleRight)
-            .label_font(LABEL)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(draw_err)?;
-        Ok(())
+        draw_legend(
+            chart.configure_series_labels(),
+            SeriesLabelPosition::MiddleRight,
+            LABEL,
+        )
     }
 }

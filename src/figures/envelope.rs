@@ -7,7 +7,7 @@ use plotters::prelude::*;
 
 use super::colormap::SEQUENTIAL;
 use super::curves::CURVE_SIZE;
-use super::{Figure, LABEL, LINE_COLORS, TICK, draw_err};
+use super::{Figure, LABEL, LINE_COLORS, TICK, draw_err, draw_legend};
 use crate::analysis::fit::Saturation;
 use crate::analysis::report::Report;
 use crate::error::{Error, Result};
@@ -125,15 +125,11 @@ impl Figure for EnvelopeFigure<'_> {
             .map_err(draw_err)?
             .label("residual: open, fit dashed")
             .legend(move |(x, y)| Circle::new((x + 12, y), MARKER, grey.stroke_width(2)));
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .label_font(TICK)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(draw_err)?;
-        Ok(())
+        draw_legend(
+            chart.configure_series_labels(),
+            SeriesLabelPosition::UpperLeft,
+            TICK,
+        )
     }
 }
 
@@ -255,14 +251,10 @@ impl Figure for MuMacroFigure<'_> {
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 25, y)], color.stroke_width(2)));
             }
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::LowerRight)
-            .label_font(LABEL)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(draw_err)?;
-        Ok(())
+        draw_legend(
+            chart.configure_series_labels(),
+            SeriesLabelPosition::LowerRight,
+            LABEL,
+        )
     }
 }

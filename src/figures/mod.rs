@@ -146,6 +146,26 @@ pub(crate) const LABEL: (&str, u32) = ("sans-serif", 18);
 /// Font of tick labels.
 pub(crate) const TICK: (&str, u32) = ("sans-serif", 14);
 
+/// Draws a chart's legend at `position` in the figures' common style (white, slightly
+/// transparent box with a black border).
+pub(crate) fn draw_legend<'a, 'b, DB, CT>(
+    mut labels: plotters::chart::SeriesLabelStyle<'a, 'b, DB, CT>,
+    position: SeriesLabelPosition,
+    font: (&'b str, u32),
+) -> Result<()>
+where
+    DB: DrawingBackend + 'a,
+    CT: plotters::coord::CoordTranslate,
+{
+    labels
+        .position(position)
+        .label_font(font)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(draw_err)
+}
+
 /// Line colors of the curves (colorblind-safe pairs: blue, orange, green, red, purple).
 pub const LINE_COLORS: [RGBColor; 5] = [
     RGBColor(31, 119, 180),
