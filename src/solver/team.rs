@@ -3,14 +3,14 @@
 //! Forking and joining a thread pool once per color costs more than the color's work on
 //! samples of a few thousand disks (measured on 2 cores: 24 against 15 ns per contact
 //! update with rayon per color). Here the threads are started once per step; each sweeps
-//! a fixed contiguous share of every color and waits for the others at a spin barrier
-//! between colors (a fraction of a microsecond when the cores are free).
+//! a fixed contiguous share of every color and waits for the others at a barrier between
+//! colors.
 //!
 //! The result is bit-identical to the sequential sweep: contacts of one color share no
 //! movable body, so their updates commute, and the convergence sums are the per-chunk
 //! partial sums added in chunk order, exactly as [`super::sweep`] adds them.
 
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use glam::DVec3;
 
@@ -18,9 +18,9 @@ use super::sweep::{CHUNK, SharedVel, sweep_chunk};
 use crate::contact::Contact;
 
 /// A reusable barrier that spins briefly, then sleeps: the waits between colors are
-/// short (tens of microseconds of work per color on a 5000-disk sample), but on a loaded
-/// machine a descheduled team member must not be waited for by spinning or yielding
-/// through whole time slices. The last thread to arrive wakes the sleepers.
+/// short (a few microseconds of work per color and thread on a 5000-disk sample), but on
+/// a loaded machine a descheduled team member must not be waited for by spinning or
+/// yielding through whole time slices. The last thread to arrive wakes the sleepers.
 struct SpinBarrier {
     n: usize,
     count: AtomicUsize,
@@ -43,11 +43,9 @@ impl SpinBarrier {
         if self.count.fetch_add(1, Ordering::AcqRel) + 1 == self.n {
             self.count.store(0, Ordering::Relaxed);
             self.generation.fetch_add(1, Ordering::Release);
-            let me = std::thread::current().id();
+            // Waking itself only leaves this thread a token for its next wait.
             for t in self.members.get().into_iter().flatten() {
-                if t.id() != me {
-                    t.unpark();
-                }
+                t.unpark();
             }
             return;
         }
@@ -123,8 +121,8 @@ impl Layout {
 }
 
 /// Sweeps colored Gauss-Seidel iterations on `threads` threads until `done` says stop
-/// after an iteration (it receives the iteration number and the sums (change^2,
-/// impulse^2) and is called by the calling thread only). Returns the iterations made.
+/// after an iteration or `max_iter` is reached. `done` receives the iteration number and
+/// the sums (change^2, impulse^2) and is called by the calling thread only.
 pub(super) fn sweep_iterations(
     contacts: &mut [Contact],
     ranges: &[u32],
@@ -136,22 +134,21 @@ pub(super) fn sweep_iterations(
 ) {
     let layout = Layout::new(ranges, serial_last);
     let n_colors = ranges.len().saturating_sub(1);
-    // Two sets of partial sums, by iteration parity: a member that has finished iteration
-    // k can write iteration k + 1's partials while the caller still reads iteration k's.
-    let mut partial = vec![(0.0, 0.0); 2 * layout.chunks.len()];
+    // One slot per chunk: the barrier after the caller has summed an iteration keeps every
+    // member from writing the next one's partials before then.
+    let mut partial = vec![(0.0, 0.0); layout.chunks.len()];
     let shared = Shared {
         contacts: contacts.as_mut_ptr(),
         partial: partial.as_mut_ptr(),
     };
     let vel = SharedVel(gv.as_mut_ptr());
     let barrier = SpinBarrier::new(threads);
-    let stop = AtomicUsize::new(0);
+    let stop = AtomicBool::new(false);
     let n_chunks = layout.chunks.len();
 
     let member = |t: usize, on_iteration: &mut dyn FnMut(u32, f64, f64) -> bool| {
         let (shared, vel) = (shared, vel);
         for it in 1..=max_iter {
-            let base = (it as usize % 2) * n_chunks;
             for c in 0..n_colors {
                 for k in layout.share(c, t, threads) {
                     let (a, b) = layout.chunks[k];
@@ -162,7 +159,7 @@ pub(super) fn sweep_iterations(
                         let chunk = std::slice::from_raw_parts_mut(shared.contacts.add(a), b - a);
                         sweep_chunk(chunk, vel)
                     };
-                    unsafe { shared.partial.add(base + k).write(sums) };
+                    unsafe { shared.partial.add(k).write(sums) };
                 }
                 barrier.wait();
             }
@@ -170,15 +167,15 @@ pub(super) fn sweep_iterations(
                 let (mut d2, mut r2) = (0.0, 0.0);
                 for k in 0..n_chunks {
                     // SAFETY: every member passed the last color's barrier after writing.
-                    let (d, r) = unsafe { shared.partial.add(base + k).read() };
+                    let (d, r) = unsafe { shared.partial.add(k).read() };
                     d2 += d;
                     r2 += r;
                 }
                 let finished = on_iteration(it, d2, r2) || it == max_iter;
-                stop.store(finished as usize, Ordering::Release);
+                stop.store(finished, Ordering::Release);
             }
             barrier.wait();
-            if stop.load(Ordering::Acquire) == 1 {
+            if stop.load(Ordering::Acquire) {
                 return;
             }
         }
