@@ -196,7 +196,7 @@ fn gpu_reductions_equal_cpu_sums_of_the_same_contacts() {
     let dt = g.params().dt;
     let cpu = {
         let mut acc = cdlab::backend::reduce::Accumulator::new(&out);
-        acc.add_step(&Default::default(), vec![DVec2::ZERO; out.walls.len()]);
+        acc.add_step(&Default::default(), &vec![DVec2::ZERO; out.walls.len()]);
         acc.finish(&out, &contacts, dt, &Loading::default())
     };
     assert_eq!(red.candidates, cpu.candidates);

@@ -87,7 +87,7 @@ impl Backend for CpuBackend {
         for _ in 0..steps {
             loading.apply(&mut self.scene);
             let stats = self.engine.step(&mut self.scene)?;
-            acc.add_step(&stats, self.engine.wall_impulses(&self.scene));
+            acc.add_step(&stats, self.engine.wall_impulses());
         }
         Ok(acc.finish(
             &self.scene,

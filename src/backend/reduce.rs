@@ -135,7 +135,7 @@ impl Accumulator {
     }
 
     /// Adds one step's solver statistics and wall impulses.
-    pub fn add_step(&mut self, stats: &StepStats, wall_impulse: Vec<DVec2>) {
+    pub fn add_step(&mut self, stats: &StepStats, wall_impulse: &[DVec2]) {
         let r = &mut self.red;
         r.steps += 1;
         r.iterations_sum += stats.solve.iterations as u64;

@@ -12,10 +12,7 @@
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
-use glam::DVec3;
-
-use super::sweep::{CHUNK, SharedVel, sweep_chunk};
-use crate::contact::Contact;
+use super::sweep::{CHUNK, Ctx, Row, sweep_chunk};
 
 /// A reusable barrier that spins briefly, then sleeps: the waits between colors are
 /// short (a few microseconds of work per color and thread on a 5000-disk sample), but on
@@ -69,10 +66,10 @@ impl SpinBarrier {
 }
 
 /// Raw pointers shared by the team; each member writes only its own chunks (disjoint
-/// contacts, disjoint partial-sum slots) between two barriers.
+/// rows, disjoint partial-sum slots) between two barriers.
 #[derive(Clone, Copy)]
 struct Shared {
-    contacts: *mut Contact,
+    rows: *mut Row,
     partial: *mut (f64, f64),
 }
 // SAFETY: see the struct's comment; the barrier orders every write before every read.
@@ -124,10 +121,10 @@ impl Layout {
 /// after an iteration or `max_iter` is reached. `done` receives the iteration number and
 /// the sums (change^2, impulse^2) and is called by the calling thread only.
 pub(super) fn sweep_iterations(
-    contacts: &mut [Contact],
+    rows: &mut [Row],
     ranges: &[u32],
     serial_last: bool,
-    gv: &mut [DVec3],
+    ctx: Ctx,
     threads: usize,
     max_iter: u32,
     mut done: impl FnMut(u32, f64, f64) -> bool,
@@ -138,16 +135,15 @@ pub(super) fn sweep_iterations(
     // member from writing the next one's partials before then.
     let mut partial = vec![(0.0, 0.0); layout.chunks.len()];
     let shared = Shared {
-        contacts: contacts.as_mut_ptr(),
+        rows: rows.as_mut_ptr(),
         partial: partial.as_mut_ptr(),
     };
-    let vel = SharedVel(gv.as_mut_ptr());
     let barrier = SpinBarrier::new(threads);
     let stop = AtomicBool::new(false);
     let n_chunks = layout.chunks.len();
 
     let member = |t: usize, on_iteration: &mut dyn FnMut(u32, f64, f64) -> bool| {
-        let (shared, vel) = (shared, vel);
+        let (shared, ctx) = (shared, ctx);
         for it in 1..=max_iter {
             for c in 0..n_colors {
                 for k in layout.share(c, t, threads) {
@@ -156,8 +152,8 @@ pub(super) fn sweep_iterations(
                     // contacts of a color share no movable body (coloring), so the
                     // velocity writes of different members never alias.
                     let sums = unsafe {
-                        let chunk = std::slice::from_raw_parts_mut(shared.contacts.add(a), b - a);
-                        sweep_chunk(chunk, vel)
+                        let chunk = std::slice::from_raw_parts_mut(shared.rows.add(a), b - a);
+                        sweep_chunk(chunk, ctx)
                     };
                     unsafe { shared.partial.add(k).write(sums) };
                 }
