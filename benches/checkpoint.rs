@@ -1,0 +1,66 @@
+//! Time per step of a real test state: continues the compression of a recorded run from its
+//! last checkpoint (a finished run is compressed further) for a number of series windows on
+//! the CPU path, and prints ms per step, iterations per step and ns per contact update.
+//!
+//! `CDLAB_RUN=out/biaxial cargo bench --bench checkpoint`, with optional `CDLAB_WINDOWS`
+//! (default 30 windows of the run's series interval), `CDLAB_THREADS` (team size, default 1),
+//! `CDLAB_TOL` (solver tolerance, default the run's) and `CDLAB_METHOD` (gs, colored-gs,
+//! jacobi). Without `CDLAB_RUN` it says so and measures nothing.
+
+use cdlab::backend::CpuBackend;
+use cdlab::protocol::biaxial::Lab;
+use cdlab::protocol::checkpoint::decode;
+use cdlab::protocol::{Collect, Phase};
+use cdlab::record::read_run;
+
+fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
+    let v = std::env::var(name).ok()?;
+    match v.parse() {
+        Ok(x) => Some(x),
+        Err(_) => {
+            eprintln!("{name}={v} is not valid");
+            std::process::exit(2);
+        }
+    }
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let Some(dir) = std::env::var_os("CDLAB_RUN") else {
+        println!("checkpoint bench: set CDLAB_RUN=DIR (a run directory) to measure its compression");
+        return Ok(());
+    };
+    let rec = read_run(&dir)?;
+    let (_, bytes) = rec.last_checkpoint.clone().ok_or("the record holds no checkpoint")?;
+    let mut ck = decode(&bytes)?;
+    ck.state.phase = Phase::Compression;
+    ck.state.params.strain_end = 0.99;
+    ck.state.params.snapshot_every = 0.0;
+    let solver = &mut ck.state.params.step.solver;
+    solver.threads = env("CDLAB_THREADS").unwrap_or(1);
+    if let Some(tol) = env("CDLAB_TOL") {
+        solver.tol = tol;
+    }
+    if let Some(m) = env::<String>("CDLAB_METHOD") {
+        solver.method = m.parse()?;
+    }
+    let windows: usize = env("CDLAB_WINDOWS").unwrap_or(30);
+    let backend = CpuBackend::new(ck.scene.clone(), ck.state.params.step)?;
+    let mut lab = Lab::resume(backend, ck)?;
+    let mut obs = Collect::default();
+    let t0 = std::time::Instant::now();
+    for _ in 0..windows {
+        lab.advance(&mut obs)?;
+    }
+    let secs = t0.elapsed().as_secs_f64();
+    let rows = obs.rows.len().max(1) as f64;
+    let steps = rows * lab.state.params.series_every as f64;
+    let iterations = obs.rows.iter().map(|r| r.iterations).sum::<f64>() / rows;
+    let contacts = obs.rows.iter().map(|r| r.n_contacts as f64).sum::<f64>() / rows;
+    println!(
+        "{steps} steps from {}: {:.3} ms/step, {iterations:.1} iterations/step, {contacts:.0} contacts, {:.2} ns per contact update (whole step)",
+        std::path::Path::new(&dir).display(),
+        secs / steps * 1e3,
+        secs / (steps * iterations * contacts) * 1e9,
+    );
+    Ok(())
+}
