@@ -30,7 +30,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Ok(());
     };
     let rec = read_run(&dir)?;
-    let (_, bytes) = rec.last_checkpoint.clone().ok_or("the record holds no checkpoint")?;
+    let (_, bytes) = rec
+        .last_checkpoint
+        .clone()
+        .ok_or("the record holds no checkpoint")?;
     let mut ck = decode(&bytes)?;
     ck.state.phase = Phase::Compression;
     ck.state.params.strain_end = 0.99;

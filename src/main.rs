@@ -7,5 +7,12 @@ fn main() {
         // SAFETY: no other thread exists yet, so nothing reads the environment concurrently.
         unsafe { std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir()) };
     }
+    // Rust ignores SIGPIPE, so printing into a closed pipe (`cdlab report DIR | head`) made
+    // println! panic; the default action ends the process quietly, as for other tools.
+    #[cfg(unix)]
+    // SAFETY: called before any other thread exists; SIG_DFL is a valid disposition.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     std::process::exit(cdlab::cli::main());
 }

@@ -178,3 +178,22 @@ fn adapter_listing_prints_no_wayland_error_without_a_runtime_dir() {
     assert!(out.status.success(), "{text}");
     assert!(!text.contains("XDG_RUNTIME_DIR"), "stderr: {text}");
 }
+
+/// Output into a pipe whose reader has gone (`cdlab config --print-default | head -1`)
+/// ended in a panic ("failed printing to stdout: Broken pipe", exit code 101); cdlab now
+/// ends quietly, as other Unix tools do. The reader is closed before the child writes.
+#[cfg(unix)]
+#[test]
+fn printing_into_a_closed_pipe_does_not_panic() {
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args(["config", "--print-default"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("cdlab runs");
+    drop(child.stdout.take());
+    let out = child.wait_with_output().expect("cdlab ends");
+    let text = String::from_utf8_lossy(&out.stderr);
+    assert!(!text.contains("panicked"), "stderr: {text}");
+    assert_ne!(out.status.code(), Some(101), "stderr: {text}");
+}
