@@ -164,10 +164,13 @@ pub fn run(args: &Args) -> Result<()> {
         sweep.out.display()
     );
     // The cores are shared between the tests running at once: each solver gets its share
-    // (its sweeps wait for each other at barriers, which must not compete for one core).
+    // (its sweeps wait for each other at barriers, which must not compete for one core),
+    // unless the base configuration sets its team size.
     base.solver.backend = crate::config::Backend::Cpu;
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    base.solver.threads = (cores / jobs).max(1);
+    if base.solver.threads == 0 {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        base.solver.threads = (cores / jobs).max(1);
+    }
     let queue = Mutex::new(mine.iter().cloned().collect::<VecDeque<Point>>());
     let samples: Mutex<Vec<(u64, crate::model::Scene)>> = Mutex::new(Vec::new());
     let done = Mutex::new((0usize, Vec::<(PathBuf, String)>::new()));
