@@ -4,8 +4,8 @@
 //!
 //! `CDLAB_RUN=out/biaxial cargo bench --bench checkpoint`, with optional `CDLAB_WINDOWS`
 //! (default 30 windows of the run's series interval), `CDLAB_THREADS` (team size, default 1),
-//! `CDLAB_TOL` (solver tolerance, default the run's) and `CDLAB_METHOD` (gs, colored-gs,
-//! jacobi). Without `CDLAB_RUN` it says so and measures nothing.
+//! `CDLAB_TOL` (solver tolerance, default the run's), `CDLAB_METHOD` (gs, colored-gs,
+//! jacobi) and `CDLAB_ALERT` (alert distance as a fraction of the smallest radius). Without `CDLAB_RUN` it says so and measures nothing.
 
 use cdlab::backend::CpuBackend;
 use cdlab::protocol::biaxial::Lab;
@@ -46,6 +46,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(m) = env::<String>("CDLAB_METHOD") {
         solver.method = m.parse()?;
     }
+    if let Some(alert) = env::<f64>("CDLAB_ALERT") {
+        // A fraction of the smallest radius, as in the configuration.
+        let r_min = ck
+            .scene
+            .disks
+            .radius
+            .iter()
+            .cloned()
+            .fold(f64::INFINITY, f64::min);
+        ck.state.params.step.alert = alert * r_min;
+    }
     let windows: usize = env("CDLAB_WINDOWS").unwrap_or(30);
     let backend = CpuBackend::new(ck.scene.clone(), ck.state.params.step)?;
     let mut lab = Lab::resume(backend, ck)?;
@@ -59,11 +70,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let steps = rows * lab.state.params.series_every as f64;
     let iterations = obs.rows.iter().map(|r| r.iterations).sum::<f64>() / rows;
     let contacts = obs.rows.iter().map(|r| r.n_contacts as f64).sum::<f64>() / rows;
+    let last = obs.rows.last().ok_or("no window ran")?;
     println!(
-        "{steps} steps from {}: {:.3} ms/step, {iterations:.1} iterations/step, {contacts:.0} contacts, {:.2} ns per contact update (whole step)",
+        "{steps} steps from {}: {:.3} ms/step, {iterations:.1} iterations/step, {contacts:.0} contacts, {:.2} ns per contact update (whole step); at the end sigma1 {:.3} MPa, {} force-carrying contacts, max overlap {:.2e} r_min",
         std::path::Path::new(&dir).display(),
         secs / steps * 1e3,
         secs / (steps * iterations * contacts) * 1e9,
+        last.sigma1_pa / 1e6,
+        last.n_force,
+        last.overlap_max_rel,
     );
     Ok(())
 }
