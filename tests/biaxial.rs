@@ -170,3 +170,23 @@ fn damaged_checkpoints_are_rejected() {
         assert!(decode(&bytes[..cut]).is_err(), "truncated at {cut}");
     }
 }
+
+/// A compression that leaves the quasi-static regime stops with an error after recording
+/// its row. Here the limit is set below the kinetic ratio of a healthy compression of this
+/// sample (about 1e-5 with the wall moving at 0.5 m/s; a runaway passes 1e-2), so the
+/// first compression window must trip it.
+#[test]
+fn a_runaway_compression_stops_with_an_error() {
+    let mut p = small();
+    p.equilibrium.runaway_kinetic_ratio = 1e-9;
+    let (scene, _) = prepare::deposit_scene(&p).expect("deposit");
+    let backend = CpuBackend::new(scene.clone(), p.step).expect("backend");
+    let mut lab = Lab::new(backend, p, &scene, false).expect("lab");
+    let mut obs = Collect::default();
+    let err = lab.run(&mut obs).expect_err("the guard trips").to_string();
+    assert!(err.contains("no longer quasi-static"), "{err}");
+    assert!(err.contains("runaway_kinetic_ratio"), "{err}");
+    let compression: Vec<_> = obs.rows.iter().filter(|r| r.phase == "compression").collect();
+    assert_eq!(compression.len(), 1, "stopped after the first compression row");
+    assert_eq!(lab.state.phase, Phase::Compression);
+}

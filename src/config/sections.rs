@@ -199,6 +199,9 @@ pub struct Equilibrium {
     pub hold_steps: u64,
     /// Simulated-time cap of a phase (s).
     pub max_time: Duration,
+    /// Kinetic ratio (as `kinetic_ratio`, with sigma3) above which the compression stops
+    /// with an error: the test is no longer quasi-static.
+    pub runaway_kinetic_ratio: f64,
 }
 
 impl Default for Equilibrium {
@@ -209,6 +212,7 @@ impl Default for Equilibrium {
             force_imbalance: 0.01,
             hold_steps: 200,
             max_time: Duration(60.0),
+            runaway_kinetic_ratio: crate::protocol::default_runaway_kinetic_ratio(),
         }
     }
 }

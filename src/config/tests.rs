@@ -93,6 +93,10 @@ fn each_bad_value_is_rejected_naming_its_field() {
         ("[test]\ne_t = -2", "test.e_t"),
         ("[equilibrium]\nkinetic_ratio = 0", "equilibrium.kinetic_ratio"),
         (
+            "[equilibrium]\nrunaway_kinetic_ratio = -1",
+            "equilibrium.runaway_kinetic_ratio",
+        ),
+        (
             "[equilibrium]\nforce_imbalance = -1",
             "equilibrium.force_imbalance",
         ),

@@ -94,6 +94,7 @@ impl Config {
 
         let e = &self.equilibrium;
         check_positive("equilibrium.kinetic_ratio", e.kinetic_ratio)?;
+        check_positive("equilibrium.runaway_kinetic_ratio", e.runaway_kinetic_ratio)?;
         check_positive("equilibrium.compaction_kinetic_ratio", e.compaction_kinetic_ratio)?;
         check_positive("equilibrium.force_imbalance", e.force_imbalance)?;
         check_at_least("equilibrium.hold_steps", e.hold_steps, 1, "a number of steps")?;

@@ -127,6 +127,7 @@ impl<B: Backend> Lab<B> {
             Phase::Compression => {
                 let row = self.row(&red, p.sigma3, p.axial_velocity);
                 obs.series(&row)?;
+                self.check_quasi_static(&red, &row)?;
                 if p.snapshot_every > 0.0 && row.strain_axial >= self.state.next_snapshot {
                     let scene = self.backend.scene()?;
                     let contacts = self.backend.contacts()?;
@@ -147,6 +148,34 @@ impl<B: Backend> Lab<B> {
             self.checkpoint(obs)?;
         }
         Ok(())
+    }
+
+    /// Stops a compression that has left the quasi-static regime, after its row is
+    /// recorded: at contact friction 0.01 samples lost their confinement (disks escaped
+    /// between the strip disks) and ran on to negative widths and kinetic energies of 1e11
+    /// J/m until an overlap limit ended them, with rows that looked like results.
+    fn check_quasi_static(&self, red: &Reductions, row: &SeriesRow) -> Result<()> {
+        let p = &self.state.params;
+        let kinetic = red.connected_energy / (p.sigma3 * self.state.gauge.disk_area);
+        let limit = p.equilibrium.runaway_kinetic_ratio;
+        if kinetic <= limit && row.width_m > 0.0 && row.height_m > 0.0 {
+            return Ok(());
+        }
+        Err(Error::Numerical {
+            step: red.step,
+            message: format!(
+                "the compression is no longer quasi-static at axial strain {:.4}: kinetic \
+                 ratio {kinetic:.3e} (limit equilibrium.runaway_kinetic_ratio = {limit:e}), \
+                 sigma1 {:.3} MPa against sigma3 {:.3} MPa, sample {:.2} m wide and {:.2} m \
+                 high. The sample has probably lost its confinement (disks escaping between \
+                 the strip disks, seen at contact friction 0.01)",
+                row.strain_axial,
+                row.sigma1_pa / 1e6,
+                p.sigma3 / 1e6,
+                row.width_m,
+                row.height_m
+            ),
+        })
     }
 
     fn row(&self, red: &Reductions, sigma3: f64, v: f64) -> SeriesRow {
