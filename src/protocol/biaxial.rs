@@ -151,9 +151,10 @@ impl<B: Backend> Lab<B> {
     }
 
     /// Stops a compression that has left the quasi-static regime, after its row is
-    /// recorded: at contact friction 0.01 samples lost their confinement (disks escaped
-    /// between the strip disks) and ran on to negative widths and kinetic energies of 1e11
-    /// J/m until an overlap limit ended them, with rows that looked like results.
+    /// recorded: at contact friction 0.01 samples lost their confinement (they slid apart
+    /// along a band, tens of metres sideways) and ran on to negative widths and kinetic
+    /// energies of 1e11 J/m until an overlap limit ended them, with rows that looked like
+    /// results.
     fn check_quasi_static(&self, red: &Reductions, row: &SeriesRow) -> Result<()> {
         let p = &self.state.params;
         let kinetic = red.connected_energy / (p.sigma3 * self.state.gauge.disk_area);
@@ -167,8 +168,9 @@ impl<B: Backend> Lab<B> {
                 "the compression is no longer quasi-static at axial strain {:.4}: kinetic \
                  ratio {kinetic:.3e} (limit equilibrium.runaway_kinetic_ratio = {limit:e}), \
                  sigma1 {:.3} MPa against sigma3 {:.3} MPa, sample {:.2} m wide and {:.2} m \
-                 high. The sample has probably lost its confinement (disks escaping between \
-                 the strip disks, seen at contact friction 0.01)",
+                 high. The sample has probably lost its confinement (seen at contact \
+                 friction 0.01: the sample slid apart along a band, tens of metres sideways, \
+                 and the strips did not hold it)",
                 row.strain_axial,
                 row.sigma1_pa / 1e6,
                 p.sigma3 / 1e6,
