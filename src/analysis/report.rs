@@ -222,23 +222,33 @@ impl Report {
         s
     }
 
-    /// A human-readable table.
+    /// A human-readable table; "n/a" marks a figure that the points cannot define (no
+    /// standard error from one pressure, no intercept error from two).
     pub fn table(&self) -> String {
         let mut s = format!(
             "{:>8} {:>6} {:>18} {:>18} {:>22}\n",
             "mu", "tests", "mu_macro", "mu_macro_res", "cohesion (MPa)"
         );
+        let mut undefined = false;
+        let mut num = |x: f64| {
+            if x.is_finite() {
+                format!("{x:.3}")
+            } else {
+                undefined = true;
+                "n/a".to_string()
+            }
+        };
         for r in &self.frictions {
             s.push_str(&format!(
-                "{:>8} {:>6} {:>9.3} +- {:<6.3} {:>9.3} +- {:<6.3} {:>11.3} +- {:<6.3}\n",
+                "{:>8} {:>6} {:>9} +- {:<6} {:>9} +- {:<6} {:>11} +- {:<6}\n",
                 r.mu,
                 r.tests,
-                r.mu_macro,
-                r.mu_macro_se,
-                r.mu_macro_res,
-                r.mu_macro_res_se,
-                r.peak_fit_free.intercept,
-                r.peak_fit_free.intercept_se
+                num(r.mu_macro),
+                num(r.mu_macro_se),
+                num(r.mu_macro_res),
+                num(r.mu_macro_res_se),
+                num(r.peak_fit_free.intercept),
+                num(r.peak_fit_free.intercept_se)
             ));
         }
         for (name, f) in [
@@ -247,11 +257,25 @@ impl Report {
         ] {
             match f {
                 Some(f) => s.push_str(&format!(
-                    "{name} = a - b exp(-c mu): a = {:.3} +- {:.3}, b = {:.3} +- {:.3}, c = {:.3} +- {:.3} (rms {:.3})\n",
-                    f.a, f.se[0], f.b, f.se[1], f.c, f.se[2], f.rms
+                    "{name} = a - b exp(-c mu): a = {} +- {}, b = {} +- {}, c = {} +- {} (rms {})\n",
+                    num(f.a),
+                    num(f.se[0]),
+                    num(f.b),
+                    num(f.se[1]),
+                    num(f.c),
+                    num(f.se[2]),
+                    num(f.rms)
                 )),
-                None => s.push_str(&format!("{name}: fewer than three frictions, no saturation fit\n")),
+                None => s.push_str(&format!(
+                    "{name}: fewer than three frictions, no saturation fit\n"
+                )),
             }
+        }
+        if undefined {
+            s.push_str(
+                "n/a: not defined by these points (a standard error needs two pressures, an \
+                 intercept error three, the saturation fit's errors four frictions)\n",
+            );
         }
         for (d, why) in &self.missing {
             s.push_str(&format!("missing: {} ({why})\n", d.display()));
