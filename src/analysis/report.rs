@@ -283,3 +283,26 @@ impl Report {
         s
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One pressure defines mu_macro (tan phi from sin phi = q / p: here q/p = 0.5, so
+    /// phi = 30 degrees and mu_macro = 0.577) but not its standard error: the table says
+    /// n/a, never NaN.
+    #[test]
+    fn table_marks_undefined_figures_as_not_available() {
+        let point = TestPoint {
+            dir: PathBuf::from("run"),
+            mu: 0.3,
+            sigma3_mpa: 1.0,
+            sigma1_peak_mpa: 3.0,
+            sigma1_residual_mpa: Some(2.0),
+        };
+        let table = analyse(&[point], Vec::new()).table();
+        assert!(table.contains("0.577 +- n/a"), "{table}");
+        assert!(table.contains("n/a: not defined"), "{table}");
+        assert!(!table.contains("NaN"), "{table}");
+    }
+}
