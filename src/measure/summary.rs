@@ -51,6 +51,12 @@ pub struct Summary {
     pub iterations_mean: f64,
     /// Largest iteration count of a step during the run.
     pub iterations_max: u64,
+    /// Largest kinetic energy of the compression over sigma3 times the sample's area
+    /// (height x width between the strips), over the rows (dimensionless). Quasi-static
+    /// tests stay below [`QUASI_STATIC_KINETIC_RATIO`]; a larger value marks a test that
+    /// was leaving the quasi-static regime. 0 before the compression.
+    #[serde(default)]
+    pub kinetic_ratio_max: f64,
     /// Steps of the whole run.
     pub steps: u64,
     /// Simulated time of the whole run (s).
@@ -69,6 +75,12 @@ pub struct Summary {
     #[serde(default)]
     pub shear_bands: Option<crate::analysis::bands::ShearBands>,
 }
+
+/// The kinetic ratio below which a compression counts as quasi-static in the summary:
+/// measured, healthy tests stay below it (9e-5 for the 5000-disk DWL test, 6e-4 at friction
+/// 0.1 and 1 MPa), while tests that were losing their confinement at low friction reached
+/// 5e-3 and more before the end.
+pub const QUASI_STATIC_KINETIC_RATIO: f64 = 1e-3;
 
 impl Summary {
     /// Builds the summary from the recorded rows.
@@ -109,6 +121,10 @@ impl Summary {
             overlap_max_rel: rows.iter().map(|r| r.overlap_max_rel).fold(0.0, f64::max),
             iterations_mean: comp.iter().map(|r| r.iterations).sum::<f64>() / comp.len().max(1) as f64,
             iterations_max: rows.iter().map(|r| r.iterations_max).max().unwrap_or(0),
+            kinetic_ratio_max: comp
+                .iter()
+                .map(|r| r.kinetic_energy_j / (sigma3 * r.height_m * r.width_m))
+                .fold(0.0, f64::max),
             steps,
             time_s: last.time_s,
             wall_time_s,
@@ -183,6 +199,17 @@ impl Summary {
             ),
         );
         line(
+            "largest kinetic ratio (compression)",
+            if self.kinetic_ratio_max > QUASI_STATIC_KINETIC_RATIO {
+                format!(
+                    "{:.2e} (above {QUASI_STATIC_KINETIC_RATIO:e}: not quasi-static, treat the results as suspect)",
+                    self.kinetic_ratio_max
+                )
+            } else {
+                format!("{:.2e} (K / (sigma3 h w))", self.kinetic_ratio_max)
+            },
+        );
+        line(
             "steps",
             format!("{} ({:.2} s simulated)", self.steps, self.time_s),
         );
@@ -195,5 +222,37 @@ impl Summary {
             None => s.push_str("  shear bands                        n/a (fewer than two snapshots)\n"),
         }
         s
+    }
+}
+
+#[cfg(test)]
+mod kinetic_tests {
+    use super::*;
+
+    fn row(kinetic_energy_j: f64) -> SeriesRow {
+        SeriesRow {
+            phase: "compression".into(),
+            sigma1_pa: 2e6,
+            height_m: 100.0,
+            width_m: 50.0,
+            kinetic_energy_j,
+            ..Default::default()
+        }
+    }
+
+    /// K / (sigma3 h w): 5e6 J/m over 1 MPa x 100 m x 50 m is 1e-3 exactly; 2.5e7 J/m is
+    /// 5e-3, above the quasi-static bound, and the table must say so.
+    #[test]
+    fn largest_kinetic_ratio_is_reported_and_flagged() {
+        let calm = Summary::new(&[row(1e6), row(5e6)], &[], 1e6, 0.3, 10, "cpu".into(), 1.0);
+        assert!(
+            (calm.kinetic_ratio_max - 1e-3).abs() < 1e-15,
+            "{}",
+            calm.kinetic_ratio_max
+        );
+        assert!(!calm.table().contains("not quasi-static"));
+        let wild = Summary::new(&[row(1e6), row(2.5e7)], &[], 1e6, 0.3, 10, "cpu".into(), 1.0);
+        assert!((wild.kinetic_ratio_max - 5e-3).abs() < 1e-15);
+        assert!(wild.table().contains("not quasi-static"), "{}", wild.table());
     }
 }
