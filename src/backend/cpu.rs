@@ -36,7 +36,13 @@ impl CpuBackend {
 
 impl Backend for CpuBackend {
     fn name(&self) -> String {
-        format!("cpu ({} threads)", rayon::current_num_threads())
+        // The sweeps run on the solver's team (rayon serves only Jacobi), and the team
+        // engages from `parallel_min` contacts on.
+        let solver = &self.engine.params.solver;
+        match solver.team_size() {
+            1 => "cpu (1 thread)".to_string(),
+            n => format!("cpu (team of {n} threads from {} contacts)", solver.parallel_min),
+        }
     }
 
     fn params(&self) -> StepParams {
