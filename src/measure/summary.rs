@@ -226,7 +226,7 @@ impl Summary {
 }
 
 #[cfg(test)]
-mod kinetic_tests {
+mod tests {
     use super::*;
 
     fn row(kinetic_energy_j: f64) -> SeriesRow {

@@ -137,7 +137,7 @@ impl<B: Backend> Lab<B> {
                     }
                 }
                 if row.strain_axial >= p.strain_end {
-                    let kinetic = red.connected_energy / (p.sigma3 * self.state.gauge.disk_area);
+                    let kinetic = self.kinetic_ratio(&red, p.sigma3);
                     self.end_phase(&red, true, 0.0, kinetic, obs)?;
                     self.state.phase = Phase::Done;
                 }
@@ -150,6 +150,12 @@ impl<B: Backend> Lab<B> {
         Ok(())
     }
 
+    /// The kinetic ratio of the equilibrium criteria: the connected disks' kinetic energy
+    /// over `sigma` times the disk area ([`super::Equilibrium::kinetic_ratio`]).
+    fn kinetic_ratio(&self, red: &Reductions, sigma: f64) -> f64 {
+        red.connected_energy / (sigma * self.state.gauge.disk_area)
+    }
+
     /// Stops a compression that has left the quasi-static regime, after its row is
     /// recorded: at contact friction 0.01 samples lost their confinement (they slid apart
     /// along a band, tens of metres sideways) and ran on to negative widths and kinetic
@@ -157,7 +163,7 @@ impl<B: Backend> Lab<B> {
     /// results.
     fn check_quasi_static(&self, red: &Reductions, row: &SeriesRow) -> Result<()> {
         let p = &self.state.params;
-        let kinetic = red.connected_energy / (p.sigma3 * self.state.gauge.disk_area);
+        let kinetic = self.kinetic_ratio(red, p.sigma3);
         let limit = p.equilibrium.runaway_kinetic_ratio;
         if kinetic <= limit && row.width_m > 0.0 && row.height_m > 0.0 {
             return Ok(());
@@ -196,7 +202,7 @@ impl<B: Backend> Lab<B> {
     ) -> Result<bool> {
         let eq = self.state.params.equilibrium;
         let imbalance = (pushed - applied).abs() / applied;
-        let kinetic = red.connected_energy / (sigma * self.state.gauge.disk_area);
+        let kinetic = self.kinetic_ratio(red, sigma);
         let threshold = match self.state.phase {
             Phase::Compaction => eq.compaction_kinetic_ratio,
             _ => eq.kinetic_ratio,

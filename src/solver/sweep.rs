@@ -77,6 +77,12 @@ fn rows(contacts: &[Contact], n_bodies: usize, rows: &mut Vec<Row>, props: &mut 
     props.resize(n_bodies, BodyProps::default());
     rows.clear();
     rows.extend(contacts.iter().enumerate().map(|(k, c)| {
+        // The sweeps index the velocities without bounds checks: this pass over every
+        // contact is where the indices are checked.
+        assert!(
+            (c.i as usize) < n_bodies && (c.j as usize) < n_bodies,
+            "contact with a body index beyond the velocities"
+        );
         if c.ma != 0.0 || c.wnt != 0.0 {
             return Row {
                 i: k as u32,
@@ -305,12 +311,6 @@ pub fn solve(
         return jacobi(params, contacts, gv0, gv);
     }
     let n_bodies = gv.len();
-    assert!(
-        contacts
-            .iter()
-            .all(|c| (c.i as usize) < n_bodies && (c.j as usize) < n_bodies),
-        "contact with a body index beyond the velocities"
-    );
     rows(contacts, n_bodies, &mut work.rows, &mut work.props);
     let whole = [0, contacts.len() as u32];
     let colored = params.method == Method::ColoredGs;
