@@ -1,10 +1,11 @@
 //! Protocol-level checks of validation.md on a small sample (a few hundred disks, short
 //! strain), and resume-equals-uninterrupted on the CPU path.
 
+use cdlab::backend::Backend;
 use cdlab::backend::CpuBackend;
 use cdlab::protocol::biaxial::Lab;
 use cdlab::protocol::checkpoint::decode;
-use cdlab::protocol::{Collect, Observer, Phase, ProtocolParams, prepare};
+use cdlab::protocol::{Collect, Observer, Phase, ProtocolParams, prepare, walls};
 
 fn small() -> ProtocolParams {
     let mut p = ProtocolParams::paper_defaults(600);
@@ -189,4 +190,53 @@ fn a_runaway_compression_stops_with_an_error() {
     let compression: Vec<_> = obs.rows.iter().filter(|r| r.phase == "compression").collect();
     assert_eq!(compression.len(), 1, "stopped after the first compression row");
     assert_eq!(lab.state.phase, Phase::Compression);
+}
+
+#[test]
+fn strips_follow_the_sides_and_carry_exactly_sigma3_times_height() {
+    let mut p = small();
+    p.strip_refresh_every = 20;
+    let (scene, _) = prepare::deposit_scene(&p).expect("deposit");
+    let backend = CpuBackend::new(scene.clone(), p.step).expect("backend");
+    let mut lab = Lab::new(backend, p.clone(), &scene, false).expect("lab");
+    let mut obs = Collect::default();
+    while lab.state.phase != Phase::Compression {
+        lab.advance(&mut obs).expect("preparation");
+    }
+    let first = lab.state.loading.strip.clone();
+    lab.run(&mut obs).expect("compression");
+    let s = lab.backend.scene().unwrap();
+    let strip = &lab.state.loading.strip;
+    let left = (0..first.len())
+        .filter(|&k| first[k] != 0 && strip[k] == 0)
+        .count();
+    // As the sample widens the strips move out with its sides and their inner disks drop
+    // out (7 of them in this test).
+    assert!(left > 0, "no disk left the strips: the refresh is not exercised");
+    // Each strip carries sigma3 x H (protocol.md, phase 3) and nothing else pushes: the
+    // disks that left the strips have lost their share. H is the height at the start of
+    // the last step, when the forces were set, one wall move of v dt above the final one.
+    let h = s.walls[walls::TOP].point.y - s.walls[walls::BOTTOM].point.y + p.axial_velocity * p.step.dt;
+    for side in [-1i8, 1] {
+        let pushed: f64 = (0..s.disks.len())
+            .filter(|&k| (s.disks.force[k].x < 0.0) == (side > 0) && s.disks.force[k].x != 0.0)
+            .map(|k| s.disks.force[k].x.abs())
+            .sum();
+        let expected = p.sigma3 * h;
+        assert!(
+            (pushed - expected).abs() < 1e-9 * expected,
+            "side {side}: disks push with {pushed} N/m, sigma3 x H = {expected} N/m"
+        );
+        // The strips stay at the sides: every member lies within the strip thickness of
+        // the outermost disk of its side.
+        let members: Vec<usize> = (0..strip.len()).filter(|&k| strip[k] == side).collect();
+        let xs = members.iter().map(|&k| side as f64 * s.disks.pos[k].x);
+        let outer = xs.clone().fold(f64::NEG_INFINITY, f64::max);
+        let inner = xs.fold(f64::INFINITY, f64::min);
+        assert!(
+            outer - inner < p.strip_thickness + 2.0 * p.r_max,
+            "side {side}: members span {} m",
+            outer - inner
+        );
+    }
 }

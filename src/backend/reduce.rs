@@ -232,11 +232,8 @@ impl Accumulator {
     }
 }
 
-/// Outer edges of the two strips (m), from the outline of the strip disks: at heights
-/// spaced about `r_min / 2` between the bottom and top walls, the left outline is the
-/// smallest `x - sqrt(r^2 - (y - y_k)^2)` over the left-strip disks that the horizontal
-/// line crosses, the right outline the largest `x + ...` over the right-strip disks; each
-/// edge is the mean over the heights crossed by both strips. The sample width
+/// Outer edges of the two strips (m): the mean over heights of the [`Outline`] of the
+/// left-strip and of the right-strip disks, over the heights crossed by both strips. The sample width
 /// `right - left` times the wall distance is the area between the outer edges of the strips
 /// and the walls (protocol.md's V).
 ///
@@ -248,41 +245,11 @@ pub fn strip_outer_edges(scene: &Scene, loading: &Loading) -> [f64; 2] {
     if loading.strip.is_empty() {
         return [f64::NAN; 2];
     }
-    let d = &scene.disks;
-    let y0 = scene.walls[loading.bottom].point.y;
-    let y1 = scene.walls[loading.top].point.y;
-    let r_min = d.radius.iter().cloned().fold(f64::INFINITY, f64::min);
-    let n = ((y1 - y0) / (0.5 * r_min)).ceil().clamp(16.0, 65_536.0);
-    if !n.is_finite() {
+    let Some(o) = Outline::of(scene, loading.bottom, loading.top, |k| loading.strip[k]) else {
         return [f64::NAN; 2];
-    }
-    let n = n as usize;
-    let h = (y1 - y0) / n as f64;
-    let mut left = vec![f64::INFINITY; n];
-    let mut right = vec![f64::NEG_INFINITY; n];
-    for (k, &s) in loading.strip.iter().enumerate() {
-        if s == 0 {
-            continue;
-        }
-        let (c, r) = (d.pos[k], d.radius[k]);
-        // Heights y_i = y0 + (i + 1/2) h within [c.y - r, c.y + r].
-        let first = ((c.y - r - y0) / h - 0.5).ceil().max(0.0) as usize;
-        let last = ((c.y + r - y0) / h - 0.5).floor().min(n as f64 - 1.0);
-        if last < 0.0 {
-            continue;
-        }
-        for i in first..=last as usize {
-            let dy = y0 + (i as f64 + 0.5) * h - c.y;
-            let half = (r * r - dy * dy).max(0.0).sqrt();
-            if s < 0 {
-                left[i] = left[i].min(c.x - half);
-            } else {
-                right[i] = right[i].max(c.x + half);
-            }
-        }
-    }
+    };
     let (mut sl, mut sr, mut m) = (0.0, 0.0, 0usize);
-    for (l, r) in left.iter().zip(&right) {
+    for (l, r) in o.left.iter().zip(&o.right) {
         if l.is_finite() && r.is_finite() {
             sl += l;
             sr += r;
@@ -294,6 +261,113 @@ pub fn strip_outer_edges(scene: &Scene, loading: &Loading) -> [f64; 2] {
     } else {
         [sl / m as f64, sr / m as f64]
     }
+}
+
+/// The left and right outlines of a set of disks at heights `y0 + (i + 1/2) h` between the
+/// bottom and the top wall, `h` about `r_min / 2`: at each height the smallest
+/// `x - sqrt(r^2 - (y - y_k)^2)` over the left-side disks the horizontal line crosses, and
+/// the largest `x + ...` over the right-side disks (infinite where no disk is crossed).
+struct Outline {
+    y0: f64,
+    h: f64,
+    left: Vec<f64>,
+    right: Vec<f64>,
+}
+
+impl Outline {
+    /// The outline of the disks `side(k)` puts on a side (-1 left, +1 right, 0 neither);
+    /// `None` when the walls do not bound a finite height.
+    fn of(scene: &Scene, bottom: usize, top: usize, side: impl Fn(usize) -> i8) -> Option<Outline> {
+        let d = &scene.disks;
+        let y0 = scene.walls[bottom].point.y;
+        let y1 = scene.walls[top].point.y;
+        let r_min = d.radius.iter().cloned().fold(f64::INFINITY, f64::min);
+        let n = ((y1 - y0) / (0.5 * r_min)).ceil().clamp(16.0, 65_536.0);
+        if !n.is_finite() {
+            return None;
+        }
+        let n = n as usize;
+        let h = (y1 - y0) / n as f64;
+        let mut left = vec![f64::INFINITY; n];
+        let mut right = vec![f64::NEG_INFINITY; n];
+        for k in 0..d.len() {
+            let s = side(k);
+            if s == 0 {
+                continue;
+            }
+            let (c, r) = (d.pos[k], d.radius[k]);
+            // Heights y_i = y0 + (i + 1/2) h within [c.y - r, c.y + r].
+            let first = ((c.y - r - y0) / h - 0.5).ceil().max(0.0) as usize;
+            let last = ((c.y + r - y0) / h - 0.5).floor().min(n as f64 - 1.0);
+            if last < 0.0 {
+                continue;
+            }
+            for i in first..=last as usize {
+                let dy = y0 + (i as f64 + 0.5) * h - c.y;
+                let half = (r * r - dy * dy).max(0.0).sqrt();
+                if s < 0 {
+                    left[i] = left[i].min(c.x - half);
+                } else {
+                    right[i] = right[i].max(c.x + half);
+                }
+            }
+        }
+        Some(Outline { y0, h, left, right })
+    }
+}
+
+/// The deformable-wall strips of a sample: -1 for a free disk whose centre lies within
+/// `thickness` of the sample's left edge at its height, +1 within `thickness` of the right
+/// edge, 0 otherwise (glued and other non-free disks included). The edge at a height is
+/// the outermost point of the outline of all free disks within `thickness / 2` above or
+/// below it, so it follows a bulging or sheared side rather than the sample's extreme.
+///
+/// The strips are a place, not a set of disks: a disk that the flow carries deeper than
+/// `thickness` into the sample stops carrying the confinement and one that comes near the
+/// side starts. With strips fixed as sets of disks, each strip disk pushes its own share of
+/// sigma3 x H inwards wherever it goes, and in a near-frictionless sample the strips sank
+/// into the core while core disks rose past them (an overturn like a heavy fluid over a
+/// light one); at contact friction 0.01 the released work drove the kinetic energy up by
+/// four orders of magnitude and the samples came apart.
+pub fn strip_members(scene: &Scene, bottom: usize, top: usize, thickness: f64) -> Vec<i8> {
+    let d = &scene.disks;
+    let free = |k: usize| d.kind[k] == BodyKind::Free;
+    let (Some(l), Some(r)) = (
+        Outline::of(scene, bottom, top, |k| -(free(k) as i8)),
+        Outline::of(scene, bottom, top, |k| free(k) as i8),
+    ) else {
+        return vec![0; d.len()];
+    };
+    let n = l.left.len();
+    let reach = (0.5 * thickness / l.h).ceil() as usize;
+    let window = |i: usize| i.saturating_sub(reach)..(i + reach + 1).min(n);
+    let edge_l: Vec<f64> = (0..n)
+        .map(|i| l.left[window(i)].iter().cloned().fold(f64::INFINITY, f64::min))
+        .collect();
+    let edge_r: Vec<f64> = (0..n)
+        .map(|i| {
+            r.right[window(i)]
+                .iter()
+                .cloned()
+                .fold(f64::NEG_INFINITY, f64::max)
+        })
+        .collect();
+    (0..d.len())
+        .map(|k| {
+            if !free(k) {
+                return 0;
+            }
+            let c = d.pos[k];
+            let i = ((c.y - l.y0) / l.h).floor().clamp(0.0, n as f64 - 1.0) as usize;
+            if c.x < edge_l[i] + thickness {
+                -1
+            } else if c.x > edge_r[i] - thickness {
+                1
+            } else {
+                0
+            }
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -372,5 +446,71 @@ mod tests {
             last > 10.0 + std::f64::consts::PI * 0.5 / 4.0,
             "the edge followed the disk out"
         );
+    }
+
+    /// A square lattice of `nx` x `ny` disks of radius 0.5 m at unit spacing, between walls
+    /// at y = 0 and y = ny, its left edge at x = 0; `shift(row)` moves a row sideways.
+    fn lattice(nx: usize, ny: usize, shift: impl Fn(usize) -> f64) -> Scene {
+        let mut s = Scene::default();
+        for j in 0..ny {
+            for i in 0..nx {
+                let c = DVec2::new(0.5 + i as f64 + shift(j), 0.5 + j as f64);
+                s.disks.push(c, 0.5, 2600.0).unwrap();
+            }
+        }
+        s.walls = vec![
+            Wall::fixed(DVec2::ZERO, DVec2::Y),
+            Wall::fixed(DVec2::new(0.0, ny as f64), -DVec2::Y),
+        ];
+        s
+    }
+
+    #[test]
+    fn strips_of_a_straight_sided_sample_are_the_outer_columns() {
+        // Edges at x = 0 and x = 20: centres 0.5, 1.5, 2.5 lie within 3 m of the left
+        // edge, 17.5, 18.5, 19.5 within 3 m of the right one.
+        let (nx, ny) = (20, 30);
+        let mut s = lattice(nx, ny, |_| 0.0);
+        s.disks.glue(5, 0);
+        let m = strip_members(&s, 0, 1, 3.0);
+        for (k, &side) in m.iter().enumerate() {
+            let col = k % nx;
+            let expected = match col {
+                _ if k == 5 => 0,
+                0..=2 => -1,
+                17..=19 => 1,
+                _ => 0,
+            };
+            assert_eq!(side, expected, "disk {k} in column {col}");
+        }
+    }
+
+    #[test]
+    fn strips_follow_a_sheared_side_and_not_the_disks() {
+        // The upper half is displaced 6 m to the right, as by a band: at each height the
+        // strips are the three outer columns there. A 3 m window is small beside the 15 m
+        // halves, so only rows within 1.5 m of the step see the other half's edge.
+        let (nx, ny) = (20, 30);
+        let s = lattice(nx, ny, |j| if j >= 15 { 6.0 } else { 0.0 });
+        let m = strip_members(&s, 0, 1, 3.0);
+        for (k, &side) in m.iter().enumerate() {
+            let (col, row) = (k % nx, k / nx);
+            if (13..17).contains(&row) {
+                continue;
+            }
+            let expected = match col {
+                0..=2 => -1,
+                17..=19 => 1,
+                _ => 0,
+            };
+            assert_eq!(side, expected, "disk {k}, row {row}, column {col}");
+        }
+        // A left-strip disk carried into the core stops carrying the confinement, and the
+        // core disk that took its place starts.
+        let mut s = s;
+        let (a, b) = (3 * nx, 3 * nx + 10);
+        s.disks.pos.swap(a, b);
+        let m = strip_members(&s, 0, 1, 3.0);
+        assert_eq!((m[a], m[b]), (0, -1));
     }
 }

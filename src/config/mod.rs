@@ -175,6 +175,7 @@ impl Config {
             e_t: t.e_t,
             sigma3: t.sigma3.si(),
             strip_thickness: t.strip_thickness.si(),
+            strip_refresh_every: t.strip_refresh_every.min(u32::MAX as u64) as u32,
             axial_velocity: t.axial_velocity.si(),
             strain_end: t.strain_end,
             equilibrium: Equilibrium {

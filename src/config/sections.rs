@@ -151,6 +151,9 @@ pub struct Test {
     pub sigma3: Pressure,
     /// Thickness of the deformable-wall strips (m).
     pub strip_thickness: Length,
+    /// Steps between two recomputations of which disks form the strips (0: the disks
+    /// chosen at the start of confinement stay the strips).
+    pub strip_refresh_every: u64,
     /// Downward velocity of the top wall (m/s).
     pub axial_velocity: Velocity,
     /// Axial strain at which the test ends.
@@ -168,6 +171,7 @@ impl Default for Test {
             wall_mu: None,
             sigma3: Pressure(8e6),
             strip_thickness: Length(7.5),
+            strip_refresh_every: crate::protocol::default_strip_refresh_every() as u64,
             axial_velocity: Velocity(0.5),
             strain_end: 0.1,
             e_n: 0.0,

@@ -5,10 +5,11 @@ use glam::DVec2;
 
 use super::checkpoint::{Checkpoint, encode};
 use super::{LabState, Observer, Phase, PhaseEnd, ProtocolParams, walls};
+use crate::backend::reduce::strip_members;
 use crate::backend::{Backend, Loading, Reductions};
 use crate::error::{Error, Result};
 use crate::measure::{Gauge, SeriesRow};
-use crate::model::{BodyKind, NOT_GLUED, Scene, WallDrive};
+use crate::model::{NOT_GLUED, Scene, WallDrive};
 
 /// A biaxial test in progress on a backend.
 pub struct Lab<B: Backend> {
@@ -51,6 +52,7 @@ impl<B: Backend> Lab<B> {
             next_snapshot: 0.0,
             since_checkpoint: 0,
             ends: Vec::new(),
+            since_strips: 0,
             params,
         };
         let mut lab = Lab {
@@ -97,8 +99,10 @@ impl<B: Backend> Lab<B> {
             Phase::Compression => p.series_every,
             _ => p.equilibrium.window,
         };
+        self.refresh_strips()?;
         let red = self.backend.run(steps, &self.state.loading)?;
         self.state.since_checkpoint += steps;
+        self.state.since_strips += steps;
         match self.state.phase {
             Phase::Compaction => {
                 let h = self.state.gauge.height(&red);
@@ -147,6 +151,34 @@ impl<B: Backend> Lab<B> {
         if self.state.since_checkpoint >= p.checkpoint_every || self.state.phase == Phase::Done {
             self.checkpoint(obs)?;
         }
+        Ok(())
+    }
+
+    /// Recomputes which disks form the strips once `strip_refresh_every` steps have passed
+    /// since the last time, so that the strips stay along the sides as the sample deforms.
+    fn refresh_strips(&mut self) -> Result<()> {
+        let every = self.state.params.strip_refresh_every;
+        if every == 0 || self.state.loading.strip.is_empty() || self.state.since_strips < every {
+            return Ok(());
+        }
+        let mut s = self.backend.scene()?;
+        let t = self.state.params.strip_thickness;
+        let strip = strip_members(&s, walls::BOTTOM, walls::TOP, t);
+        // A disk keeps the last force it was given: one that leaves a strip must lose its
+        // share of the confinement, or it goes on pushing into the sample for good. No
+        // other disk carries a force in this test.
+        let mut left = false;
+        for (k, &is) in strip.iter().enumerate() {
+            if is == 0 && s.disks.force[k] != DVec2::ZERO {
+                s.disks.force[k] = DVec2::ZERO;
+                left = true;
+            }
+        }
+        if left {
+            self.backend.set_scene(&s)?;
+        }
+        self.state.loading.strip = strip;
+        self.state.since_strips = 0;
         Ok(())
     }
 
@@ -293,16 +325,8 @@ impl<B: Backend> Lab<B> {
                 ),
             ));
         }
-        let strip: Vec<i8> = (0..n)
-            .map(|k| {
-                let x = s.disks.pos[k].x;
-                match s.disks.kind[k] {
-                    BodyKind::Free if x < x_l + t => -1,
-                    BodyKind::Free if x > x_r - t => 1,
-                    _ => 0,
-                }
-            })
-            .collect();
+        let strip = strip_members(&s, walls::BOTTOM, walls::TOP, t);
+        self.state.since_strips = 0;
         let g = &mut self.state.gauge;
         g.w_ref = x_r - x_l;
         let height = s.walls[walls::TOP].point.y - s.walls[walls::BOTTOM].point.y;
