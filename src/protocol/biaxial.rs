@@ -189,10 +189,11 @@ impl<B: Backend> Lab<B> {
     }
 
     /// Stops a compression that has left the quasi-static regime, after its row is
-    /// recorded: at contact friction 0.01 samples lost their confinement (they slid apart
-    /// along a band, tens of metres sideways) and ran on to negative widths and kinetic
-    /// energies of 1e11 J/m until an overlap limit ended them, with rows that looked like
-    /// results.
+    /// recorded. With strips fixed as sets of disks, samples at contact friction 0.01 lost
+    /// their confinement (the strips sank into the sample) and ran on to negative widths
+    /// and kinetic energies of 1e11 J/m until an overlap limit ended them, with rows that
+    /// looked like results; the strips now follow the sides
+    /// ([`crate::backend::reduce::strip_members`]) and this guard stays as a net.
     fn check_quasi_static(&self, red: &Reductions, row: &SeriesRow) -> Result<()> {
         let p = &self.state.params;
         let kinetic = self.kinetic_ratio(red, p.sigma3);
@@ -206,9 +207,9 @@ impl<B: Backend> Lab<B> {
                 "the compression is no longer quasi-static at axial strain {:.4}: kinetic \
                  ratio {kinetic:.3e} (limit equilibrium.runaway_kinetic_ratio = {limit:e}), \
                  sigma1 {:.3} MPa against sigma3 {:.3} MPa, sample {:.2} m wide and {:.2} m \
-                 high. The sample has probably lost its confinement (seen at contact \
-                 friction 0.01: the sample slid apart along a band, tens of metres sideways, \
-                 and the strips did not hold it)",
+                 high. The sample has probably lost its confinement: check that \
+                 test.strip_refresh_every is not 0 (fixed strips sink into samples of low \
+                 friction) and that the strips are several disks thick",
                 row.strain_axial,
                 row.sigma1_pa / 1e6,
                 p.sigma3 / 1e6,
