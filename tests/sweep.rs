@@ -31,6 +31,14 @@ fn tiny_sweep_runs_in_shards_skips_finished_tests_and_reports() {
         let (ok, text) = cdlab(&["sweep", s, "--shard", shard, "--jobs", "2"]);
         assert!(ok, "shard {shard}: {text}");
         assert!(text.contains("2 in this shard"), "{text}");
+        // Two jobs run the shard's two tests at once: both start before either ends (a
+        // lock held through each test once ran them one after the other).
+        let second_start = text.match_indices("sweep: starting").nth(1).map(|(i, _)| i);
+        let first_end = text.find("peak sigma1");
+        assert!(
+            matches!((second_start, first_end), (Some(a), Some(b)) if a < b),
+            "the tests of shard {shard} ran one after the other: {text}"
+        );
     }
     let (ok, text) = cdlab(&["sweep", s]);
     assert!(

@@ -178,7 +178,12 @@ pub fn run(args: &Args) -> Result<()> {
     std::thread::scope(|s| {
         for _ in 0..jobs {
             s.spawn(|| {
-                while let Some(p) = queue.lock().expect("queue").pop_front() {
+                loop {
+                    // Taken in a statement of its own: the guard of a `while let`
+                    // scrutinee lives through the loop body, which ran the tests one at a
+                    // time whatever --jobs said.
+                    let next = queue.lock().expect("queue").pop_front();
+                    let Some(p) = next else { break };
                     let outcome = run_point(&base, &sweep.out, &p, &samples);
                     let mut d = done.lock().expect("progress");
                     d.0 += 1;
@@ -218,7 +223,10 @@ fn run_point(
     if p.dir.join("summary.json").exists() {
         return Ok("already finished, skipped".into());
     }
-    let summary = if p.dir.join(crate::record::MCAP_FILE).exists() {
+    let resume = p.dir.join(crate::record::MCAP_FILE).exists();
+    let how = if resume { "resuming" } else { "starting" };
+    eprintln!("sweep: {how} {}", p.dir.display());
+    let summary = if resume {
         run_resume(&p.dir, Some("cpu"), true)?
     } else {
         let mut config = base.clone();
