@@ -203,8 +203,8 @@ pub struct Equilibrium {
     pub hold_steps: u64,
     /// Simulated-time cap of a phase (s).
     pub max_time: Duration,
-    /// Kinetic ratio (as `kinetic_ratio`, with sigma3) above which the compression stops
-    /// with an error: the test is no longer quasi-static.
+    /// Kinetic energy over sigma3 x height x width above which the compression stops with
+    /// an error: the test is no longer quasi-static.
     pub runaway_kinetic_ratio: f64,
 }
 

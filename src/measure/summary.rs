@@ -121,10 +121,7 @@ impl Summary {
             overlap_max_rel: rows.iter().map(|r| r.overlap_max_rel).fold(0.0, f64::max),
             iterations_mean: comp.iter().map(|r| r.iterations).sum::<f64>() / comp.len().max(1) as f64,
             iterations_max: rows.iter().map(|r| r.iterations_max).max().unwrap_or(0),
-            kinetic_ratio_max: comp
-                .iter()
-                .map(|r| r.kinetic_energy_j / (sigma3 * r.height_m * r.width_m))
-                .fold(0.0, f64::max),
+            kinetic_ratio_max: comp.iter().map(|r| r.kinetic_ratio()).fold(0.0, f64::max),
             steps,
             time_s: last.time_s,
             wall_time_s,
@@ -233,6 +230,7 @@ mod tests {
         SeriesRow {
             phase: "compression".into(),
             sigma1_pa: 2e6,
+            sigma3_pa: 1e6,
             height_m: 100.0,
             width_m: 50.0,
             kinetic_energy_j,

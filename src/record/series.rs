@@ -157,6 +157,19 @@ pub fn csv_header() -> String {
 }
 
 impl SeriesRow {
+    /// Kinetic energy over the confining stress times the sample's area,
+    /// `K / (sigma3 h w)`: the compression's measure of how far from quasi-static the test
+    /// is (the summary's `kinetic_ratio_max`, the runaway guard). NaN without a confining
+    /// stress or a positive area.
+    pub fn kinetic_ratio(&self) -> f64 {
+        let area = self.height_m * self.width_m;
+        if self.sigma3_pa > 0.0 && area > 0.0 {
+            self.kinetic_energy_j / (self.sigma3_pa * area)
+        } else {
+            f64::NAN
+        }
+    }
+
     /// The row as one CSV line (no newline), in the order of [`csv_header`]. Floats use
     /// Rust's shortest round-trip form, so the CSV holds the same bits as the MCAP.
     pub fn csv_line(&self) -> String {
