@@ -5,6 +5,7 @@
 // shared in proportion to the radii (the sums of radii are constant and come from the host).
 fn strip_force(k: u32) -> vec2<f32> {
     let s = disks[k].strip;
+    if s == 0 { return vec2<f32>(0.0, 0.0); }
     let h = walls[sim.top].py - walls[sim.bottom].py;
     let total = sim.sigma3 * h;
     var sum_r = sim.strip_sum_r0;
@@ -30,7 +31,9 @@ fn free_velocity(@builtin(global_invocation_id) gid: vec3<u32>) {
         vfree = v;
         if d.kind == KIND_FREE {
             var f = vec2<f32>(d.fx, d.fy);
-            if sim.strips != 0u && d.strip != 0 {
+            // While the strips are on, their loads are the only forces on free disks: a
+            // disk that has left a strip carries none.
+            if sim.strips != 0u {
                 f = strip_force(b);
                 disks[b].fx = f.x;
                 disks[b].fy = f.y;

@@ -45,7 +45,9 @@ impl Loading {
     /// Sets the strip forces of `scene` for the current height: each strip carries
     /// `sigma3 * H` (N/m), shared among its disks in proportion to their radius (so that
     /// large and small disks carry the same pressure over their diameter), applied at the
-    /// centres, horizontally, towards the sample. Forces of other disks are left alone.
+    /// centres, horizontally, towards the sample. While the strips are on they are the only
+    /// forces on free disks: a free disk outside them (one that has left a strip) carries
+    /// none. Without strips, forces are left alone.
     pub fn apply(&self, scene: &mut Scene) {
         self.apply_wall_forces(scene);
         if self.strip.is_empty() || self.sigma3 == 0.0 {
@@ -64,6 +66,8 @@ impl Loading {
             if s != 0 {
                 let side = (s > 0) as usize;
                 d.force[k] = DVec2::new(-(s as f64) * total * d.radius[k] / sum_r[side], 0.0);
+            } else if d.kind[k] == crate::model::BodyKind::Free {
+                d.force[k] = DVec2::ZERO;
             }
         }
     }

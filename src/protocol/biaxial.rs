@@ -161,23 +161,12 @@ impl<B: Backend> Lab<B> {
         if every == 0 || self.state.loading.strip.is_empty() || self.state.since_strips < every {
             return Ok(());
         }
-        let mut s = self.backend.scene()?;
+        // A disk that leaves a strip loses its share of the confinement with the next step
+        // (the backends zero the forces of free disks outside the strips); one that kept
+        // it would go on pushing into the sample for good.
+        let s = self.backend.scene()?;
         let t = self.state.params.strip_thickness;
-        let strip = strip_members(&s, walls::BOTTOM, walls::TOP, t);
-        // A disk keeps the last force it was given: one that leaves a strip must lose its
-        // share of the confinement, or it goes on pushing into the sample for good. No
-        // other disk carries a force in this test.
-        let mut left = false;
-        for (k, &is) in strip.iter().enumerate() {
-            if is == 0 && s.disks.force[k] != DVec2::ZERO {
-                s.disks.force[k] = DVec2::ZERO;
-                left = true;
-            }
-        }
-        if left {
-            self.backend.set_scene(&s)?;
-        }
-        self.state.loading.strip = strip;
+        self.state.loading.strip = strip_members(&s, walls::BOTTOM, walls::TOP, t);
         self.state.since_strips = 0;
         Ok(())
     }
