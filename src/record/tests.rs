@@ -299,3 +299,38 @@ fn snapshot_codec_round_trips_and_rejects_bad_lengths() {
     assert_eq!(ContactClass::from_u8(3), Some(ContactClass::Sliding));
     assert_eq!(ContactClass::from_u8(4), None);
 }
+
+/// K / (sigma3 h w): 2e6 J/m over 1 MPa x 100 m x 20 m is 1e-3; a sample that has lost its
+/// width or its confinement has no ratio (NaN), which no threshold accepts.
+#[test]
+fn kinetic_ratio_of_a_row() {
+    let ok = SeriesRow {
+        sigma3_pa: 1e6,
+        height_m: 100.0,
+        width_m: 20.0,
+        kinetic_energy_j: 2e6,
+        ..Default::default()
+    };
+    assert!(
+        (ok.kinetic_ratio() - 1e-3).abs() < 1e-18,
+        "{}",
+        ok.kinetic_ratio()
+    );
+    for bad in [
+        SeriesRow {
+            width_m: -3.0,
+            ..ok.clone()
+        },
+        SeriesRow {
+            height_m: 0.0,
+            ..ok.clone()
+        },
+        SeriesRow {
+            sigma3_pa: 0.0,
+            ..ok.clone()
+        },
+    ] {
+        let r = bad.kinetic_ratio();
+        assert!(r.is_nan() && !(r <= 1.0), "{r}");
+    }
+}
