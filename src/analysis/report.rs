@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use super::fit::{Line, Saturation, saturation, through_origin, unconstrained};
 use crate::error::{Error, Result};
+use crate::measure::summary::QUASI_STATIC_KINETIC_RATIO;
 
 /// One finished test as the report sees it.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -20,6 +21,10 @@ pub struct TestPoint {
     pub sigma1_peak_mpa: f64,
     /// See `sigma1_peak_mpa`.
     pub sigma1_residual_mpa: Option<f64>,
+    /// The summary's largest kinetic ratio of the compression (absent in summaries
+    /// written before it existed).
+    #[serde(default)]
+    pub kinetic_ratio_max: Option<f64>,
 }
 
 /// The analysis of one contact friction.
@@ -60,6 +65,11 @@ pub struct Report {
     pub mu_macro_res_fit: Option<Saturation>,
     /// Run directories that could not be read, with the reason.
     pub missing: Vec<(PathBuf, String)>,
+    /// Tests whose largest kinetic ratio exceeds
+    /// [`crate::measure::summary::QUASI_STATIC_KINETIC_RATIO`], with that ratio: not
+    /// quasi-static, their strengths suspect. They are in the fits; the table names them.
+    #[serde(default)]
+    pub suspect: Vec<(PathBuf, f64)>,
 }
 
 /// `tan(asin(s))` and its standard error from that of `s`.
@@ -126,6 +136,7 @@ fn read_point(dir: &Path, path: &Path) -> Result<TestPoint> {
             sigma3_mpa: s3,
             sigma1_peak_mpa: s1,
             sigma1_residual_mpa: num("sigma1_residual_mpa"),
+            kinetic_ratio_max: num("kinetic_ratio_max"),
         }),
         _ => Err(Error::Other(format!(
             "{}: not a cdlab test summary (needs mu, sigma3_mpa, sigma1_peak_mpa)",
@@ -192,11 +203,19 @@ pub fn analyse(points: &[TestPoint], missing: Vec<(PathBuf, String)>) -> Report 
             .unzip();
         saturation(&x, &y)
     };
+    let suspect = points
+        .iter()
+        .filter_map(|t| {
+            let k = t.kinetic_ratio_max?;
+            (k > QUASI_STATIC_KINETIC_RATIO).then(|| (t.dir.clone(), k))
+        })
+        .collect();
     Report {
         mu_macro_fit: fit_of(&|r| r.mu_macro),
         mu_macro_res_fit: fit_of(&|r| r.mu_macro_res),
         frictions,
         missing,
+        suspect,
     }
 }
 
@@ -280,6 +299,13 @@ impl Report {
         for (d, why) in &self.missing {
             s.push_str(&format!("missing: {} ({why})\n", d.display()));
         }
+        for (d, k) in &self.suspect {
+            s.push_str(&format!(
+                "suspect: {} (largest kinetic ratio {k:.2e} above {QUASI_STATIC_KINETIC_RATIO:e}: \
+                 not quasi-static; its points are in the fits)\n",
+                d.display()
+            ));
+        }
         s
     }
 }
@@ -299,10 +325,41 @@ mod tests {
             sigma3_mpa: 1.0,
             sigma1_peak_mpa: 3.0,
             sigma1_residual_mpa: Some(2.0),
+            kinetic_ratio_max: Some(1e-4),
         };
         let table = analyse(&[point], Vec::new()).table();
         assert!(table.contains("0.577 +- n/a"), "{table}");
         assert!(table.contains("n/a: not defined"), "{table}");
         assert!(!table.contains("NaN"), "{table}");
+        assert!(!table.contains("suspect"), "{table}");
+    }
+
+    /// A test whose kinetic ratio passed 1e-3 (the summary's quasi-static bound) is named
+    /// in the report; one below it, or from a summary without the figure, is not.
+    #[test]
+    fn tests_that_were_not_quasi_static_are_named() {
+        let point = |dir: &str, k: Option<f64>| TestPoint {
+            dir: PathBuf::from(dir),
+            mu: 0.3,
+            sigma3_mpa: 1.0,
+            sigma1_peak_mpa: 3.0,
+            sigma1_residual_mpa: Some(2.0),
+            kinetic_ratio_max: k,
+        };
+        let rep = analyse(
+            &[
+                point("calm", Some(9e-4)),
+                point("wild", Some(5e-3)),
+                point("old", None),
+            ],
+            Vec::new(),
+        );
+        assert_eq!(rep.suspect, vec![(PathBuf::from("wild"), 5e-3)]);
+        let table = rep.table();
+        assert!(
+            table.contains("suspect: wild (largest kinetic ratio 5.00e-3"),
+            "{table}"
+        );
+        assert_eq!(table.matches("suspect").count(), 1, "{table}");
     }
 }
