@@ -152,6 +152,8 @@ fn an_overlap_above_the_limit_stops_the_run_naming_the_bodies() {
         msg.contains("overlap") && msg.contains("disk 0") && msg.contains("disk 1"),
         "{msg}"
     );
+    // The advice names the iteration cap, the usual cause at high friction.
+    assert!(msg.contains("solver.max_iter = "), "{msg}");
 }
 
 #[test]

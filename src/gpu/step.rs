@@ -234,9 +234,9 @@ impl GpuBackend {
             return Err(Error::Numerical {
                 step: self.scene.step,
                 message: format!(
-                    "overlap {overlap:.3e} m exceeds the limit {:.3e} m (reduce the time step \
-                     or the loading rate, or tighten the solver tolerance)",
-                    self.params.overlap_limit
+                    "overlap {overlap:.3e} m exceeds the limit {:.3e} m. {}",
+                    self.params.overlap_limit,
+                    crate::engine::overlap_advice(self.params.solver.max_iter)
                 ),
             });
         }
