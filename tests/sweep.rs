@@ -65,3 +65,37 @@ fn tiny_sweep_runs_in_shards_skips_finished_tests_and_reports() {
     assert!(!ok && text.contains("--shard"), "{text}");
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// A test killed before its first checkpoint leaves a record with nothing to resume: the
+/// next sweep starts it again instead of failing it.
+#[test]
+fn a_test_killed_before_its_first_checkpoint_starts_again() {
+    let base: PathBuf = std::env::temp_dir().join(format!("cdlab-sweep-restart-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&base);
+    std::fs::create_dir_all(&base).unwrap();
+    std::fs::write(
+        base.join("base.toml"),
+        "[sample]\ndisks = 300\n[solver]\ntol = 1e-3\n[test]\nstrip_thickness = \"3 m\"\nstrain_end = 0.004\n\
+         [output]\nseries_every = 10\nsnapshot_every = 0.0\n",
+    )
+    .unwrap();
+    let sweep = base.join("sweep.toml");
+    let out = base.join("campaign");
+    std::fs::write(
+        &sweep,
+        format!(
+            "base = \"base.toml\"\nout = \"{}\"\nmu = [0.3]\nsigma3 = [\"2 MPa\"]\n",
+            out.display()
+        ),
+    )
+    .unwrap();
+    // What a run killed in its first step leaves: a record holding only its configuration.
+    let dir = out.join("seed1_mu0.3_s2MPa");
+    drop(cdlab::record::Recorder::create(&dir, &cdlab::config::Config::default()).unwrap());
+    assert!(dir.join("run.mcap").exists());
+    let (ok, text) = cdlab(&["sweep", sweep.to_str().unwrap()]);
+    assert!(ok, "{text}");
+    assert!(text.contains("restarting"), "{text}");
+    assert!(dir.join("summary.json").exists(), "{text}");
+    let _ = std::fs::remove_dir_all(&base);
+}

@@ -223,8 +223,15 @@ fn run_point(
     if p.dir.join("summary.json").exists() {
         return Ok("already finished, skipped".into());
     }
-    let resume = p.dir.join(crate::record::MCAP_FILE).exists();
-    let how = if resume { "resuming" } else { "starting" };
+    // A record without a checkpoint (a test killed in its first minutes) has nothing to
+    // resume: the test starts again. An unreadable record is an error, never overwritten.
+    let started = p.dir.join(crate::record::MCAP_FILE).exists();
+    let resume = started && crate::record::read_run(&p.dir)?.last_checkpoint.is_some();
+    let how = match (started, resume) {
+        (_, true) => "resuming",
+        (true, false) => "restarting (its record holds no checkpoint yet)",
+        _ => "starting",
+    };
     eprintln!("sweep: {how} {}", p.dir.display());
     let summary = if resume {
         run_resume(&p.dir, Some("cpu"), true)?
