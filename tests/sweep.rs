@@ -6,9 +6,12 @@ mod common;
 use common::cdlab;
 use std::path::PathBuf;
 
-#[test]
-fn tiny_sweep_runs_in_shards_skips_finished_tests_and_reports() {
-    let base: PathBuf = std::env::temp_dir().join(format!("cdlab-sweep-{}", std::process::id()));
+/// A fresh directory `cdlab-NAME-PID` under the temp dir holding a base configuration of
+/// small, short tests (300 disks to strain 0.004) and `sweep.toml` over `grid` (the
+/// sweep file's `mu` and `sigma3` lines), whose tests go to `campaign/`. Returns the
+/// directory and the sweep file.
+fn tiny_campaign(name: &str, grid: &str) -> (PathBuf, PathBuf) {
+    let base = std::env::temp_dir().join(format!("cdlab-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&base);
     std::fs::create_dir_all(&base).unwrap();
     std::fs::write(
@@ -21,11 +24,17 @@ fn tiny_sweep_runs_in_shards_skips_finished_tests_and_reports() {
     std::fs::write(
         &sweep,
         format!(
-            "base = \"base.toml\"\nout = \"{}\"\nmu = [0.1, 0.5]\nsigma3 = [\"1 MPa\", \"4 MPa\"]\n",
+            "base = \"base.toml\"\nout = \"{}\"\n{grid}",
             base.join("campaign").display()
         ),
     )
     .unwrap();
+    (base, sweep)
+}
+
+#[test]
+fn tiny_sweep_runs_in_shards_skips_finished_tests_and_reports() {
+    let (base, sweep) = tiny_campaign("sweep", "mu = [0.1, 0.5]\nsigma3 = [\"1 MPa\", \"4 MPa\"]\n");
     let s = sweep.to_str().unwrap();
     for shard in ["0/2", "1/2"] {
         let (ok, text) = cdlab(&["sweep", s, "--shard", shard, "--jobs", "2"]);
@@ -70,25 +79,8 @@ fn tiny_sweep_runs_in_shards_skips_finished_tests_and_reports() {
 /// next sweep starts it again instead of failing it.
 #[test]
 fn a_test_killed_before_its_first_checkpoint_starts_again() {
-    let base: PathBuf = std::env::temp_dir().join(format!("cdlab-sweep-restart-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&base);
-    std::fs::create_dir_all(&base).unwrap();
-    std::fs::write(
-        base.join("base.toml"),
-        "[sample]\ndisks = 300\n[solver]\ntol = 1e-3\n[test]\nstrip_thickness = \"3 m\"\nstrain_end = 0.004\n\
-         [output]\nseries_every = 10\nsnapshot_every = 0.0\n",
-    )
-    .unwrap();
-    let sweep = base.join("sweep.toml");
+    let (base, sweep) = tiny_campaign("sweep-restart", "mu = [0.3]\nsigma3 = [\"2 MPa\"]\n");
     let out = base.join("campaign");
-    std::fs::write(
-        &sweep,
-        format!(
-            "base = \"base.toml\"\nout = \"{}\"\nmu = [0.3]\nsigma3 = [\"2 MPa\"]\n",
-            out.display()
-        ),
-    )
-    .unwrap();
     // What a run killed in its first step leaves: a record holding only its configuration.
     let dir = out.join("seed1_mu0.3_s2MPa");
     drop(cdlab::record::Recorder::create(&dir, &cdlab::config::Config::default()).unwrap());

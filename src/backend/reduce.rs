@@ -233,9 +233,9 @@ impl Accumulator {
 }
 
 /// Outer edges of the two strips (m): the mean over heights of the [`Outline`] of the
-/// left-strip and of the right-strip disks, over the heights crossed by both strips. The sample width
-/// `right - left` times the wall distance is the area between the outer edges of the strips
-/// and the walls (protocol.md's V).
+/// left-strip and of the right-strip disks, over the heights crossed by both strips. The
+/// sample width `right - left` times the wall distance is the area between the outer edges
+/// of the strips and the walls (protocol.md's V).
 ///
 /// The outline moves continuously with the disks. An earlier estimator took the extreme
 /// `x -+ r` of the disks in bands one largest diameter high: a disk passing from one band
