@@ -25,6 +25,8 @@ fn params(method: Method) -> StepParams {
             parallel: false,
             parallel_min: cdlab::solver::default_parallel_min(),
             threads: 0,
+            gs_relax: cdlab::solver::default_gs_relax(),
+            gs_relax_after: cdlab::solver::default_gs_relax_after(),
         },
     }
 }

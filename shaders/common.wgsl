@@ -36,7 +36,7 @@ struct Sim {
     dt: f32, theta: f32, alert: f32, r_max: f32,
     gx: f32, gy: f32, mu_disk: f32, mu_wall: f32,
     e_n: f32, e_t: f32, sigma3: f32, relax: f32,
-    strip_sum_r0: f32, strip_sum_r1: f32, gap_tol: f32, _pad: f32,
+    strip_sum_r0: f32, strip_sum_r1: f32, gap_tol: f32, gs_relax: f32,
     o_color: u32, o_left: u32, max_rounds: u32, o_inc_tmp: u32,
 }
 

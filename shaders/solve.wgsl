@@ -24,7 +24,8 @@ fn gather(@builtin(global_invocation_id) gid: vec3<u32>) {
     set_vel(3u, b, v);
 }
 
-// One color of a Gauss-Seidel sweep: the color index is args.a.
+// One color of a Gauss-Seidel sweep: the color index is args.a; sim.gs_relax is the
+// iteration's relaxation (CPU twin: SolverParams::relax_at).
 @compute @workgroup_size(64)
 fn sweep_color(@builtin(global_invocation_id) gid: vec3<u32>) {
     let start = ld(sim.o_color_count + args.a);
@@ -34,7 +35,10 @@ fn sweep_color(@builtin(global_invocation_id) gid: vec3<u32>) {
     var c = contacts[k];
     let vi = vel_at(3u, c.i);
     let vj = vel_at(3u, c.j);
-    let r = local_update(c, vi, vj);
+    // Relaxed towards the local solution; both lie in the Coulomb cone, so the mix does.
+    let old = vec2<f32>(c.rn, c.rt);
+    let local = local_update(c, vi, vj);
+    let r = select(old + sim.gs_relax * (local - old), local, sim.gs_relax == 1.0);
     let drn = r.x - c.rn;
     let drt = r.y - c.rt;
     if drn != 0.0 || drt != 0.0 {

@@ -17,6 +17,46 @@ fn pair(va: f64, vb: f64, e_n: f64) -> cdlab::model::Scene {
     s
 }
 
+/// Velocities of the head-on pair (2 and -1 m/s) after one step whose solver is stopped
+/// after `iterations` sweeps, relaxed by `relax` from iteration `after + 1` on.
+pub fn relaxed_pair(method: Method, relax: f64, after: u32, iterations: u32) -> (f64, f64) {
+    let mut s = pair(2.0, -1.0, 0.0);
+    let mut p = tight(method);
+    p.solver.gs_relax = relax;
+    p.solver.gs_relax_after = after;
+    p.solver.max_iter = iterations;
+    let mut e = cdlab::engine::CpuEngine::new(p).unwrap();
+    e.step(&mut s).unwrap();
+    (s.disks.vel[0].x, s.disks.vel[1].x)
+}
+
+#[test]
+fn relaxed_gauss_seidel_moves_each_iteration_a_fraction_of_the_way() {
+    for method in [Method::Gs, Method::ColoredGs] {
+        // One contact: its local solution R* stops the approach (both at 0.5 m/s). Relaxed
+        // by 1/2 from a cold start, iteration k leaves R_k = (1 - 2^-k) R*, so after three
+        // sweeps 7/8 of the 1.5 m/s change of each disk: 2 - 1.3125 and -1 + 1.3125.
+        let (a, b) = relaxed_pair(method, 0.5, 0, 3);
+        assert!(
+            (a - 0.6875).abs() < 1e-12 && (b - 0.3125).abs() < 1e-12,
+            "{method:?}: {a} {b}"
+        );
+        // Unrelaxed first sweep: R* at once; later relaxed sweeps find nothing to change.
+        let (a, b) = relaxed_pair(method, 0.5, 1, 3);
+        assert!(
+            (a - 0.5).abs() < 1e-12 && (b - 0.5).abs() < 1e-12,
+            "{method:?}: {a} {b}"
+        );
+        // Converged relaxed run: the same fixed point as plain Gauss-Seidel. The test divides
+        // the change by the relaxation, so stopping at 1e-12 leaves an error near 1e-12.
+        let (a, b) = relaxed_pair(method, 0.5, 0, 1000);
+        assert!(
+            (a - 0.5).abs() < 1e-10 && (b - 0.5).abs() < 1e-10,
+            "{method:?}: {a} {b}"
+        );
+    }
+}
+
 #[test]
 fn perfectly_inelastic_head_on_collision_moves_both_at_the_mean_velocity() {
     for method in [Method::Gs, Method::ColoredGs, Method::Jacobi] {

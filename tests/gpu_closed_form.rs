@@ -35,6 +35,48 @@ fn gpu_head_on_inelastic_collision_gives_the_mean_velocity() {
 }
 
 #[test]
+fn gpu_relaxed_gauss_seidel_moves_each_iteration_a_fraction_of_the_way() {
+    // CPU twin: collisions.rs, relaxed_gauss_seidel_moves_each_iteration_a_fraction_of_the_way.
+    // (relax, unrelaxed iterations, iteration cap, expected velocities): from a cold start
+    // iteration k relaxed by 1/2 leaves (1 - 2^-k) of the local solution, which stops the
+    // approach of the pair (2 and -1 m/s) at 0.5 m/s. The first and third cases stop at
+    // the cap; the others reach the local solution in their first, unrelaxed, iteration.
+    let cases = [
+        (0.5, 0, 3, (0.6875, 0.3125)),
+        (0.5, 1, 3, (0.5, 0.5)),
+        (0.5, 0, 1, (1.25, -0.25)),
+        (0.5, 2, 4, (0.5, 0.5)),
+    ];
+    for (relax, after, iterations, (va, vb)) in cases {
+        let mut s = scene(0.0);
+        s.disks.push(DVec2::new(-1.0, 0.0), 1.0, RHO).unwrap();
+        s.disks.push(DVec2::new(1.0, 0.0), 1.0, RHO).unwrap();
+        s.disks.vel[0] = DVec2::new(2.0, 0.0);
+        s.disks.vel[1] = DVec2::new(-1.0, 0.0);
+        let mut p = gpu_params(Method::ColoredGs);
+        p.solver.gs_relax = relax;
+        p.solver.gs_relax_after = after;
+        p.solver.max_iter = iterations;
+        let Some(mut g) = gpu_or_skip("relaxed GS", &s, p) else {
+            return;
+        };
+        // Batches of several iterations must still switch at `after`.
+        g.conv_every = 3;
+        let red = g.run(1, &Loading::default()).unwrap();
+        if va != 0.5 {
+            assert_eq!(red.iterations_sum, iterations as u64, "iterations");
+        }
+        let out = g.scene().unwrap();
+        // f32 velocities of order 1: a few ulp.
+        let (a, b) = (out.disks.vel[0].x, out.disks.vel[1].x);
+        assert!(
+            (a - va).abs() < 1e-6 && (b - vb).abs() < 1e-6,
+            "relax {relax} after {after}, {iterations} iterations: {a} {b}, expected {va} {vb}"
+        );
+    }
+}
+
+#[test]
 fn gpu_loaded_column_carries_the_top_force_through_every_contact() {
     let (n, r, force) = (5usize, 1.0, 2.0e6);
     let mut s = scene(0.3);

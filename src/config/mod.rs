@@ -167,6 +167,8 @@ impl Config {
                     parallel: true,
                     parallel_min: crate::solver::default_parallel_min(),
                     threads: v.threads,
+                    gs_relax: v.gs_relax,
+                    gs_relax_after: v.gs_relax_after,
                 },
             },
             mu: t.mu,

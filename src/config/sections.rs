@@ -99,6 +99,10 @@ pub struct Solver {
     pub backend: Backend,
     /// CPU threads of the colored Gauss-Seidel sweeps; 0 takes every core.
     pub threads: usize,
+    /// Relaxation of the Gauss-Seidel update, in (0, 1].
+    pub gs_relax: f64,
+    /// Iterations of a step swept unrelaxed before `gs_relax` applies.
+    pub gs_relax_after: u32,
 }
 
 impl Default for Solver {
@@ -115,6 +119,8 @@ impl Default for Solver {
             overlap_limit: 0.05,
             backend: Backend::Auto,
             threads: 0,
+            gs_relax: crate::solver::default_gs_relax(),
+            gs_relax_after: crate::solver::default_gs_relax_after(),
         }
     }
 }

@@ -149,6 +149,8 @@ impl GpuBackend {
         sim.e_n = s.material.e_n as f32;
         sim.e_t = s.material.e_t as f32;
         sim.gap_tol = zero_gap_tolerance(s) as f32;
+        // The solver loop sets the relaxation of each batch of iterations.
+        sim.gs_relax = 1.0;
         let strips = !l.strip.is_empty() && l.sigma3 != 0.0;
         sim.strips = strips as u32;
         sim.sigma3 = l.sigma3 as f32;

@@ -134,7 +134,8 @@ pub struct SimParams {
     pub strip_sum_r0: f32,
     pub strip_sum_r1: f32,
     pub gap_tol: f32,
-    pub pad: f32,
+    /// Gauss-Seidel relaxation of the iterations being recorded (written per batch).
+    pub gs_relax: f32,
     pub o_color: u32,
     pub o_left: u32,
     pub max_rounds: u32,

@@ -14,7 +14,7 @@
 //! At the end of a run, one more submission reduces counts, overlaps and energies.
 
 use super::backend::GpuBackend;
-use super::buffers::{ARGS_STRIDE, round_slot, status};
+use super::buffers::{ARGS_STRIDE, SimParams, round_slot, status};
 use crate::backend::{Loading, Reductions};
 use crate::error::{Error, Result};
 use crate::solver::Method;
@@ -280,7 +280,21 @@ impl GpuBackend {
         let nb = self.sim.n_bodies;
         let mut done = 0u32;
         loop {
-            let batch = self.conv_every.max(1).min(p.max_iter - done);
+            let mut batch = self.conv_every.max(1).min(p.max_iter - done);
+            // A batch runs at one relaxation: it ends where the relaxation changes.
+            if done < p.gs_relax_after {
+                batch = batch.min(p.gs_relax_after - done);
+            }
+            let relax = p.relax_at(done + 1);
+            // Written at the start of every step too, so that no other upload of the
+            // parameters can leave the buffer and the host copy apart.
+            if !jacobi && (done == 0 || self.sim.gs_relax != relax as f32) {
+                self.sim.gs_relax = relax as f32;
+                let at = std::mem::offset_of!(SimParams, gs_relax) as u64;
+                self.gpu
+                    .queue
+                    .write_buffer(&self.bufs.sim, at, bytemuck::bytes_of(&self.sim.gs_relax));
+            }
             let mut enc = self.gpu.device.create_command_encoder(&Default::default());
             {
                 let mut r = Rec::new(&mut enc, self);
@@ -312,12 +326,14 @@ impl GpuBackend {
                     message: format!("non-finite impulses in the GPU solver (sums {d2}, {r2})"),
                 });
             }
+            // As on the CPU, the change of a relaxed iteration is divided by its relaxation.
+            let w = if jacobi { 1.0 } else { relax };
             let residual = if d2 == 0.0 {
                 0.0
             } else if r2 == 0.0 {
                 f64::INFINITY
             } else {
-                (d2 / r2).sqrt()
+                (d2 / r2).sqrt() / w
             };
             if residual <= p.tol {
                 return Ok((done, true));

@@ -151,6 +151,8 @@ impl ProtocolParams {
                     parallel: true,
                     parallel_min: crate::solver::default_parallel_min(),
                     threads: 0,
+                    gs_relax: crate::solver::default_gs_relax(),
+                    gs_relax_after: crate::solver::default_gs_relax_after(),
                 },
             },
             mu: 0.3,

@@ -59,6 +59,38 @@ pub struct SolverParams {
     /// Threads of the colored Gauss-Seidel team; 0 means every available core.
     #[serde(default)]
     pub threads: usize,
+    /// Relaxation of the Gauss-Seidel update in (0, 1], applied from iteration
+    /// `gs_relax_after + 1` of a step on: each contact moves this fraction of the way from
+    /// its impulse to its local solution. The convergence test divides the change by it, so
+    /// `tol` keeps bounding the distance to the local solutions. Records written before
+    /// this field existed ran unrelaxed (1).
+    #[serde(default = "unrelaxed")]
+    pub gs_relax: f64,
+    /// Iterations of a step swept unrelaxed before `gs_relax` applies; steps that converge
+    /// within them are unaffected by `gs_relax`.
+    #[serde(default)]
+    pub gs_relax_after: u32,
+}
+
+fn unrelaxed() -> f64 {
+    1.0
+}
+
+/// Default of [`SolverParams::gs_relax`]. Measured on the 1000-disk test at contact
+/// friction 3 and 8 MPa, to axial strain 0.003 (README, "Relaxed Gauss-Seidel"): plain
+/// Gauss-Seidel took 714 iterations per step with a largest overlap of 5.1e-3 r_min; 0.8
+/// after 100 iterations took 419 and 7.6e-4 r_min. Some contacts of a high-friction packing
+/// flip between two states from one sweep to the next (a disk whose second contact opens
+/// and closes every iteration); relaxation damps these cycles.
+pub fn default_gs_relax() -> f64 {
+    0.8
+}
+
+/// Default of [`SolverParams::gs_relax_after`]: at friction 0.3 most steps converge within
+/// 100 iterations (40-60 per step on average) and run as plain Gauss-Seidel, where
+/// relaxation from the first iteration would cost 20-30% more iterations.
+pub fn default_gs_relax_after() -> u32 {
+    100
 }
 
 impl Default for SolverParams {
@@ -71,6 +103,8 @@ impl Default for SolverParams {
             parallel: true,
             parallel_min: default_parallel_min(),
             threads: 0,
+            gs_relax: default_gs_relax(),
+            gs_relax_after: default_gs_relax_after(),
         }
     }
 }
@@ -82,6 +116,15 @@ pub fn default_parallel_min() -> usize {
 }
 
 impl SolverParams {
+    /// The Gauss-Seidel relaxation of iteration `it` (1-based) of a step.
+    pub fn relax_at(&self, it: u32) -> f64 {
+        if it > self.gs_relax_after {
+            self.gs_relax
+        } else {
+            1.0
+        }
+    }
+
     /// Threads of the colored Gauss-Seidel team (1 when `parallel` is off).
     pub fn team_size(&self) -> usize {
         if !self.parallel {
@@ -101,6 +144,13 @@ impl SolverParams {
         }
         if !(self.relax > 0.0 && self.relax <= 1.0) {
             return Err(Error::invalid("solver.relax", self.relax, "must lie in (0, 1]"));
+        }
+        if !(self.gs_relax > 0.0 && self.gs_relax <= 1.0) {
+            return Err(Error::invalid(
+                "solver.gs_relax",
+                self.gs_relax,
+                "must lie in (0, 1]",
+            ));
         }
         Ok(())
     }

@@ -149,7 +149,7 @@ fn store(rows: &[Row], order: Option<&[u32]>, contacts: &mut [Contact]) {
 unsafe fn update(r: &mut Row, ctx: Ctx) -> (f64, f64) {
     if r.j == FULL {
         // SAFETY: forwarded from the caller.
-        return unsafe { update_full(&mut *ctx.contacts.add(r.i as usize), ctx.gv) };
+        return unsafe { update_full(&mut *ctx.contacts.add(r.i as usize), ctx.gv, ctx.relax) };
     }
     // SAFETY: the caller guarantees validity and exclusive access to the written bodies.
     let (pi, pj) = unsafe { (ctx.gv.add(r.i as usize), ctx.gv.add(r.j as usize)) };
@@ -163,6 +163,7 @@ unsafe fn update(r: &mut Row, ctx: Ctx) -> (f64, f64) {
     let rn = larger(r.rn - (un + r.bias_n) * r.inv_wnn, 0.0);
     let lim = r.mu * rn;
     let rt = smaller(larger(r.rt - (ut + r.bias_t) * r.inv_wtt, -lim), lim);
+    let (rn, rt) = relaxed(ctx.relax, (r.rn, r.rt), (rn, rt));
     let (drn, drt) = (rn - r.rn, rt - r.rt);
     let px = drn * r.nx + drt * r.ny;
     let py = drn * r.ny - drt * r.nx;
@@ -180,11 +181,26 @@ unsafe fn update(r: &mut Row, ctx: Ctx) -> (f64, f64) {
     (drn * drn + drt * drt, rn * rn + rt * rt)
 }
 
+/// The impulse `old + relax (local - old)`. Both lie in the Coulomb cone, which is convex,
+/// so the result does too. Plain Gauss-Seidel (`relax` 1) takes the local solution itself:
+/// `old + (local - old)` may differ from it in the last bit.
+#[inline(always)]
+fn relaxed(relax: f64, old: (f64, f64), local: (f64, f64)) -> (f64, f64) {
+    if relax == 1.0 {
+        local
+    } else {
+        (
+            old.0 + relax * (local.0 - old.0),
+            old.1 + relax * (local.1 - old.1),
+        )
+    }
+}
+
 /// [`update`] for a contact with a full Delassus block, on the contact itself.
 ///
 /// # Safety
 /// As [`update`].
-unsafe fn update_full(c: &mut Contact, gv: *mut DVec3) -> (f64, f64) {
+unsafe fn update_full(c: &mut Contact, gv: *mut DVec3, relax: f64) -> (f64, f64) {
     // SAFETY: the caller guarantees validity and exclusive access to the written bodies.
     let (pi, pj) = unsafe { (gv.add(c.i as usize), gv.add(c.j as usize)) };
     let (vi, vj) = unsafe { (pi.read(), pj.read()) };
@@ -192,6 +208,7 @@ unsafe fn update_full(c: &mut Contact, gv: *mut DVec3) -> (f64, f64) {
     let ufn = un - c.wnn * c.rn - c.wnt * c.rt + c.bias_n;
     let uft = ut - c.wnt * c.rn - c.wtt * c.rt + c.bias_t;
     let (rn, rt) = law::solve(c.wnn, c.wtt, c.wnt, ufn, uft, c.mu);
+    let (rn, rt) = relaxed(relax, (c.rn, c.rt), (rn, rt));
     let (drn, drt) = (rn - c.rn, rt - c.rt);
     if drn != 0.0 || drt != 0.0 {
         let (dvi, dvj) = c.velocity_changes(drn, drt);
@@ -216,6 +233,8 @@ pub(super) struct Ctx {
     pub(super) gv: *mut DVec3,
     pub(super) props: *const BodyProps,
     pub(super) contacts: *mut Contact,
+    /// Gauss-Seidel relaxation of the current iteration.
+    pub(super) relax: f64,
 }
 // SAFETY: see `update`: members of a team write disjoint bodies and contacts.
 unsafe impl Send for Ctx {}
@@ -272,9 +291,16 @@ impl Workspace {
 }
 
 impl SolveStats {
+    /// Records Gauss-Seidel iteration `it` with its sums (change^2, impulse^2) and tells
+    /// whether the relative change, divided by the iteration's relaxation, met `tol`.
+    fn record(&mut self, it: u32, d2: f64, r2: f64, params: &SolverParams) -> bool {
+        let w = params.relax_at(it);
+        self.record_change(it, d2 / (w * w), r2, params.tol)
+    }
+
     /// Records iteration `it` with its sums (change^2, impulse^2) and tells whether the
     /// relative change met `tol`.
-    fn record(&mut self, it: u32, d2: f64, r2: f64, tol: f64) -> bool {
+    fn record_change(&mut self, it: u32, d2: f64, r2: f64, tol: f64) -> bool {
         self.iterations = it;
         self.residual = relative_change(d2, r2);
         self.converged = self.residual <= tol;
@@ -341,6 +367,7 @@ pub fn solve(
         gv: gv.as_mut_ptr(),
         props: work.props.as_ptr(),
         contacts: contacts.as_mut_ptr(),
+        relax: 1.0,
     };
     let mut stats = SolveStats {
         colors: if colored { (ranges.len() - 1) as u32 } else { 0 },
@@ -348,19 +375,17 @@ pub fn solve(
     };
     let team = params.team_size();
     if colored && team > 1 && contacts.len() >= params.parallel_min {
-        super::team::sweep_iterations(
-            rows,
-            ranges,
-            serial_last,
-            ctx,
-            team,
-            params.max_iter,
-            |it, d2, r2| stats.record(it, d2, r2, params.tol),
-        );
+        super::team::sweep_iterations(rows, ranges, serial_last, ctx, team, params, |it, d2, r2| {
+            stats.record(it, d2, r2, params)
+        });
     } else {
         for it in 1..=params.max_iter {
+            let ctx = Ctx {
+                relax: params.relax_at(it),
+                ..ctx
+            };
             let (d2, r2) = sweep(rows, ranges, ctx);
-            if stats.record(it, d2, r2, params.tol) {
+            if stats.record(it, d2, r2, params) {
                 break;
             }
         }
@@ -399,7 +424,7 @@ fn jacobi(params: &SolverParams, contacts: &mut [Contact], gv0: &[DVec3], gv: &m
             c.rt = rt;
             c.apply(gv, rn, rt);
         }
-        if stats.record(it, d2, r2, params.tol) {
+        if stats.record_change(it, d2, r2, params.tol) {
             break;
         }
     }

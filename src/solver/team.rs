@@ -12,6 +12,7 @@
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
+use super::SolverParams;
 use super::sweep::{CHUNK, Ctx, Row, sweep_chunk};
 
 /// A reusable barrier that spins briefly, then sleeps: the waits between colors are
@@ -118,17 +119,19 @@ impl Layout {
 }
 
 /// Sweeps colored Gauss-Seidel iterations on `threads` threads until `done` says stop
-/// after an iteration or `max_iter` is reached. `done` receives the iteration number and
-/// the sums (change^2, impulse^2) and is called by the calling thread only.
+/// after an iteration or `params.max_iter` is reached, each iteration with its relaxation
+/// ([`SolverParams::relax_at`]). `done` receives the iteration number and the sums
+/// (change^2, impulse^2) and is called by the calling thread only.
 pub(super) fn sweep_iterations(
     rows: &mut [Row],
     ranges: &[u32],
     serial_last: bool,
     ctx: Ctx,
     threads: usize,
-    max_iter: u32,
+    params: &SolverParams,
     mut done: impl FnMut(u32, f64, f64) -> bool,
 ) {
+    let max_iter = params.max_iter;
     let layout = Layout::new(ranges, serial_last);
     let n_colors = ranges.len().saturating_sub(1);
     // One slot per chunk: the barrier after the caller has summed an iteration keeps every
@@ -145,6 +148,10 @@ pub(super) fn sweep_iterations(
     let member = |t: usize, on_iteration: &mut dyn FnMut(u32, f64, f64) -> bool| {
         let (shared, ctx) = (shared, ctx);
         for it in 1..=max_iter {
+            let ctx = Ctx {
+                relax: params.relax_at(it),
+                ..ctx
+            };
             for c in 0..n_colors {
                 for k in layout.share(c, t, threads) {
                     let (a, b) = layout.chunks[k];

@@ -25,6 +25,8 @@ pub fn tight(method: Method) -> StepParams {
             parallel: true,
             parallel_min: cdlab::solver::default_parallel_min(),
             threads: 0,
+            gs_relax: cdlab::solver::default_gs_relax(),
+            gs_relax_after: cdlab::solver::default_gs_relax_after(),
         },
     }
 }
