@@ -145,8 +145,11 @@ fn store(rows: &[Row], order: Option<&[u32]>, contacts: &mut [Contact]) {
 /// `ctx` must be valid for bodies `r.i` and `r.j` (and contact `r.i` of a [`FULL`] row), and
 /// no other thread may write them while this runs (guaranteed by the coloring: contacts of
 /// one color share no movable body).
+///
+/// `RELAXED` selects the relaxed update at compile time: a run-time test of `ctx.relax` in
+/// this loop cost 20% per update (bench, 5000 disks).
 #[inline(always)]
-unsafe fn update(r: &mut Row, ctx: Ctx) -> (f64, f64) {
+unsafe fn update<const RELAXED: bool>(r: &mut Row, ctx: Ctx) -> (f64, f64) {
     if r.j == FULL {
         // SAFETY: forwarded from the caller.
         return unsafe { update_full(&mut *ctx.contacts.add(r.i as usize), ctx.gv, ctx.relax) };
@@ -163,7 +166,11 @@ unsafe fn update(r: &mut Row, ctx: Ctx) -> (f64, f64) {
     let rn = larger(r.rn - (un + r.bias_n) * r.inv_wnn, 0.0);
     let lim = r.mu * rn;
     let rt = smaller(larger(r.rt - (ut + r.bias_t) * r.inv_wtt, -lim), lim);
-    let (rn, rt) = relaxed(ctx.relax, (r.rn, r.rt), (rn, rt));
+    let (rn, rt) = if RELAXED {
+        relaxed(ctx.relax, (r.rn, r.rt), (rn, rt))
+    } else {
+        (rn, rt)
+    };
     let (drn, drt) = (rn - r.rn, rt - r.rt);
     let px = drn * r.nx + drt * r.ny;
     let py = drn * r.ny - drt * r.nx;
@@ -245,10 +252,25 @@ unsafe impl Sync for Ctx {}
 /// # Safety
 /// As [`update`], for every row of the chunk.
 pub(super) unsafe fn sweep_chunk(chunk: &mut [Row], ctx: Ctx) -> (f64, f64) {
+    // SAFETY: forwarded from the caller.
+    unsafe {
+        if ctx.relax == 1.0 {
+            sweep_rows::<false>(chunk, ctx)
+        } else {
+            sweep_rows::<true>(chunk, ctx)
+        }
+    }
+}
+
+/// [`sweep_chunk`] for one kind of update.
+///
+/// # Safety
+/// As [`update`], for every row of the chunk.
+unsafe fn sweep_rows<const RELAXED: bool>(chunk: &mut [Row], ctx: Ctx) -> (f64, f64) {
     let mut acc = (0.0, 0.0);
     for r in chunk {
         // SAFETY: forwarded from the caller.
-        let (d, q) = unsafe { update(r, ctx) };
+        let (d, q) = unsafe { update::<RELAXED>(r, ctx) };
         acc.0 += d;
         acc.1 += q;
     }
