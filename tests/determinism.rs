@@ -29,10 +29,18 @@ fn dense(seed: u64) -> Scene {
 }
 
 fn run(seed: u64, method: Method, parallel: bool) -> (Scene, usize) {
-    run_on(seed, method, parallel, 0)
+    run_on(seed, method, parallel, 0, None)
 }
 
-fn run_on(seed: u64, method: Method, parallel: bool, threads: usize) -> (Scene, usize) {
+/// `relax`: Gauss-Seidel relaxation and the plain iterations before it (default: the
+/// defaults of `tight`).
+fn run_on(
+    seed: u64,
+    method: Method,
+    parallel: bool,
+    threads: usize,
+    relax: Option<(f64, u32)>,
+) -> (Scene, usize) {
     let mut s = dense(seed);
     // The right wall pushes on the sample with its column of glued disks: their contacts
     // share the wall and form the serial group of the colored sweeps.
@@ -50,6 +58,10 @@ fn run_on(seed: u64, method: Method, parallel: bool, threads: usize) -> (Scene, 
     p.solver.threads = threads;
     // Colors here hold about 1500 contacts: lower the threshold so the threads do run.
     p.solver.parallel_min = 1024;
+    if let Some((w, after)) = relax {
+        p.solver.gs_relax = w;
+        p.solver.gs_relax_after = after;
+    }
     let mut e = cdlab::engine::CpuEngine::new(p).unwrap();
     let mut largest_color = 0;
     for _ in 0..15 {
@@ -102,9 +114,17 @@ fn parallel_colored_sweeps_equal_sequential_ones_bit_for_bit() {
     let (seq, largest) = run(1, Method::ColoredGs, false);
     assert!(largest >= 1024, "largest color has {largest} contacts");
     for threads in [2, 3] {
-        let (par, _) = run_on(1, Method::ColoredGs, true, threads);
+        let (par, _) = run_on(1, Method::ColoredGs, true, threads, None);
         assert_eq!(bits(&par), bits(&seq), "team of {threads}");
     }
+    // The same with relaxed sweeps from the 6th iteration: every member of the team must
+    // switch at the same iteration. The relaxed run must differ from the plain one, or the
+    // relaxation was never reached.
+    let relax = Some((0.7, 5));
+    let (seq_relaxed, _) = run_on(1, Method::ColoredGs, false, 0, relax);
+    assert_ne!(bits(&seq_relaxed), bits(&seq), "relaxation engaged");
+    let (par_relaxed, _) = run_on(1, Method::ColoredGs, true, 2, relax);
+    assert_eq!(bits(&par_relaxed), bits(&seq_relaxed), "relaxed team of 2");
     let (jp, _) = run(1, Method::Jacobi, true);
     let (js, _) = run(1, Method::Jacobi, false);
     assert_eq!(bits(&jp), bits(&js));
