@@ -27,6 +27,7 @@ fn params(method: Method) -> StepParams {
             threads: 0,
             gs_relax: cdlab::solver::default_gs_relax(),
             gs_relax_after: cdlab::solver::default_gs_relax_after(),
+            velocity_tol: 0.0,
         },
     }
 }

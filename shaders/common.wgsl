@@ -70,8 +70,9 @@ struct Contact {
 @group(0) @binding(0) var<uniform> sim: Sim;
 @group(0) @binding(1) var<storage, read_write> disks: array<Disk>;
 @group(0) @binding(2) var<storage, read_write> walls: array<Wall>;
-// Generalized velocities (vx, vy, spin, 0), four regions of n_bodies: 0 state (end of
-// step), 1 start of step, 2 free, 3 current iterate.
+// Generalized velocities (vx, vy, spin, 0), five regions of n_bodies: 0 state (end of
+// step), 1 start of step, 2 free, 3 current iterate, 4 the iterate kept for the velocity
+// test (solve.wgsl, save_iterate).
 @group(0) @binding(3) var<storage, read_write> vel: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read_write> ints: array<atomic<u32>>;
 @group(0) @binding(5) var<storage, read_write> contacts: array<Contact>;

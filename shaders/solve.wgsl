@@ -76,6 +76,15 @@ fn jacobi_commit(@builtin(global_invocation_id) gid: vec3<u32>) {
     contacts[k].rt = floats[sim.f_fresh + 2u * k + 1u];
 }
 
+// The velocity test (CPU twin: solver::sweep::VelocityTest): the iterate before the last
+// iteration of a batch goes to region 4.
+@compute @workgroup_size(64)
+fn save_iterate(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let b = gid.x;
+    if b >= sim.n_bodies { return; }
+    set_vel(4u, b, vel_at(3u, b));
+}
+
 var<workgroup> red_a: array<f32, 256>;
 var<workgroup> red_b: array<f32, 256>;
 
@@ -102,5 +111,29 @@ fn conv_reduce(@builtin(local_invocation_index) t: u32) {
     if t == 0u {
         floats[sim.f_conv] = red_a[0];
         floats[sim.f_conv + 1u] = red_b[0];
+    }
+}
+
+// Largest change of a body's velocity since save_iterate, rim speed r |omega| included (walls
+// have no rim), to floats[f_conv + 2]. One workgroup.
+@compute @workgroup_size(256)
+fn velocity_change(@builtin(local_invocation_index) t: u32) {
+    var m = 0.0;
+    for (var b = t; b < sim.n_bodies; b += 256u) {
+        let d = vel_at(3u, b) - vel_at(4u, b);
+        var lever = 0.0;
+        if b < sim.n_disks { lever = disks[b].radius; }
+        m = max(m, sqrt(d.x * d.x + d.y * d.y + lever * lever * d.z * d.z));
+    }
+    red_a[t] = m;
+    workgroupBarrier();
+    for (var off = 128u; off > 0u; off >>= 1u) {
+        if t < off {
+            red_a[t] = max(red_a[t], red_a[t + off]);
+        }
+        workgroupBarrier();
+    }
+    if t == 0u {
+        floats[sim.f_conv + 2u] = red_a[0];
     }
 }

@@ -20,14 +20,55 @@ fn pair(va: f64, vb: f64, e_n: f64) -> cdlab::model::Scene {
 /// Velocities of the head-on pair (2 and -1 m/s) after one step whose solver is stopped
 /// after `iterations` sweeps, relaxed by `relax` from iteration `after + 1` on.
 pub fn relaxed_pair(method: Method, relax: f64, after: u32, iterations: u32) -> (f64, f64) {
+    let (a, b, _) = relaxed_pair_with(method, relax, after, iterations, 0.0);
+    (a, b)
+}
+
+/// [`relaxed_pair`] with the velocity test at `velocity_tol` (m/s); also returns the
+/// iterations taken.
+fn relaxed_pair_with(
+    method: Method,
+    relax: f64,
+    after: u32,
+    iterations: u32,
+    velocity_tol: f64,
+) -> (f64, f64, u32) {
     let mut s = pair(2.0, -1.0, 0.0);
     let mut p = tight(method);
     p.solver.gs_relax = relax;
     p.solver.gs_relax_after = after;
     p.solver.max_iter = iterations;
+    p.solver.velocity_tol = velocity_tol;
     let mut e = cdlab::engine::CpuEngine::new(p).unwrap();
-    e.step(&mut s).unwrap();
-    (s.disks.vel[0].x, s.disks.vel[1].x)
+    let st = e.step(&mut s).unwrap();
+    (s.disks.vel[0].x, s.disks.vel[1].x, st.solve.iterations)
+}
+
+#[test]
+fn velocity_test_stops_at_the_first_iteration_that_changes_no_velocity_by_more_than_it() {
+    for method in [Method::Gs, Method::ColoredGs] {
+        // Relaxed by 1/2 from a cold start, sweep k changes each disk's velocity by
+        // 1.5 x 2^-k m/s: 0.75, 0.375, 0.1875. A test at 0.3 m/s stops after the third
+        // sweep (7/8 of the way: 0.6875 and 0.3125 m/s); at 1 m/s after the first (1.25 and
+        // -0.25); off (0), at the cap of 30 (the impulse change, 2^-30 relative, stays
+        // above tol = 1e-12).
+        let cases = [(0.3, 3, 0.6875, 0.3125), (1.0, 1, 1.25, -0.25)];
+        for (tol, its, va, vb) in cases {
+            let (a, b, n) = relaxed_pair_with(method, 0.5, 0, 30, tol);
+            assert_eq!(n, its, "{method:?} at {tol} m/s");
+            assert!(
+                (a - va).abs() < 1e-12 && (b - vb).abs() < 1e-12,
+                "{method:?}: {a} {b}"
+            );
+        }
+        let (_, _, n) = relaxed_pair_with(method, 0.5, 0, 30, 0.0);
+        assert_eq!(n, 30, "{method:?}: the test off");
+        // Not before iteration after + 1: with after = 5 and a test that any change meets
+        // (10 m/s), the plain first sweep reaches the local solution and the second changes
+        // nothing, which the impulse test accepts first.
+        let (a, _, n) = relaxed_pair_with(method, 0.5, 5, 30, 10.0);
+        assert_eq!((n, a), (2, 0.5), "{method:?}");
+    }
 }
 
 #[test]

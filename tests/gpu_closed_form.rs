@@ -77,6 +77,44 @@ fn gpu_relaxed_gauss_seidel_moves_each_iteration_a_fraction_of_the_way() {
 }
 
 #[test]
+fn gpu_velocity_test_stops_at_the_first_iteration_that_changes_no_velocity_by_more_than_it() {
+    // CPU twin: collisions.rs, velocity_test_stops_at_the_first_iteration_that_changes_no_
+    // velocity_by_more_than_it. Relaxed by 1/2 from a cold start, sweep k changes each
+    // disk's velocity by 1.5 x 2^-k m/s. (test in m/s, unrelaxed sweeps, iterations,
+    // velocities): 0.3 stops after the third sweep, 1 after the first, and a test applying
+    // from the sixth sweep lets the impulse test stop at the second.
+    let cases = [
+        (0.3, 0, 3, (0.6875, 0.3125)),
+        (1.0, 0, 1, (1.25, -0.25)),
+        (10.0, 5, 2, (0.5, 0.5)),
+    ];
+    for (tol, after, iterations, (va, vb)) in cases {
+        let mut s = scene(0.0);
+        s.disks.push(DVec2::new(-1.0, 0.0), 1.0, RHO).unwrap();
+        s.disks.push(DVec2::new(1.0, 0.0), 1.0, RHO).unwrap();
+        s.disks.vel[0] = DVec2::new(2.0, 0.0);
+        s.disks.vel[1] = DVec2::new(-1.0, 0.0);
+        let mut p = gpu_params(Method::ColoredGs);
+        p.solver.gs_relax = 0.5;
+        p.solver.gs_relax_after = after;
+        p.solver.max_iter = 30;
+        p.solver.velocity_tol = tol;
+        let Some(mut g) = gpu_or_skip("velocity test", &s, p) else {
+            return;
+        };
+        g.conv_every = 1;
+        let red = g.run(1, &Loading::default()).unwrap();
+        assert_eq!(red.iterations_sum, iterations as u64, "test at {tol} m/s");
+        let out = g.scene().unwrap();
+        let (a, b) = (out.disks.vel[0].x, out.disks.vel[1].x);
+        assert!(
+            (a - va).abs() < 1e-6 && (b - vb).abs() < 1e-6,
+            "test at {tol} m/s: {a} {b}, expected {va} {vb}"
+        );
+    }
+}
+
+#[test]
 fn gpu_loaded_column_carries_the_top_force_through_every_contact() {
     let (n, r, force) = (5usize, 1.0, 2.0e6);
     let mut s = scene(0.3);

@@ -169,6 +169,7 @@ impl Config {
                     threads: v.threads,
                     gs_relax: v.gs_relax,
                     gs_relax_after: v.gs_relax_after,
+                    velocity_tol: v.velocity_tol * r_min / v.dt.si(),
                 },
             },
             mu: t.mu,

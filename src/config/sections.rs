@@ -103,6 +103,8 @@ pub struct Solver {
     pub gs_relax: f64,
     /// Iterations of a step swept unrelaxed before `gs_relax` applies.
     pub gs_relax_after: u32,
+    /// Velocity test, as a fraction of `sample.r_min` per time step; 0 turns it off.
+    pub velocity_tol: f64,
 }
 
 impl Default for Solver {
@@ -121,6 +123,7 @@ impl Default for Solver {
             threads: 0,
             gs_relax: crate::solver::default_gs_relax(),
             gs_relax_after: crate::solver::default_gs_relax_after(),
+            velocity_tol: crate::solver::default_velocity_tol_rel(),
         }
     }
 }

@@ -370,7 +370,7 @@ impl Buffers {
         let nd = p.n_disks as usize;
         let sizes = [
             ("disk", (nd * size_of::<GpuDisk>()) as u64),
-            ("velocity", 64 * p.n_bodies as u64),
+            ("velocity", 80 * p.n_bodies as u64),
             ("integer scratch", 4 * layout.ints_len as u64),
             ("contact", cap.contacts as u64 * size_of::<GpuContact>() as u64),
             ("float scratch", 4 * layout.floats_len as u64),

@@ -40,6 +40,8 @@ const ENTRY_POINTS: &[(&str, &[&str])] = &[
             "jacobi_solve",
             "jacobi_commit",
             "conv_reduce",
+            "save_iterate",
+            "velocity_change",
         ],
     ),
     ("integrate.wgsl", &["integrate"]),

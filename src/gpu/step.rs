@@ -295,10 +295,16 @@ impl GpuBackend {
                     .queue
                     .write_buffer(&self.bufs.sim, at, bytemuck::bytes_of(&self.sim.gs_relax));
             }
+            // The velocity test compares the batch's last iterate with the one before it
+            // (the CPU tests every iteration; the same with check_every = 1).
+            let velocity_test = !jacobi && p.velocity_tol > 0.0 && done + batch > p.gs_relax_after;
             let mut enc = self.gpu.device.create_command_encoder(&Default::default());
             {
                 let mut r = Rec::new(&mut enc, self);
-                for _ in 0..batch {
+                for k in 0..batch {
+                    if velocity_test && k + 1 == batch {
+                        r.go("save_iterate", 0, groups(nb));
+                    }
                     if jacobi {
                         r.go("jacobi_solve", 0, groups(n));
                         r.go("jacobi_commit", 0, groups(n));
@@ -310,6 +316,9 @@ impl GpuBackend {
                     }
                 }
                 r.go("conv_reduce", 0, 1);
+                if velocity_test {
+                    r.go("velocity_change", 0, 1);
+                }
                 let d = r.dispatches;
                 drop(r);
                 self.counters.dispatches += d;
@@ -317,9 +326,9 @@ impl GpuBackend {
             self.submit(enc)?;
             done += batch;
             let floats = self.bufs.floats.clone();
-            let bytes = self.download(&floats, 4 * self.sim.f_conv as u64, 8)?;
+            let bytes = self.download(&floats, 4 * self.sim.f_conv as u64, 12)?;
             let s: &[f32] = bytemuck::cast_slice(&bytes);
-            let (d2, r2) = (s[0] as f64, s[1] as f64);
+            let (d2, r2, dv) = (s[0] as f64, s[1] as f64, s[2] as f64);
             if !(d2.is_finite() && r2.is_finite()) {
                 return Err(Error::Numerical {
                     step: self.scene.step,
@@ -335,7 +344,7 @@ impl GpuBackend {
             } else {
                 (d2 / r2).sqrt() / w
             };
-            if residual <= p.tol {
+            if residual <= p.tol || (velocity_test && dv <= p.velocity_tol) {
                 return Ok((done, true));
             }
             if done >= p.max_iter {

@@ -153,6 +153,7 @@ impl ProtocolParams {
                     threads: 0,
                     gs_relax: crate::solver::default_gs_relax(),
                     gs_relax_after: crate::solver::default_gs_relax_after(),
+                    velocity_tol: crate::solver::default_velocity_tol_rel() * 0.5 / 5e-4,
                 },
             },
             mu: 0.3,

@@ -70,10 +70,24 @@ pub struct SolverParams {
     /// within them are unaffected by `gs_relax`.
     #[serde(default)]
     pub gs_relax_after: u32,
+    /// Velocity test (m/s), from iteration `gs_relax_after + 1` of a step on: the step also
+    /// ends when no body's velocity (rim speed `r |omega|` included) changed by more than
+    /// this over the last iteration. 0 turns it off, as in records written before it.
+    #[serde(default)]
+    pub velocity_tol: f64,
 }
 
 fn unrelaxed() -> f64 {
     1.0
+}
+
+/// Default of the velocity test as a fraction of `r_min` per time step
+/// ([`SolverParams::velocity_tol`] is this times `r_min / dt`). On the 1000-disk test at
+/// friction 3 and 8 MPa to axial strain 0.01, 1e-5 cut the iterations per step from 406 to
+/// 148 and moved sigma1 averaged over strain windows of 0.003-0.004 by 1-2% (README,
+/// "Relaxed Gauss-Seidel").
+pub fn default_velocity_tol_rel() -> f64 {
+    1e-5
 }
 
 /// Default of [`SolverParams::gs_relax`]. Measured on the 1000-disk test at contact
@@ -107,6 +121,7 @@ impl Default for SolverParams {
             threads: 0,
             gs_relax: default_gs_relax(),
             gs_relax_after: default_gs_relax_after(),
+            velocity_tol: 0.0,
         }
     }
 }
@@ -152,6 +167,13 @@ impl SolverParams {
                 "solver.gs_relax",
                 self.gs_relax,
                 "must lie in (0, 1]",
+            ));
+        }
+        if !(self.velocity_tol >= 0.0 && self.velocity_tol.is_finite()) {
+            return Err(Error::invalid(
+                "solver.velocity_tol",
+                self.velocity_tol,
+                "must be finite and >= 0",
             ));
         }
         Ok(())

@@ -330,6 +330,48 @@ impl SolveStats {
     }
 }
 
+/// The velocity test of [`SolverParams::velocity_tol`]: keeps the iterate of the last
+/// iteration and compares the next one with it.
+struct VelocityTest {
+    tol: f64,
+    after: u32,
+    prev: Vec<DVec3>,
+}
+
+impl VelocityTest {
+    /// `gv` is the iterate before the first iteration, the reference of the first test
+    /// when the test applies from the first iteration.
+    fn new(params: &SolverParams, gv: &[DVec3]) -> Self {
+        let mut prev = Vec::new();
+        if params.velocity_tol > 0.0 && params.gs_relax_after == 0 {
+            prev.extend_from_slice(gv);
+        }
+        VelocityTest {
+            tol: params.velocity_tol,
+            after: params.gs_relax_after,
+            prev,
+        }
+    }
+
+    /// Called after iteration `it` with the iterate `gv`: true when the test applies and no
+    /// body's velocity changed by more than `tol` since the previous iteration. Bodies no
+    /// contact can move keep their velocity, so every body may be compared.
+    fn settled(&mut self, it: u32, gv: &[DVec3], props: &[BodyProps]) -> bool {
+        if self.tol <= 0.0 || it < self.after {
+            return false;
+        }
+        let settled = it > self.after
+            && self.prev.len() == gv.len()
+            && gv.iter().zip(&self.prev).zip(props).all(|((v, p), b)| {
+                let d = *v - *p;
+                d.x * d.x + d.y * d.y + (b.lever * d.z).powi(2) <= self.tol * self.tol
+            });
+        self.prev.clear();
+        self.prev.extend_from_slice(gv);
+        settled
+    }
+}
+
 /// Relative quadratic change of one iteration; 0 when nothing carries or changes impulse.
 fn relative_change(d2: f64, r2: f64) -> f64 {
     if d2 == 0.0 {
@@ -396,10 +438,20 @@ pub fn solve(
         ..Default::default()
     };
     let team = params.team_size();
+    // SAFETY: no sweep runs yet.
+    let mut velocity = VelocityTest::new(params, unsafe { std::slice::from_raw_parts(ctx.gv, n_bodies) });
+    let props = &work.props[..];
+    let mut done = |it: u32, d2: f64, r2: f64| {
+        if stats.record(it, d2, r2, params) {
+            return true;
+        }
+        // SAFETY: called between sweeps, when no thread writes the velocities.
+        let gv = unsafe { std::slice::from_raw_parts(ctx.gv, n_bodies) };
+        stats.converged = velocity.settled(it, gv, props);
+        stats.converged
+    };
     if colored && team > 1 && contacts.len() >= params.parallel_min {
-        super::team::sweep_iterations(rows, ranges, serial_last, ctx, team, params, |it, d2, r2| {
-            stats.record(it, d2, r2, params)
-        });
+        super::team::sweep_iterations(rows, ranges, serial_last, ctx, team, params, done);
     } else {
         for it in 1..=params.max_iter {
             let ctx = Ctx {
@@ -407,7 +459,7 @@ pub fn solve(
                 ..ctx
             };
             let (d2, r2) = sweep(rows, ranges, ctx);
-            if stats.record(it, d2, r2, params) {
+            if done(it, d2, r2) {
                 break;
             }
         }
