@@ -34,44 +34,53 @@ fn gpu_head_on_inelastic_collision_gives_the_mean_velocity() {
     }
 }
 
+/// The head-on pair (2 and -1 m/s, one contact) after one GPU step: the solver relaxed by
+/// 1/2 after `after` plain iterations, capped at `max_iter`, with the velocity test at
+/// `velocity_tol` (m/s) and a convergence readback every `conv_every` iterations. Returns
+/// the two velocities and the iterations, or `None` when the test skips.
+fn relaxed_pair(after: u32, max_iter: u32, velocity_tol: f64, conv_every: u32) -> Option<(f64, f64, u64)> {
+    let mut s = scene(0.0);
+    s.disks.push(DVec2::new(-1.0, 0.0), 1.0, RHO).unwrap();
+    s.disks.push(DVec2::new(1.0, 0.0), 1.0, RHO).unwrap();
+    s.disks.vel[0] = DVec2::new(2.0, 0.0);
+    s.disks.vel[1] = DVec2::new(-1.0, 0.0);
+    let mut p = gpu_params(Method::ColoredGs);
+    p.solver.gs_relax = 0.5;
+    p.solver.gs_relax_after = after;
+    p.solver.max_iter = max_iter;
+    p.solver.velocity_tol = velocity_tol;
+    let mut g = gpu_or_skip("relaxed pair", &s, p)?;
+    g.conv_every = conv_every;
+    let red = g.run(1, &Loading::default()).unwrap();
+    let out = g.scene().unwrap();
+    Some((out.disks.vel[0].x, out.disks.vel[1].x, red.iterations_sum))
+}
+
 #[test]
 fn gpu_relaxed_gauss_seidel_moves_each_iteration_a_fraction_of_the_way() {
     // CPU twin: collisions.rs, relaxed_gauss_seidel_moves_each_iteration_a_fraction_of_the_way.
-    // (relax, unrelaxed iterations, iteration cap, expected velocities): from a cold start
+    // (unrelaxed iterations, iteration cap, expected velocities): from a cold start
     // iteration k relaxed by 1/2 leaves (1 - 2^-k) of the local solution, which stops the
-    // approach of the pair (2 and -1 m/s) at 0.5 m/s. The first and third cases stop at
-    // the cap; the others reach the local solution in their first, unrelaxed, iteration.
+    // approach of the pair at 0.5 m/s. The first and third cases stop at the cap; the
+    // others reach the local solution in their first, unrelaxed, iteration. Readbacks every
+    // 3 iterations: a batch must still switch at `after`.
     let cases = [
-        (0.5, 0, 3, (0.6875, 0.3125)),
-        (0.5, 1, 3, (0.5, 0.5)),
-        (0.5, 0, 1, (1.25, -0.25)),
-        (0.5, 2, 4, (0.5, 0.5)),
+        (0, 3, (0.6875, 0.3125)),
+        (1, 3, (0.5, 0.5)),
+        (0, 1, (1.25, -0.25)),
+        (2, 4, (0.5, 0.5)),
     ];
-    for (relax, after, iterations, (va, vb)) in cases {
-        let mut s = scene(0.0);
-        s.disks.push(DVec2::new(-1.0, 0.0), 1.0, RHO).unwrap();
-        s.disks.push(DVec2::new(1.0, 0.0), 1.0, RHO).unwrap();
-        s.disks.vel[0] = DVec2::new(2.0, 0.0);
-        s.disks.vel[1] = DVec2::new(-1.0, 0.0);
-        let mut p = gpu_params(Method::ColoredGs);
-        p.solver.gs_relax = relax;
-        p.solver.gs_relax_after = after;
-        p.solver.max_iter = iterations;
-        let Some(mut g) = gpu_or_skip("relaxed GS", &s, p) else {
+    for (after, iterations, (va, vb)) in cases {
+        let Some((a, b, n)) = relaxed_pair(after, iterations, 0.0, 3) else {
             return;
         };
-        // Batches of several iterations must still switch at `after`.
-        g.conv_every = 3;
-        let red = g.run(1, &Loading::default()).unwrap();
         if va != 0.5 {
-            assert_eq!(red.iterations_sum, iterations as u64, "iterations");
+            assert_eq!(n, iterations as u64, "iterations");
         }
-        let out = g.scene().unwrap();
         // f32 velocities of order 1: a few ulp.
-        let (a, b) = (out.disks.vel[0].x, out.disks.vel[1].x);
         assert!(
             (a - va).abs() < 1e-6 && (b - vb).abs() < 1e-6,
-            "relax {relax} after {after}, {iterations} iterations: {a} {b}, expected {va} {vb}"
+            "after {after}, {iterations} iterations: {a} {b}, expected {va} {vb}"
         );
     }
 }
@@ -89,24 +98,10 @@ fn gpu_velocity_test_stops_at_the_first_iteration_that_changes_no_velocity_by_mo
         (10.0, 5, 2, (0.5, 0.5)),
     ];
     for (tol, after, iterations, (va, vb)) in cases {
-        let mut s = scene(0.0);
-        s.disks.push(DVec2::new(-1.0, 0.0), 1.0, RHO).unwrap();
-        s.disks.push(DVec2::new(1.0, 0.0), 1.0, RHO).unwrap();
-        s.disks.vel[0] = DVec2::new(2.0, 0.0);
-        s.disks.vel[1] = DVec2::new(-1.0, 0.0);
-        let mut p = gpu_params(Method::ColoredGs);
-        p.solver.gs_relax = 0.5;
-        p.solver.gs_relax_after = after;
-        p.solver.max_iter = 30;
-        p.solver.velocity_tol = tol;
-        let Some(mut g) = gpu_or_skip("velocity test", &s, p) else {
+        let Some((a, b, n)) = relaxed_pair(after, 30, tol, 1) else {
             return;
         };
-        g.conv_every = 1;
-        let red = g.run(1, &Loading::default()).unwrap();
-        assert_eq!(red.iterations_sum, iterations as u64, "test at {tol} m/s");
-        let out = g.scene().unwrap();
-        let (a, b) = (out.disks.vel[0].x, out.disks.vel[1].x);
+        assert_eq!(n, iterations as u64, "test at {tol} m/s");
         assert!(
             (a - va).abs() < 1e-6 && (b - vb).abs() < 1e-6,
             "test at {tol} m/s: {a} {b}, expected {va} {vb}"
