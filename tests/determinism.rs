@@ -32,14 +32,14 @@ fn run(seed: u64, method: Method, parallel: bool) -> (Scene, usize) {
     run_on(seed, method, parallel, 0, None)
 }
 
-/// `relax`: Gauss-Seidel relaxation and the plain iterations before it (default: the
-/// defaults of `tight`).
+/// `relax`: Gauss-Seidel relaxation, the plain iterations before it and the velocity test
+/// (m/s) (default: those of `tight`).
 fn run_on(
     seed: u64,
     method: Method,
     parallel: bool,
     threads: usize,
-    relax: Option<(f64, u32)>,
+    relax: Option<(f64, u32, f64)>,
 ) -> (Scene, usize) {
     let mut s = dense(seed);
     // The right wall pushes on the sample with its column of glued disks: their contacts
@@ -58,9 +58,10 @@ fn run_on(
     p.solver.threads = threads;
     // Colors here hold about 1500 contacts: lower the threshold so the threads do run.
     p.solver.parallel_min = 1024;
-    if let Some((w, after)) = relax {
+    if let Some((w, after, velocity_tol)) = relax {
         p.solver.gs_relax = w;
         p.solver.gs_relax_after = after;
+        p.solver.velocity_tol = velocity_tol;
     }
     let mut e = cdlab::engine::CpuEngine::new(p).unwrap();
     let mut largest_color = 0;
@@ -120,11 +121,17 @@ fn parallel_colored_sweeps_equal_sequential_ones_bit_for_bit() {
     // The same with relaxed sweeps from the 6th iteration: every member of the team must
     // switch at the same iteration. The relaxed run must differ from the plain one, or the
     // relaxation was never reached.
-    let relax = Some((0.7, 5));
+    let relax = Some((0.7, 5, 0.0));
     let (seq_relaxed, _) = run_on(1, Method::ColoredGs, false, 0, relax);
     assert_ne!(bits(&seq_relaxed), bits(&seq), "relaxation engaged");
     let (par_relaxed, _) = run_on(1, Method::ColoredGs, true, 2, relax);
     assert_eq!(bits(&par_relaxed), bits(&seq_relaxed), "relaxed team of 2");
+    // And with the velocity test, which the team's calling thread runs between sweeps.
+    let tested = Some((0.7, 5, 1e-3));
+    let (seq_tested, _) = run_on(1, Method::ColoredGs, false, 0, tested);
+    assert_ne!(bits(&seq_tested), bits(&seq_relaxed), "velocity test engaged");
+    let (par_tested, _) = run_on(1, Method::ColoredGs, true, 2, tested);
+    assert_eq!(bits(&par_tested), bits(&seq_tested), "team of 2 with the velocity test");
     let (jp, _) = run(1, Method::Jacobi, true);
     let (js, _) = run(1, Method::Jacobi, false);
     assert_eq!(bits(&jp), bits(&js));

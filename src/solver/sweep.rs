@@ -303,6 +303,8 @@ pub struct Workspace {
     props: Vec<BodyProps>,
     sorted: Vec<Row>,
     coloring: Coloring,
+    /// The velocity test's copy of the last iterate.
+    iterate: Vec<DVec3>,
 }
 
 impl Workspace {
@@ -332,17 +334,17 @@ impl SolveStats {
 
 /// The velocity test of [`SolverParams::velocity_tol`]: keeps the iterate of the last
 /// iteration and compares the next one with it.
-struct VelocityTest {
+struct VelocityTest<'a> {
     tol: f64,
     after: u32,
-    prev: Vec<DVec3>,
+    prev: &'a mut Vec<DVec3>,
 }
 
-impl VelocityTest {
+impl<'a> VelocityTest<'a> {
     /// `gv` is the iterate before the first iteration, the reference of the first test
-    /// when the test applies from the first iteration.
-    fn new(params: &SolverParams, gv: &[DVec3]) -> Self {
-        let mut prev = Vec::new();
+    /// when the test applies from the first iteration; `prev` is the workspace's buffer.
+    fn new(params: &SolverParams, gv: &[DVec3], prev: &'a mut Vec<DVec3>) -> Self {
+        prev.clear();
         if params.velocity_tol > 0.0 && params.gs_relax_after == 0 {
             prev.extend_from_slice(gv);
         }
@@ -362,7 +364,7 @@ impl VelocityTest {
         }
         let settled = it > self.after
             && self.prev.len() == gv.len()
-            && gv.iter().zip(&self.prev).zip(props).all(|((v, p), b)| {
+            && gv.iter().zip(self.prev.iter()).zip(props).all(|((v, p), b)| {
                 let d = *v - *p;
                 d.x * d.x + d.y * d.y + (b.lever * d.z).powi(2) <= self.tol * self.tol
             });
@@ -439,7 +441,8 @@ pub fn solve(
     };
     let team = params.team_size();
     // SAFETY: no sweep runs yet.
-    let mut velocity = VelocityTest::new(params, unsafe { std::slice::from_raw_parts(ctx.gv, n_bodies) });
+    let start = unsafe { std::slice::from_raw_parts(ctx.gv, n_bodies) };
+    let mut velocity = VelocityTest::new(params, start, &mut work.iterate);
     let props = &work.props[..];
     let mut done = |it: u32, d2: f64, r2: f64| {
         if stats.record(it, d2, r2, params) {
