@@ -131,7 +131,11 @@ fn parallel_colored_sweeps_equal_sequential_ones_bit_for_bit() {
     let (seq_tested, _) = run_on(1, Method::ColoredGs, false, 0, tested);
     assert_ne!(bits(&seq_tested), bits(&seq_relaxed), "velocity test engaged");
     let (par_tested, _) = run_on(1, Method::ColoredGs, true, 2, tested);
-    assert_eq!(bits(&par_tested), bits(&seq_tested), "team of 2 with the velocity test");
+    assert_eq!(
+        bits(&par_tested),
+        bits(&seq_tested),
+        "team of 2 with the velocity test"
+    );
     let (jp, _) = run(1, Method::Jacobi, true);
     let (js, _) = run(1, Method::Jacobi, false);
     assert_eq!(bits(&jp), bits(&js));
