@@ -356,7 +356,6 @@ fn at_step(e: Error, step: u64) -> Error {
     }
 }
 
-/// "disk 12" or "wall 3" for a generalized body index.
 /// What to do about an overlap above the limit. Overlaps are never pushed apart (method.md),
 /// so they grow from steps that end unconverged; at high contact friction these are the
 /// steps that reach the iteration cap (friction 3: about 800 iterations per step on
@@ -371,6 +370,7 @@ pub fn overlap_advice(max_iter: u32) -> String {
     )
 }
 
+/// "disk 12" or "wall 3" for a generalized body index.
 pub fn body_name(scene: &Scene, k: usize) -> String {
     let nd = scene.disks.len();
     if k < nd {

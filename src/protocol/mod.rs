@@ -129,9 +129,10 @@ impl ProtocolParams {
     /// friction, alert distance 0.1 r_min, overlap hard stop at 0.1 r_min.
     pub fn paper_defaults(disks: usize) -> Self {
         use crate::solver::{Method, SolverParams};
+        let (r_min, dt) = (0.5, 5e-4);
         ProtocolParams {
             disks,
-            r_min: 0.5,
+            r_min,
             r_max: 2.0,
             density: 2600.0,
             seed: 1,
@@ -139,7 +140,7 @@ impl ProtocolParams {
             sigma_c: 8e6,
             mu_compaction: 0.0,
             step: StepParams {
-                dt: 5e-4,
+                dt,
                 theta: 1.0,
                 alert: 0.05,
                 overlap_limit: 0.05,
@@ -153,7 +154,7 @@ impl ProtocolParams {
                     threads: 0,
                     gs_relax: crate::solver::default_gs_relax(),
                     gs_relax_after: crate::solver::default_gs_relax_after(),
-                    velocity_tol: crate::solver::default_velocity_tol_rel() * 0.5 / 5e-4,
+                    velocity_tol: crate::solver::default_velocity_tol_rel() * r_min / dt,
                 },
             },
             mu: 0.3,

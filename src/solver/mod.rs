@@ -92,8 +92,8 @@ pub fn default_velocity_tol_rel() -> f64 {
 
 /// Default of [`SolverParams::gs_relax`]. Measured on the 1000-disk test at contact
 /// friction 3 and 8 MPa, to axial strain 0.003 (README, "Relaxed Gauss-Seidel"): plain
-/// Gauss-Seidel took 714 iterations per step with a largest overlap of 5.1e-3 r_min; 0.8
-/// after 100 iterations took 419 and 7.6e-4 r_min. Some contacts of a high-friction packing
+/// Gauss-Seidel took 778 iterations per step with a largest overlap of 1.6e-2 r_min; 0.8
+/// after 100 iterations took 390 and 9.6e-4 r_min. Some contacts of a high-friction packing
 /// flip between two states from one sweep to the next (a disk whose second contact opens
 /// and closes every iteration); relaxation damps these cycles.
 pub fn default_gs_relax() -> f64 {
