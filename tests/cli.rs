@@ -108,11 +108,38 @@ fn a_prepared_sample_is_reused_by_a_test() {
         !ok && text.contains("--force"),
         "an existing sample must not be replaced: {text}"
     );
+    // The test's configuration asks for 1000 disks (the default), the sample holds 400: a
+    // flag that contradicts the sample is refused, a configuration takes the sample's
+    // settings, so the summary counts the disks actually simulated.
+    let cfg1000 = base.join("default_disks.toml");
+    let text1000 = std::fs::read_to_string(&cfg)
+        .unwrap()
+        .replace("disks = 400", "disks = 1000");
+    std::fs::write(&cfg1000, text1000).unwrap();
     let out = base.join("test");
+    for (flag, value) in [("--disks", "500"), ("--seed", "7")] {
+        let (ok, text) = cdlab(&[
+            "biaxial",
+            "--config",
+            cfg1000.to_str().unwrap(),
+            "--sample",
+            sample.to_str().unwrap(),
+            flag,
+            value,
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ]);
+        assert!(
+            !ok && text.contains(&format!("{flag} {value} contradicts the sample")),
+            "{text}"
+        );
+        assert!(!out.exists(), "a refused test must leave no output");
+    }
     let (ok, text) = cdlab(&[
         "biaxial",
         "--config",
-        cfg.to_str().unwrap(),
+        cfg1000.to_str().unwrap(),
         "--sample",
         sample.to_str().unwrap(),
         "--mu",
@@ -122,6 +149,12 @@ fn a_prepared_sample_is_reused_by_a_test() {
         "--quiet",
     ]);
     assert!(ok, "{text}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(
+        summary["disks"], 400,
+        "the sample's 400 disks, not the configuration's 1000"
+    );
     let rec = cdlab::record::read_run(&out).unwrap();
     // Started at confinement: no compaction rows.
     assert!(rec.series.iter().all(|r| r.phase != "compaction"));

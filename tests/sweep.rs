@@ -91,3 +91,32 @@ fn a_test_killed_before_its_first_checkpoint_starts_again() {
     assert!(dir.join("summary.json").exists(), "{text}");
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// A samples directory left by a campaign with other sample settings is refused by name,
+/// not used in place of this campaign's sample.
+#[test]
+fn a_sample_prepared_with_other_settings_is_refused() {
+    let (base, sweep) = tiny_campaign("sweep-foreign", "mu = [0.3]\nsigma3 = [\"2 MPa\"]\n");
+    let samples = base.join("campaign").join("samples");
+    std::fs::create_dir_all(&samples).unwrap();
+    let foreign = samples.join("seed1.bin");
+    let (ok, text) = cdlab(&[
+        "prepare",
+        "--config",
+        base.join("base.toml").to_str().unwrap(),
+        "--disks",
+        "200",
+        "-o",
+        foreign.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let (ok, text) = cdlab(&["sweep", sweep.to_str().unwrap()]);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("seed1.bin was prepared with other settings")
+            && text.contains("sample.disks: 300 here, 200 in the sample"),
+        "{text}"
+    );
+    assert!(!base.join("campaign/seed1_mu0.3_s2MPa/summary.json").exists());
+    let _ = std::fs::remove_dir_all(&base);
+}

@@ -5,12 +5,12 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use crate::config::units::{Dimension, parse_quantity};
-use crate::config::{Config, Overrides, Pressure};
+use crate::config::{Config, Density, Length, Overrides, Pressure};
 use crate::error::{Error, Result};
 use crate::measure::summary::Summary;
 use crate::protocol::biaxial::Lab;
 use crate::protocol::checkpoint::decode;
-use crate::protocol::{Observer, Phase, prepare};
+use crate::protocol::{Observer, Phase, ProtocolParams, prepare};
 use crate::record::{Recorder, read_run};
 
 use super::run::{Recording, open_backend};
@@ -105,24 +105,122 @@ pub fn run(args: &Args) -> Result<()> {
     let (dir, summary) = if let Some(dir) = &args.resume {
         (dir.clone(), run_resume(dir, args.backend.as_deref(), args.quiet)?)
     } else {
-        let config = configuration(args)?;
-        let dir = config.output.dir.clone();
-        check_out_dir(&dir, args.force)?;
+        let mut config = configuration(args)?;
         let sample = match &args.sample {
-            Some(path) => Some(read_sample(path)?),
+            Some(path) => {
+                let sample = read_sample(path)?;
+                adopt_sample(&mut config, &sample.params, args, path)?;
+                Some(sample.scene)
+            }
             None => None,
         };
+        let dir = config.output.dir.clone();
+        check_out_dir(&dir, args.force)?;
         (dir.clone(), run_fresh(&config, &dir, sample, args.quiet)?)
     };
     println!("biaxial test finished: {}\n{}", dir.display(), summary.table());
     Ok(())
 }
 
-/// The compacted scene of a sample written by `cdlab prepare`.
-pub fn read_sample(path: &Path) -> Result<crate::model::Scene> {
+/// A sample written by `cdlab prepare`.
+pub struct PreparedSample {
+    /// The compacted scene.
+    pub scene: crate::model::Scene,
+    /// The parameters it was deposited and compacted with.
+    pub params: ProtocolParams,
+}
+
+/// Reads a sample written by `cdlab prepare`, checking that its scene holds the disks its
+/// parameters announce.
+pub fn read_sample(path: &Path) -> Result<PreparedSample> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let ck = decode(&bytes).map_err(|e| Error::Other(format!("{}: {e}", path.display())))?;
-    Ok(ck.scene)
+    let (scene, params) = (ck.scene, ck.state.params);
+    if scene.disks.len() != params.disks {
+        return Err(Error::Other(format!(
+            "{}: the sample holds {} disks but records {} (a corrupt or foreign file)",
+            path.display(),
+            scene.disks.len(),
+            params.disks
+        )));
+    }
+    Ok(PreparedSample { scene, params })
+}
+
+/// The `[sample]` and `[compaction]` settings of `config` that differ from those a sample
+/// was prepared with, as `key: configuration value, sample value` descriptions.
+pub fn sample_differences(config: &Config, sample: &ProtocolParams) -> Vec<String> {
+    let c = config.protocol();
+    let mut out = Vec::new();
+    let mut differ = |key: &str, ours: String, theirs: String| {
+        if ours != theirs {
+            out.push(format!("{key}: {ours} here, {theirs} in the sample"));
+        }
+    };
+    differ("sample.disks", c.disks.to_string(), sample.disks.to_string());
+    differ("sample.seed", c.seed.to_string(), sample.seed.to_string());
+    differ(
+        "sample.r_min",
+        format!("{} m", c.r_min),
+        format!("{} m", sample.r_min),
+    );
+    differ(
+        "sample.r_max",
+        format!("{} m", c.r_max),
+        format!("{} m", sample.r_max),
+    );
+    differ(
+        "sample.density",
+        format!("{} kg/m3", c.density),
+        format!("{} kg/m3", sample.density),
+    );
+    differ(
+        "sample.aspect_ratio",
+        c.aspect.to_string(),
+        sample.aspect.to_string(),
+    );
+    differ(
+        "compaction.sigma_c",
+        format!("{} Pa", c.sigma_c),
+        format!("{} Pa", sample.sigma_c),
+    );
+    differ(
+        "compaction.friction",
+        c.mu_compaction.to_string(),
+        sample.mu_compaction.to_string(),
+    );
+    out
+}
+
+/// Makes `config` describe the prepared sample a test starts from: its `[sample]` and
+/// `[compaction]` settings become the sample's, so that the record, the summary and the
+/// quantities scaled by `r_min` (overlaps, the velocity test) are those of the disks
+/// actually simulated. A `--disks` or `--seed` flag that asks for another sample is an
+/// error rather than silently ignored.
+fn adopt_sample(config: &mut Config, sample: &ProtocolParams, args: &Args, path: &Path) -> Result<()> {
+    let asked = [
+        ("--disks", args.disks.map(|n| n as u64), sample.disks as u64),
+        ("--seed", args.seed, sample.seed),
+    ];
+    for (flag, want, have) in asked {
+        if let Some(want) = want.filter(|w| *w != have) {
+            return Err(Error::Other(format!(
+                "{flag} {want} contradicts the sample {} ({have}); leave {flag} out to use the \
+                 sample as prepared",
+                path.display()
+            )));
+        }
+    }
+    let s = &mut config.sample;
+    s.disks = sample.disks;
+    s.seed = sample.seed;
+    s.r_min = Length(sample.r_min);
+    s.r_max = Length(sample.r_max);
+    s.density = Density(sample.density);
+    s.aspect_ratio = sample.aspect;
+    config.compaction.sigma_c = Pressure(sample.sigma_c);
+    config.compaction.friction = sample.mu_compaction;
+    config.validate()
 }
 
 /// Runs a new test into `dir` (which the caller has checked), from a deposition or from a

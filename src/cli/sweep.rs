@@ -13,7 +13,7 @@ use crate::config::units::{Dimension, parse_quantity};
 use crate::config::{Config, Pressure};
 use crate::error::{Error, Result};
 
-use super::biaxial::{read_sample, run_fresh, run_resume};
+use super::biaxial::{read_sample, run_fresh, run_resume, sample_differences};
 
 /// Options of `cdlab sweep`.
 #[derive(clap::Args, Debug)]
@@ -269,7 +269,19 @@ fn sample(
     }
     let path = out.join("samples").join(format!("seed{seed}.bin"));
     let scene = if path.exists() {
-        read_sample(&path)?
+        let sample = read_sample(&path)?;
+        // A samples directory left by a campaign with other sample settings must not
+        // stand in for this one's.
+        let differ = sample_differences(config, &sample.params);
+        if !differ.is_empty() {
+            return Err(Error::Other(format!(
+                "{} was prepared with other settings than this campaign's ({}): move it away \
+                 or use another output directory",
+                path.display(),
+                differ.join("; ")
+            )));
+        }
+        sample.scene
     } else {
         let dir = path.parent().expect("has a parent");
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
