@@ -5,7 +5,9 @@
 //! `CDLAB_RUN=out/biaxial cargo bench --bench checkpoint`, with optional `CDLAB_WINDOWS`
 //! (default 30 windows of the run's series interval), `CDLAB_THREADS` (team size, default 1),
 //! `CDLAB_TOL` (solver tolerance, default the run's), `CDLAB_METHOD` (gs, colored-gs,
-//! jacobi) and `CDLAB_ALERT` (alert distance as a fraction of the smallest radius). Without `CDLAB_RUN` it says so and measures nothing.
+//! jacobi), `CDLAB_ALERT` (alert distance as a fraction of the smallest radius) and
+//! `CDLAB_OPEN_SKIP` (the `solver.open_skip_gap` of the configuration: a fraction of the
+//! smallest radius; 0 sweeps every candidate). Without `CDLAB_RUN` it says so and measures nothing.
 
 use cdlab::backend::CpuBackend;
 use cdlab::protocol::biaxial::Lab;
@@ -46,15 +48,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(m) = env::<String>("CDLAB_METHOD") {
         solver.method = m.parse()?;
     }
+    // Fractions of the smallest radius, as in the configuration.
+    let r_min = ck
+        .scene
+        .disks
+        .radius
+        .iter()
+        .cloned()
+        .fold(f64::INFINITY, f64::min);
+    if let Some(gap) = env::<f64>("CDLAB_OPEN_SKIP") {
+        let step = &mut ck.state.params.step;
+        step.solver.open_skip = gap * r_min / step.dt;
+    }
     if let Some(alert) = env::<f64>("CDLAB_ALERT") {
-        // A fraction of the smallest radius, as in the configuration.
-        let r_min = ck
-            .scene
-            .disks
-            .radius
-            .iter()
-            .cloned()
-            .fold(f64::INFINITY, f64::min);
         ck.state.params.step.alert = alert * r_min;
     }
     let windows: usize = env("CDLAB_WINDOWS").unwrap_or(30);

@@ -28,6 +28,7 @@ fn params(method: Method) -> StepParams {
             gs_relax: cdlab::solver::default_gs_relax(),
             gs_relax_after: cdlab::solver::default_gs_relax_after(),
             velocity_tol: 0.0,
+            open_skip: 0.0,
         },
     }
 }

@@ -220,3 +220,51 @@ fn kinetic_energy_never_increases_without_external_work() {
     }
     assert!(ke < 0.9 * ke0, "collisions must dissipate: {ke0} -> {ke} J/m");
 }
+
+/// Three equal disks in a row along x: A (20 m/s) touching B, B at rest with a gap `gap`
+/// to C at rest. One step with open contacts parked when their opening velocity exceeds
+/// `open_skip` (m/s); returns the three velocities and whether the step was solved again
+/// with every contact.
+fn row_of_three(method: Method, gap: f64, open_skip: f64) -> ([f64; 3], bool) {
+    let mut s = scene(0.0);
+    for x in [-2.0, 0.0, 2.0 + gap] {
+        s.disks.push(DVec2::new(x, 0.0), 1.0, RHO).unwrap();
+    }
+    s.disks.vel[0] = DVec2::new(20.0, 0.0);
+    let mut p = tight(method);
+    p.solver.open_skip = open_skip;
+    let mut e = cdlab::engine::CpuEngine::new(p).unwrap();
+    let st = e.step(&mut s).unwrap();
+    ([0, 1, 2].map(|k| s.disks.vel[k].x), st.solve.unparked)
+}
+
+#[test]
+fn a_parked_open_contact_that_would_close_is_solved_with_the_others() {
+    for method in [Method::Gs, Method::ColoredGs] {
+        // Gap 2 mm, dt 5e-4 s, theta 0.5: B may approach C at up to g / (theta dt) = 8 m/s
+        // before the gap closes within the step. At the start B is at rest, so B-C opens at
+        // 8 m/s and is parked under a 1 m/s threshold; A's impact then drives B into C.
+        // Closed form (e_n = 0, equal masses): A and B end together at v, C at v - 8 (the
+        // gap closes exactly), momentum 20 = 3 v - 8, so v = 28/3 and C moves at 4/3 m/s.
+        // Without the recheck of parked contacts, C would stay at rest.
+        for (open_skip, parked) in [(1.0, true), (100.0, false)] {
+            let (v, unparked) = row_of_three(method, 2e-3, open_skip);
+            assert_eq!(unparked, parked, "{method:?}, threshold {open_skip} m/s");
+            let want = [28.0 / 3.0, 28.0 / 3.0, 4.0 / 3.0];
+            for k in 0..3 {
+                assert!(
+                    (v[k] - want[k]).abs() < 1e-8,
+                    "{method:?}, threshold {open_skip} m/s: {v:?}"
+                );
+            }
+        }
+        // Gap 4 mm: B-C may approach at 16 m/s and A-B leaves B at 10 m/s, so the parked
+        // contact stays open and the step ends without a second solve: A and B at 10 m/s.
+        let (v, unparked) = row_of_three(method, 4e-3, 1.0);
+        assert!(!unparked, "{method:?}");
+        assert!(
+            (v[0] - 10.0).abs() < 1e-8 && (v[1] - 10.0).abs() < 1e-8 && v[2] == 0.0,
+            "{method:?}: {v:?}"
+        );
+    }
+}

@@ -290,3 +290,23 @@ fn sample(
     cache.push((seed, scene.clone()));
     Ok(scene)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The campaign files shipped in `assets/` parse, cover the paper's 13 x 5 grid, and
+    /// their base configurations load with the sample size their names promise.
+    #[test]
+    fn shipped_campaign_files_parse() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
+        for (file, disks) in [("campaign1000.toml", 1000), ("campaign5000.toml", 5000)] {
+            let text = std::fs::read_to_string(dir.join(file)).unwrap();
+            let sweep: SweepFile = toml::from_str(&text).unwrap();
+            assert_eq!((sweep.mu.len(), sweep.sigma3.len()), (13, 5), "{file}");
+            let base = Config::load(dir.join(sweep.base.expect("a base file"))).unwrap();
+            assert_eq!(base.sample.disks, disks, "{file}");
+            assert_eq!(base.solver.threads, 1, "{file}: one thread per test");
+        }
+    }
+}

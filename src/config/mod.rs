@@ -170,6 +170,7 @@ impl Config {
                     gs_relax: v.gs_relax,
                     gs_relax_after: v.gs_relax_after,
                     velocity_tol: v.velocity_tol * r_min / v.dt.si(),
+                    open_skip: v.open_skip_gap * r_min / v.dt.si(),
                 },
             },
             mu: t.mu,

@@ -105,6 +105,9 @@ pub struct Solver {
     pub gs_relax_after: u32,
     /// Velocity test, as a fraction of `sample.r_min` per time step; 0 turns it off.
     pub velocity_tol: f64,
+    /// Open contacts whose gap would stay above this fraction of `sample.r_min` at the end
+    /// of the step are left out of the sweeps; 0 sweeps every candidate.
+    pub open_skip_gap: f64,
 }
 
 impl Default for Solver {
@@ -124,6 +127,7 @@ impl Default for Solver {
             gs_relax: crate::solver::default_gs_relax(),
             gs_relax_after: crate::solver::default_gs_relax_after(),
             velocity_tol: crate::solver::default_velocity_tol_rel(),
+            open_skip_gap: crate::solver::default_open_skip_gap(),
         }
     }
 }

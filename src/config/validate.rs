@@ -74,6 +74,7 @@ impl Config {
         check_half_open("solver.jacobi_relax", v.jacobi_relax, 0.0, 1.0)?;
         check_half_open("solver.gs_relax", v.gs_relax, 0.0, 1.0)?;
         check_non_negative("solver.velocity_tol", v.velocity_tol)?;
+        check_non_negative("solver.open_skip_gap", v.open_skip_gap)?;
         check_range("solver.alert_distance", v.alert_distance, 0.0, 1.0)?;
         check_at_least("solver.check_every", v.check_every.into(), 1, "a check interval")?;
         check_positive("solver.overlap_limit", v.overlap_limit)?;

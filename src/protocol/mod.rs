@@ -155,6 +155,7 @@ impl ProtocolParams {
                     gs_relax: crate::solver::default_gs_relax(),
                     gs_relax_after: crate::solver::default_gs_relax_after(),
                     velocity_tol: crate::solver::default_velocity_tol_rel() * r_min / dt,
+                    open_skip: crate::solver::default_open_skip_gap() * r_min / dt,
                 },
             },
             mu: 0.3,

@@ -120,17 +120,45 @@ fn rows(contacts: &[Contact], n_bodies: usize, rows: &mut Vec<Row>, props: &mut 
     }));
 }
 
-/// Copies the impulses of the rows back into their contacts: row `m` belongs to contact
-/// `order[m]`, or to contact `m` without an order. Rows marked [`FULL`] were updated in
-/// place.
-fn store(rows: &[Row], order: Option<&[u32]>, contacts: &mut [Contact]) {
+/// Copies the impulses of the rows back into their contacts: row `m` is row `order[m]` (or
+/// `m` without an order) of the swept rows, which belongs to contact `active[..]` of that
+/// (or to the contact of the same index when every contact was swept). Rows marked
+/// [`FULL`] were updated in place.
+fn store(rows: &[Row], order: Option<&[u32]>, active: Option<&[u32]>, contacts: &mut [Contact]) {
     for (m, r) in rows.iter().enumerate() {
         if r.j != FULL {
-            let c = &mut contacts[order.map_or(m, |o| o[m] as usize)];
+            let k = order.map_or(m, |o| o[m] as usize);
+            let c = &mut contacts[active.map_or(k, |a| a[k] as usize)];
             c.rn = r.rn;
             c.rt = r.rt;
         }
     }
+}
+
+/// `U_n + bias_n` of a row at the velocities `gv`: the local law gives the row a normal
+/// impulse from zero only when this is negative.
+fn opening(r: &Row, gv: &[DVec3]) -> f64 {
+    let (vi, vj) = (gv[r.i as usize], gv[r.j as usize]);
+    (vi.x - vj.x) * r.nx + (vi.y - vj.y) * r.ny + r.bias_n
+}
+
+/// Moves out of `rows` the open rows that [`SolverParams::open_skip`] leaves out of the
+/// sweeps (into `parked`), and lists in `active` the contact index of every row kept.
+fn park(rows: &mut Vec<Row>, gv: &[DVec3], open_skip: f64, active: &mut Vec<u32>, parked: &mut Vec<Row>) {
+    active.clear();
+    parked.clear();
+    let mut kept = 0;
+    for m in 0..rows.len() {
+        let r = rows[m];
+        if r.j != FULL && r.rn == 0.0 && r.rt == 0.0 && opening(&r, gv) > open_skip {
+            parked.push(r);
+        } else {
+            rows[kept] = r;
+            active.push(m as u32);
+            kept += 1;
+        }
+    }
+    rows.truncate(kept);
 }
 
 /// Updates one row from the current velocities: solves the local law with its own impulse
@@ -303,6 +331,10 @@ pub struct Workspace {
     props: Vec<BodyProps>,
     sorted: Vec<Row>,
     coloring: Coloring,
+    /// Contact index of each swept row when some rows are parked.
+    active: Vec<u32>,
+    /// Rows left out of the sweeps ([`SolverParams::open_skip`]).
+    parked: Vec<Row>,
     /// The velocity test's copy of the last iterate.
     iterate: Vec<DVec3>,
 }
@@ -404,7 +436,17 @@ pub fn solve(
     }
     let n_bodies = gv.len();
     rows(contacts, n_bodies, &mut work.rows, &mut work.props);
-    let whole = [0, contacts.len() as u32];
+    let parking = params.open_skip > 0.0;
+    if parking {
+        park(
+            &mut work.rows,
+            gv,
+            params.open_skip,
+            &mut work.active,
+            &mut work.parked,
+        );
+    }
+    let whole = [0, work.rows.len() as u32];
     let colored = params.method == Method::ColoredGs;
     if colored {
         let props = &work.props;
@@ -468,7 +510,24 @@ pub fn solve(
         }
     }
     let order = colored.then_some(&work.coloring.order[..]);
-    store(rows, order, contacts);
+    store(rows, order, parking.then_some(&work.active[..]), contacts);
+    if parking {
+        stats.parked = work.parked.len() as u32;
+        if work.parked.iter().any(|r| opening(r, gv) < 0.0) {
+            // A parked contact would close: solve again with every contact, from the
+            // impulses and velocities reached, so that none is missed.
+            let every = SolverParams {
+                open_skip: 0.0,
+                ..*params
+            };
+            let again = solve(&every, contacts, gv0, gv, work);
+            return SolveStats {
+                iterations: stats.iterations + again.iterations,
+                unparked: true,
+                ..again
+            };
+        }
+    }
     stats
 }
 
