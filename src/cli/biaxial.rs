@@ -151,45 +151,27 @@ pub fn read_sample(path: &Path) -> Result<PreparedSample> {
 /// was prepared with, as `key: configuration value, sample value` descriptions.
 pub fn sample_differences(config: &Config, sample: &ProtocolParams) -> Vec<String> {
     let c = config.protocol();
-    let mut out = Vec::new();
-    let mut differ = |key: &str, ours: String, theirs: String| {
-        if ours != theirs {
-            out.push(format!("{key}: {ours} here, {theirs} in the sample"));
-        }
-    };
-    differ("sample.disks", c.disks.to_string(), sample.disks.to_string());
-    differ("sample.seed", c.seed.to_string(), sample.seed.to_string());
-    differ(
-        "sample.r_min",
-        format!("{} m", c.r_min),
-        format!("{} m", sample.r_min),
-    );
-    differ(
-        "sample.r_max",
-        format!("{} m", c.r_max),
-        format!("{} m", sample.r_max),
-    );
-    differ(
-        "sample.density",
-        format!("{} kg/m3", c.density),
-        format!("{} kg/m3", sample.density),
-    );
-    differ(
-        "sample.aspect_ratio",
-        c.aspect.to_string(),
-        sample.aspect.to_string(),
-    );
-    differ(
-        "compaction.sigma_c",
-        format!("{} Pa", c.sigma_c),
-        format!("{} Pa", sample.sigma_c),
-    );
-    differ(
-        "compaction.friction",
-        c.mu_compaction.to_string(),
-        sample.mu_compaction.to_string(),
-    );
-    out
+    let counts = [
+        ("sample.disks", c.disks as u64, sample.disks as u64),
+        ("sample.seed", c.seed, sample.seed),
+    ];
+    let values = [
+        ("sample.r_min", c.r_min, sample.r_min, " m"),
+        ("sample.r_max", c.r_max, sample.r_max, " m"),
+        ("sample.density", c.density, sample.density, " kg/m3"),
+        ("sample.aspect_ratio", c.aspect, sample.aspect, ""),
+        ("compaction.sigma_c", c.sigma_c, sample.sigma_c, " Pa"),
+        ("compaction.friction", c.mu_compaction, sample.mu_compaction, ""),
+    ];
+    let counts = counts
+        .into_iter()
+        .filter(|(_, ours, theirs)| ours != theirs)
+        .map(|(key, ours, theirs)| format!("{key}: {ours} here, {theirs} in the sample"));
+    let values = values
+        .into_iter()
+        .filter(|(_, ours, theirs, _)| ours != theirs)
+        .map(|(key, ours, theirs, unit)| format!("{key}: {ours}{unit} here, {theirs}{unit} in the sample"));
+    counts.chain(values).collect()
 }
 
 /// Makes `config` describe the prepared sample a test starts from: its `[sample]` and
