@@ -4,7 +4,8 @@
 //!
 //! `CDLAB_RUN=out/biaxial cargo bench --bench checkpoint`, with optional `CDLAB_WINDOWS`
 //! (default 30 windows of the run's series interval), `CDLAB_THREADS` (team size, default 1),
-//! `CDLAB_TOL` (solver tolerance, default the run's), `CDLAB_METHOD` (gs, colored-gs,
+//! `CDLAB_TOL` (solver tolerance, default the run's), `CDLAB_MAX_ITER` (iteration cap),
+//! `CDLAB_GS_RELAX` (Gauss-Seidel relaxation after `gs_relax_after` iterations), `CDLAB_METHOD` (gs, colored-gs,
 //! jacobi), `CDLAB_ALERT` (alert distance as a fraction of the smallest radius) and
 //! `CDLAB_OPEN_SKIP` (the `solver.open_skip_gap` of the configuration: a fraction of the
 //! smallest radius; 0 sweeps every candidate). Without `CDLAB_RUN` it says so and measures nothing.
@@ -45,6 +46,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(tol) = env("CDLAB_TOL") {
         solver.tol = tol;
     }
+    if let Some(cap) = env("CDLAB_MAX_ITER") {
+        solver.max_iter = cap;
+    }
+    if let Some(w) = env("CDLAB_GS_RELAX") {
+        solver.gs_relax = w;
+    }
     if let Some(m) = env::<String>("CDLAB_METHOD") {
         solver.method = m.parse()?;
     }
@@ -77,10 +84,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let iterations = obs.rows.iter().map(|r| r.iterations).sum::<f64>() / rows;
     let contacts = obs.rows.iter().map(|r| r.n_contacts as f64).sum::<f64>() / rows;
     let last = obs.rows.last().ok_or("no window ran")?;
+    let cap = lab.state.params.step.solver.max_iter;
+    let capped = obs
+        .rows
+        .iter()
+        .filter(|r| r.iterations_max >= u64::from(cap))
+        .count();
     println!(
-        "{steps} steps from {}: {:.3} ms/step, {iterations:.1} iterations/step, {contacts:.0} contacts, {:.2} ns per contact update (whole step); at the end sigma1 {:.3} MPa, {} force-carrying contacts, max overlap {:.2e} r_min",
+        "{steps} steps from {}: {:.3} ms/step, {iterations:.1} iterations/step ({capped} of {} windows hold a step at the cap of {cap}), {contacts:.0} contacts, {:.2} ns per contact update (whole step); at the end sigma1 {:.3} MPa, {} force-carrying contacts, max overlap {:.2e} r_min",
         std::path::Path::new(&dir).display(),
         secs / steps * 1e3,
+        obs.rows.len(),
         secs / (steps * iterations * contacts) * 1e9,
         last.sigma1_pa / 1e6,
         last.n_force,

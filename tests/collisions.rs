@@ -48,11 +48,12 @@ fn relaxed_pair_with(
 fn velocity_test_stops_at_the_first_iteration_that_changes_no_velocity_by_more_than_it() {
     for method in [Method::Gs, Method::ColoredGs] {
         // Relaxed by 1/2 from a cold start, sweep k changes each disk's velocity by
-        // 1.5 x 2^-k m/s: 0.75, 0.375, 0.1875. A test at 0.3 m/s stops after the third
-        // sweep (7/8 of the way: 0.6875 and 0.3125 m/s); at 1 m/s after the first (1.25 and
-        // -0.25); off (0), at the cap of 30 (the impulse change, 2^-30 relative, stays
+        // 1.5 x 2^-k m/s, which the test divides by the relaxation: 1.5, 0.75, 0.375,
+        // 0.1875 m/s. A test at 0.3 m/s stops after the fourth sweep (15/16 of the 1.5 m/s
+        // change: 0.59375 and 0.40625 m/s); at 1 m/s after the second (3/4: 0.875 and
+        // 0.125); off (0), at the cap of 30 (the impulse change, 2^-30 relative, stays
         // above tol = 1e-12).
-        let cases = [(0.3, 3, 0.6875, 0.3125), (1.0, 1, 1.25, -0.25)];
+        let cases = [(0.3, 4, 0.59375, 0.40625), (1.0, 2, 0.875, 0.125)];
         for (tol, its, va, vb) in cases {
             let (a, b, n) = relaxed_pair_with(method, 0.5, 0, 30, tol);
             assert_eq!(n, its, "{method:?} at {tol} m/s");

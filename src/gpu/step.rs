@@ -344,7 +344,8 @@ impl GpuBackend {
             } else {
                 (d2 / r2).sqrt() / w
             };
-            if residual <= p.tol || (velocity_test && dv <= p.velocity_tol) {
+            // The velocity change too, as the CPU's velocity test does.
+            if residual <= p.tol || (velocity_test && dv / w <= p.velocity_tol) {
                 return Ok((done, true));
             }
             if done >= p.max_iter {

@@ -381,14 +381,19 @@ impl<'a> VelocityTest<'a> {
             prev.extend_from_slice(gv);
         }
         VelocityTest {
-            tol: params.velocity_tol,
+            // The test applies to relaxed iterations only, whose changes are `gs_relax` of
+            // the way to the local solutions: like the impulse test, it bounds the change
+            // divided by the relaxation, so that `velocity_tol` means the same at any
+            // relaxation.
+            tol: params.velocity_tol * params.gs_relax,
             after: params.gs_relax_after,
             prev,
         }
     }
 
     /// Called after iteration `it` with the iterate `gv`: true when the test applies and no
-    /// body's velocity changed by more than `tol` since the previous iteration. Bodies no
+    /// body's velocity changed by more than `velocity_tol x gs_relax` since the previous
+    /// iteration. Bodies no
     /// contact can move keep their velocity, so every body may be compared.
     fn settled(&mut self, it: u32, gv: &[DVec3], props: &[BodyProps]) -> bool {
         if self.tol <= 0.0 || it < self.after {
