@@ -4,7 +4,15 @@
 mod common;
 
 use common::{cdlab, small_config};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+/// `cdlab biaxial --config CONFIG [EXTRA...] --out OUT --quiet`.
+fn biaxial(config: &Path, out: &Path, extra: &[&str]) -> (bool, String) {
+    let mut args = vec!["biaxial", "--config", config.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    args.extend(["--out", out.to_str().unwrap(), "--quiet"]);
+    cdlab(&args)
+}
 
 fn scratch(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("cdlab-cli-{}-{name}", std::process::id()));
@@ -17,14 +25,7 @@ fn biaxial_run_records_resumes_and_refuses_to_overwrite() {
     let base = scratch("run");
     let cfg = small_config(&base);
     let out = base.join("full");
-    let (ok, text) = cdlab(&[
-        "biaxial",
-        "--config",
-        cfg.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
+    let (ok, text) = biaxial(&cfg, &out, &[]);
     assert!(ok, "{text}");
     assert!(text.contains("peak sigma1") && text.contains("MPa"), "{text}");
     let summary: serde_json::Value =
@@ -47,14 +48,7 @@ fn biaxial_run_records_resumes_and_refuses_to_overwrite() {
 
     // An existing output directory is refused without --force, nothing overwritten.
     let before = std::fs::read(out.join("run.mcap")).unwrap();
-    let (ok, text) = cdlab(&[
-        "biaxial",
-        "--config",
-        cfg.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
+    let (ok, text) = biaxial(&cfg, &out, &[]);
     assert!(!ok && text.contains("--force"), "{text}");
     assert_eq!(before, std::fs::read(out.join("run.mcap")).unwrap());
     // A finished run cannot be resumed.
@@ -118,36 +112,22 @@ fn a_prepared_sample_is_reused_by_a_test() {
     std::fs::write(&cfg1000, text1000).unwrap();
     let out = base.join("test");
     for (flag, value) in [("--disks", "500"), ("--seed", "7")] {
-        let (ok, text) = cdlab(&[
-            "biaxial",
-            "--config",
-            cfg1000.to_str().unwrap(),
-            "--sample",
-            sample.to_str().unwrap(),
-            flag,
-            value,
-            "--out",
-            out.to_str().unwrap(),
-            "--quiet",
-        ]);
+        let (ok, text) = biaxial(
+            &cfg1000,
+            &out,
+            &["--sample", sample.to_str().unwrap(), flag, value],
+        );
         assert!(
             !ok && text.contains(&format!("{flag} {value} contradicts the sample")),
             "{text}"
         );
         assert!(!out.exists(), "a refused test must leave no output");
     }
-    let (ok, text) = cdlab(&[
-        "biaxial",
-        "--config",
-        cfg1000.to_str().unwrap(),
-        "--sample",
-        sample.to_str().unwrap(),
-        "--mu",
-        "0.5",
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
+    let (ok, text) = biaxial(
+        &cfg1000,
+        &out,
+        &["--sample", sample.to_str().unwrap(), "--mu", "0.5"],
+    );
     assert!(ok, "{text}");
     let summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
