@@ -81,7 +81,8 @@ pub struct SolverParams {
     /// whose normal velocity at the start of the solve, shifted by its gap (`U_n +
     /// bias_n`), exceeds this cannot take an impulse unless the velocities change by as
     /// much during the step. Such rows are swept only if, once the others have converged,
-    /// one of them would close; then the step is solved again with every row. 0 sweeps every
+    /// one of them would close; then the step is solved again with every row, and the step
+    /// counts the iterations of both solves (up to twice `max_iter`). 0 sweeps every
     /// candidate, as in records written before this field.
     #[serde(default)]
     pub open_skip: f64,
