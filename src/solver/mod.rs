@@ -224,8 +224,6 @@ pub struct SolveStats {
     pub residual: f64,
     /// Number of colors (0 unless colored).
     pub colors: u32,
-    /// Open contacts left out of the sweeps ([`SolverParams::open_skip`]).
-    pub parked: u32,
     /// True when a left-out contact would have closed, so the step was solved again with
     /// every contact.
     pub unparked: bool,

@@ -393,8 +393,8 @@ impl<'a> VelocityTest<'a> {
 
     /// Called after iteration `it` with the iterate `gv`: true when the test applies and no
     /// body's velocity changed by more than `velocity_tol x gs_relax` since the previous
-    /// iteration. Bodies no
-    /// contact can move keep their velocity, so every body may be compared.
+    /// iteration. Bodies no contact can move keep their velocity, so every body may be
+    /// compared.
     fn settled(&mut self, it: u32, gv: &[DVec3], props: &[BodyProps]) -> bool {
         if self.tol <= 0.0 || it < self.after {
             return false;
@@ -516,22 +516,19 @@ pub fn solve(
     }
     let order = colored.then_some(&work.coloring.order[..]);
     store(rows, order, parking.then_some(&work.active[..]), contacts);
-    if parking {
-        stats.parked = work.parked.len() as u32;
-        if work.parked.iter().any(|r| opening(r, gv) < 0.0) {
-            // A parked contact would close: solve again with every contact, from the
-            // impulses and velocities reached, so that none is missed.
-            let every = SolverParams {
-                open_skip: 0.0,
-                ..*params
-            };
-            let again = solve(&every, contacts, gv0, gv, work);
-            return SolveStats {
-                iterations: stats.iterations + again.iterations,
-                unparked: true,
-                ..again
-            };
-        }
+    if parking && work.parked.iter().any(|r| opening(r, gv) < 0.0) {
+        // A parked contact would close: solve again with every contact, from the
+        // impulses and velocities reached, so that none is missed.
+        let every = SolverParams {
+            open_skip: 0.0,
+            ..*params
+        };
+        let again = solve(&every, contacts, gv0, gv, work);
+        return SolveStats {
+            iterations: stats.iterations + again.iterations,
+            unparked: true,
+            ..again
+        };
     }
     stats
 }
