@@ -18,6 +18,7 @@
 use std::collections::HashMap;
 
 use cdlab::backend::CpuBackend;
+use cdlab::contact::detect::CellGrid;
 use cdlab::model::Scene;
 use cdlab::protocol::biaxial::Lab;
 use cdlab::protocol::checkpoint::decode;
@@ -36,25 +37,22 @@ fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
 }
 
 /// The overlap of every overlapping disk pair, in units of `r_min`, keyed by the pair's
-/// indices: a sweep over the disks sorted by abscissa, so that 5000 disks take milliseconds.
-fn pair_overlaps(s: &Scene, r_min: f64) -> HashMap<(usize, usize), f64> {
+/// indices, found on the cell grid of contact detection.
+fn pair_overlaps(s: &Scene, r_min: f64) -> cdlab::error::Result<HashMap<(usize, usize), f64>> {
     let d = &s.disks;
-    let reach = 2.0 * d.radius.iter().cloned().fold(0.0, f64::max);
-    let mut by_x: Vec<usize> = (0..d.pos.len()).collect();
-    by_x.sort_by(|&a, &b| d.pos[a].x.total_cmp(&d.pos[b].x));
+    let r_max = d.radius.iter().cloned().fold(0.0, f64::max);
+    let mut grid = CellGrid::default();
+    grid.build(&d.pos, 2.0 * r_max)?;
     let mut out = HashMap::new();
-    for (k, &i) in by_x.iter().enumerate() {
-        for &j in &by_x[k + 1..] {
-            if d.pos[j].x - d.pos[i].x > reach {
-                break;
-            }
+    for i in 0..d.pos.len() {
+        grid.for_neighbours(i, |j| {
             let gap = (d.pos[i] - d.pos[j]).length() - d.radius[i] - d.radius[j];
-            if gap < 0.0 {
-                out.insert((i.min(j), i.max(j)), -gap / r_min);
+            if j > i && gap < 0.0 {
+                out.insert((i, j), -gap / r_min);
             }
-        }
+        });
     }
-    out
+    Ok(out)
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -101,7 +99,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ck.state.params.step.alert = alert * r_min;
     }
     let windows: usize = env("CDLAB_WINDOWS").unwrap_or(30);
-    let before = pair_overlaps(&ck.scene, r_min);
+    let before = pair_overlaps(&ck.scene, r_min)?;
     let backend = CpuBackend::new(ck.scene.clone(), ck.state.params.step)?;
     let mut lab = Lab::resume(backend, ck)?;
     let mut obs = Collect::default();
@@ -110,7 +108,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         lab.advance(&mut obs)?;
     }
     let secs = t0.elapsed().as_secs_f64();
-    let after = pair_overlaps(lab.backend.scene_ref(), r_min);
+    let after = pair_overlaps(lab.backend.scene_ref(), r_min)?;
     let mut sank: Vec<f64> = after
         .iter()
         .map(|(pair, &o)| o - before.get(pair).copied().unwrap_or(0.0))
