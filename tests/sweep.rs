@@ -120,3 +120,37 @@ fn a_sample_prepared_with_other_settings_is_refused() {
     assert!(!base.join("campaign/seed1_mu0.3_s2MPa/summary.json").exists());
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// `[[dt_by_friction]]` gives the high-friction tests their own time step, and a test found
+/// with another step than the sweep asks (the sweep file changed under a campaign) is refused
+/// by name instead of skipped into the report, while the other tests carry on.
+#[test]
+fn time_steps_by_friction_are_recorded_and_checked_on_rerun() {
+    let grid = "mu = [0.1, 0.5]\nsigma3 = [\"2 MPa\"]\n";
+    let (base, sweep) = tiny_campaign(
+        "sweep-dt",
+        &format!("{grid}[[dt_by_friction]]\nmu_from = 0.5\ndt = \"0.25 ms\"\n"),
+    );
+    let s = sweep.to_str().unwrap();
+    let (ok, text) = cdlab(&["sweep", s, "--jobs", "2"]);
+    assert!(ok, "{text}");
+    let out = base.join("campaign");
+    let dt = |name: &str| cdlab::record::read_config(out.join(name)).unwrap().solver.dt.si();
+    // Expected: the built-in 0.5 ms below friction 0.5, the entry's 0.25 ms from it.
+    assert_eq!(dt("seed1_mu0.1_s2MPa"), 5e-4);
+    assert_eq!(dt("seed1_mu0.5_s2MPa"), 2.5e-4);
+    // Both tests share one sample, prepared at the base step whichever test came first.
+    assert_eq!(std::fs::read_dir(out.join("samples")).unwrap().count(), 1);
+
+    let text_before = std::fs::read_to_string(&sweep).unwrap();
+    std::fs::write(&sweep, text_before.replace("0.25 ms", "0.1 ms")).unwrap();
+    let (ok, text) = cdlab(&["sweep", s]);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("seed1_mu0.5_s2MPa holds a test of other settings")
+            && text.contains("solver.dt: 0.0001 s here, 0.00025 s in the test"),
+        "{text}"
+    );
+    assert!(text.contains("already finished, skipped"), "{text}");
+    let _ = std::fs::remove_dir_all(&base);
+}

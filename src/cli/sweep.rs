@@ -10,7 +10,7 @@ use std::sync::Mutex;
 use serde::Deserialize;
 
 use crate::config::units::{Dimension, parse_quantity};
-use crate::config::{Config, Pressure};
+use crate::config::{Config, Duration, Pressure};
 use crate::error::{Error, Result};
 
 use super::biaxial::{read_sample, run_fresh, run_resume, sample_differences};
@@ -47,6 +47,53 @@ struct SweepFile {
     /// Sample seeds (one compacted sample each; default [1]).
     #[serde(default = "one_seed")]
     seeds: Vec<u64>,
+    /// Time steps by contact friction: a test runs at the `dt` of the entry with the
+    /// largest `mu_from` at or below its friction, else at the base configuration's.
+    #[serde(default)]
+    dt_by_friction: Vec<FrictionDt>,
+}
+
+/// One `[[dt_by_friction]]` entry of a sweep file.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FrictionDt {
+    /// Lowest contact friction that runs at `dt`.
+    mu_from: f64,
+    /// The time step.
+    dt: Duration,
+}
+
+impl SweepFile {
+    /// The time step of a test at contact friction `mu` (s), `base` where no entry applies.
+    fn dt(&self, mu: f64, base: f64) -> f64 {
+        self.dt_by_friction
+            .iter()
+            .filter(|e| e.mu_from <= mu)
+            .max_by(|a, b| a.mu_from.total_cmp(&b.mu_from))
+            .map_or(base, |e| e.dt.si())
+    }
+
+    /// Refuses entries that cannot mean anything (the time step itself is checked with the
+    /// rest of each test's configuration).
+    fn check_dt_entries(&self, file: &Path) -> Result<()> {
+        for (k, e) in self.dt_by_friction.iter().enumerate() {
+            if !(e.mu_from.is_finite() && e.mu_from >= 0.0) {
+                return Err(Error::invalid(
+                    "dt_by_friction.mu_from",
+                    e.mu_from,
+                    "a friction >= 0",
+                ));
+            }
+            if self.dt_by_friction[..k].iter().any(|o| o.mu_from == e.mu_from) {
+                return Err(Error::Other(format!(
+                    "{}: two dt_by_friction entries start at friction {}",
+                    file.display(),
+                    e.mu_from
+                )));
+            }
+        }
+        Ok(())
+    }
 }
 
 fn paper_mu() -> Vec<f64> {
@@ -68,6 +115,8 @@ struct Point {
     mu: f64,
     sigma3: f64,
     seed: u64,
+    /// Time step (s).
+    dt: f64,
     dir: PathBuf,
 }
 
@@ -127,6 +176,7 @@ pub fn run(args: &Args) -> Result<()> {
             args.file.display()
         )));
     }
+    sweep.check_dt_entries(&args.file)?;
     let mut grid = Vec::new();
     for &seed in &sweep.seeds {
         for &mu in &sweep.mu {
@@ -141,6 +191,7 @@ pub fn run(args: &Args) -> Result<()> {
                     mu,
                     sigma3: s3,
                     seed,
+                    dt: sweep.dt(mu, base.solver.dt.si()),
                     dir,
                 });
             }
@@ -220,13 +271,43 @@ fn run_point(
     p: &Point,
     samples: &Mutex<Vec<(u64, crate::model::Scene)>>,
 ) -> Result<String> {
-    if p.dir.join("summary.json").exists() {
+    let mut config = base.clone();
+    config.sample.seed = p.seed;
+    config.test.mu = p.mu;
+    config.test.sigma3 = Pressure(p.sigma3);
+    config.solver.dt = Duration(p.dt);
+    config.output.dir = p.dir.clone();
+    // A finished test is skipped and a half-finished one resumes with its own settings, so
+    // both must be this sweep's tests. A record without a checkpoint (a test killed in its
+    // first minutes) has nothing to resume: the test starts again. An unreadable record is
+    // an error, never overwritten.
+    let started = p.dir.join(crate::record::MCAP_FILE).exists();
+    let finished = p.dir.join("summary.json").exists();
+    let (recorded, resume) = if finished {
+        (Some(crate::record::read_config(&p.dir)?), false)
+    } else if started {
+        let record = crate::record::read_run(&p.dir)?;
+        match record.last_checkpoint {
+            Some(_) => (Some(record.config()?), true),
+            None => (None, false),
+        }
+    } else {
+        (None, false)
+    };
+    if let Some(recorded) = recorded {
+        let differ = point_differences(&config, &recorded);
+        if !differ.is_empty() {
+            return Err(Error::Other(format!(
+                "{} holds a test of other settings than this sweep's ({}): move it away or \
+                 use another output directory",
+                p.dir.display(),
+                differ.join("; ")
+            )));
+        }
+    }
+    if finished {
         return Ok("already finished, skipped".into());
     }
-    // A record without a checkpoint (a test killed in its first minutes) has nothing to
-    // resume: the test starts again. An unreadable record is an error, never overwritten.
-    let started = p.dir.join(crate::record::MCAP_FILE).exists();
-    let resume = started && crate::record::read_run(&p.dir)?.last_checkpoint.is_some();
     let how = match (started, resume) {
         (_, true) => "resuming",
         (true, false) => "restarting (its record holds no checkpoint yet)",
@@ -236,13 +317,12 @@ fn run_point(
     let summary = if resume {
         run_resume(&p.dir, Some("cpu"), true)?
     } else {
-        let mut config = base.clone();
-        config.sample.seed = p.seed;
-        config.test.mu = p.mu;
-        config.test.sigma3 = Pressure(p.sigma3);
-        config.output.dir = p.dir.clone();
         config.validate()?;
-        let scene = sample(&config, out, p.seed, samples)?;
+        // The sample is prepared with the base configuration's settings, whichever test
+        // asks for it first (its time step may be one of `dt_by_friction`).
+        let mut prepare = base.clone();
+        prepare.sample.seed = p.seed;
+        let scene = sample(&prepare, out, p.seed, samples)?;
         run_fresh(&config, &p.dir, Some(scene), true)?
     };
     Ok(format!(
@@ -253,6 +333,41 @@ fn run_point(
             .map_or("n/a".into(), |v| format!("{v:.3}")),
         summary.wall_time_s
     ))
+}
+
+/// The settings the sweep gives each test on which `recorded` (a test found in its
+/// directory) differs from `ours`, one phrase each. A finished test of other settings would
+/// enter the report as one of this campaign's, and a half-finished one would resume with its
+/// own.
+fn point_differences(ours: &Config, recorded: &Config) -> Vec<String> {
+    let values = [
+        ("test.mu", ours.test.mu, recorded.test.mu, ""),
+        (
+            "test.sigma3",
+            ours.test.sigma3.si(),
+            recorded.test.sigma3.si(),
+            " Pa",
+        ),
+        (
+            "test.strain_end",
+            ours.test.strain_end,
+            recorded.test.strain_end,
+            "",
+        ),
+        ("solver.dt", ours.solver.dt.si(), recorded.solver.dt.si(), " s"),
+    ];
+    let mut differ: Vec<String> = values
+        .into_iter()
+        .filter(|(_, a, b, _)| a != b)
+        .map(|(key, a, b, unit)| format!("{key}: {a}{unit} here, {b}{unit} in the test"))
+        .collect();
+    if ours.sample.seed != recorded.sample.seed {
+        differ.push(format!(
+            "sample.seed: {} here, {} in the test",
+            ours.sample.seed, recorded.sample.seed
+        ));
+    }
+    differ
 }
 
 /// The compacted sample of `seed`: from memory, from `out/samples/seedS.bin`, or prepared
@@ -294,6 +409,41 @@ fn sample(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A test runs at the entry with the largest `mu_from` at or below its friction; an
+    /// entry repeated or below zero is refused.
+    #[test]
+    fn time_step_follows_the_friction_entries() {
+        let sweep: SweepFile = toml::from_str(
+            "out = \"x\"\n[[dt_by_friction]]\nmu_from = 6\ndt = \"0.1 ms\"\n\
+             [[dt_by_friction]]\nmu_from = 3\ndt = \"0.25 ms\"\n",
+        )
+        .unwrap();
+        sweep.check_dt_entries(Path::new("x.toml")).unwrap();
+        let base = 5e-4;
+        // Expected: below 3 the base step, from 3 up to 6 the 3 entry, from 6 the 6 entry.
+        let got: Vec<f64> = [0.01, 2.99, 3.0, 5.0, 6.0, 12.0]
+            .iter()
+            .map(|&mu| sweep.dt(mu, base))
+            .collect();
+        assert_eq!(got, [5e-4, 5e-4, 2.5e-4, 2.5e-4, 1e-4, 1e-4]);
+        for bad in [
+            "out = \"x\"\n[[dt_by_friction]]\nmu_from = 3\ndt = \"0.25 ms\"\n[[dt_by_friction]]\nmu_from = 3\ndt = \"0.1 ms\"\n",
+            "out = \"x\"\n[[dt_by_friction]]\nmu_from = -1\ndt = \"0.25 ms\"\n",
+        ] {
+            let sweep: SweepFile = toml::from_str(bad).unwrap();
+            let e = sweep
+                .check_dt_entries(Path::new("x.toml"))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("dt_by_friction"), "{e}");
+        }
+        // A duration without a time unit is a parse error, not a silent number.
+        assert!(
+            toml::from_str::<SweepFile>("out = \"x\"\n[[dt_by_friction]]\nmu_from = 3\ndt = \"0.25 MPa\"\n")
+                .is_err()
+        );
+    }
 
     /// The campaign files shipped in `assets/` parse, cover the paper's 13 x 5 grid, and
     /// their base configurations load with the sample size their names promise.

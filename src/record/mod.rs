@@ -23,7 +23,7 @@ mod writer;
 #[cfg(test)]
 mod tests;
 
-pub use reader::{RunRecord, read_run};
+pub use reader::{RunRecord, read_config, read_run};
 pub use series::{SERIES_FIELDS, SeriesRow, csv_header, series_json_schema};
 pub use snapshot::{ContactClass, ContactRecord, DiskRecord, SNAPSHOT_SCHEMA, Snapshot};
 pub use writer::Recorder;

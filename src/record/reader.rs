@@ -43,6 +43,54 @@ impl RunRecord {
     }
 }
 
+/// The cdlab version and the configuration (as JSON) of a `/config` message.
+fn config_message(data: &[u8]) -> std::result::Result<(String, String), String> {
+    let v: serde_json::Value = serde_json::from_slice(data).map_err(|e| format!("/config message: {e}"))?;
+    let version = v["version"].as_str().ok_or("/config message has no version")?;
+    let config = v.get("config").ok_or("/config message has no config")?;
+    Ok((version.to_string(), config.to_string()))
+}
+
+/// The MCAP file of `path`: the file itself or `run.mcap` in a run directory.
+fn mcap_path(path: &Path) -> PathBuf {
+    if path.is_dir() {
+        path.join(MCAP_FILE)
+    } else {
+        path.to_path_buf()
+    }
+}
+
+/// Reads only the configuration of a run (`path` as for [`read_run`]). The recorder writes
+/// it first and its chunks are small, so the file's first megabyte normally holds it: a sweep
+/// checks every finished test of a campaign this way without reading whole records. A head
+/// that does not hold it falls back to [`read_run`], with its errors.
+pub fn read_config(path: impl AsRef<Path>) -> Result<Config> {
+    use std::io::Read;
+    let path = mcap_path(path.as_ref());
+    let mut head = Vec::new();
+    std::fs::File::open(&path)
+        .and_then(|f| f.take(1 << 20).read_to_end(&mut head))
+        .map_err(|e| Error::io(&path, e))?;
+    let first = MessageStream::new_with_options(&head, Options::ValidateChunkCrcs.into())
+        .ok()
+        .and_then(|stream| {
+            stream.map_while(|m| m.ok()).find(|m| {
+                m.channel.topic == TOPIC_CONFIG
+                    && m.channel.schema.as_ref().map(|s| s.name.as_str()) == Some(CONFIG_SCHEMA)
+            })
+        })
+        .and_then(|m| config_message(&m.data).ok());
+    let config_json = match first {
+        Some((_, json)) => json,
+        None => read_run(&path)?.config_json,
+    };
+    RunRecord {
+        config_json,
+        ..Default::default()
+    }
+    .config()
+}
+
 /// Reads a run from `path`: the MCAP file itself, or a run directory holding `run.mcap`.
 ///
 /// A file cut short is read up to its last complete chunk. A file that is not MCAP, or an
@@ -50,11 +98,7 @@ impl RunRecord {
 /// complete message that does not decode, is an error naming the file.
 pub fn read_run(path: impl AsRef<Path>) -> Result<RunRecord> {
     let path = path.as_ref();
-    let path: PathBuf = if path.is_dir() {
-        path.join(MCAP_FILE)
-    } else {
-        path.to_path_buf()
-    };
+    let path = mcap_path(path);
     let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
     let bad = |msg: String| Error::io(&path, std::io::Error::new(std::io::ErrorKind::InvalidData, msg));
 
@@ -93,16 +137,7 @@ pub fn read_run(path: impl AsRef<Path>) -> Result<RunRecord> {
                 if have_config {
                     continue; // the first configuration is the run's
                 }
-                let v: serde_json::Value =
-                    serde_json::from_slice(&msg.data).map_err(|e| bad(format!("/config message: {e}")))?;
-                run.version = v["version"]
-                    .as_str()
-                    .ok_or_else(|| bad("/config message has no version".into()))?
-                    .to_string();
-                let config = v
-                    .get("config")
-                    .ok_or_else(|| bad("/config message has no config".into()))?;
-                run.config_json = config.to_string();
+                (run.version, run.config_json) = config_message(&msg.data).map_err(bad)?;
                 have_config = true;
             }
             TOPIC_SERIES => {

@@ -145,6 +145,32 @@ fn write_then_read_back_equal() {
     assert_eq!(rows[7], expected.series[7].csv_line());
 }
 
+/// `read_config` reads the configuration from the head of a record longer than the head it
+/// reads (a sweep's check of finished tests), and equals what the whole read gives.
+#[test]
+fn configuration_alone_is_read_from_a_long_record() {
+    let tmp = TempDir::new("config-only");
+    let mut config = Config::default();
+    config.solver.dt = crate::config::Duration(2.5e-4);
+    config.test.mu = 6.0;
+    let mut rec = Recorder::create(&tmp.0, &config).unwrap();
+    for k in 0..4000 {
+        rec.series(&row(k)).unwrap();
+        if k % 400 == 0 {
+            rec.snapshot(&snapshot(k as usize, 5000)).unwrap();
+        }
+    }
+    rec.finish().unwrap();
+    let len = std::fs::metadata(tmp.0.join(MCAP_FILE)).unwrap().len();
+    assert!(
+        len > 1 << 20,
+        "the record ({len} bytes) must outgrow the 1 MiB head"
+    );
+    let head = read_config(&tmp.0).unwrap();
+    assert_eq!(head, config);
+    assert_eq!(head, read_run(&tmp.0).unwrap().config().unwrap());
+}
+
 #[test]
 fn truncated_file_is_read_up_to_its_last_complete_chunk() {
     let tmp = TempDir::new("truncate");
@@ -231,8 +257,10 @@ fn foreign_files_are_rejected_naming_the_file() {
         w.finish().unwrap();
     }
     for path in [&text, &rnd, &empty, &other, &tmp.0.join("missing.mcap")] {
-        let e = read_run(path).expect_err("foreign file").to_string();
         let name = path.file_name().unwrap().to_str().unwrap();
+        let e = read_run(path).expect_err("foreign file").to_string();
+        assert!(e.contains(name), "{e}");
+        let e = read_config(path).expect_err("foreign file").to_string();
         assert!(e.contains(name), "{e}");
     }
     // Our own topic with a foreign schema is refused, not misread.
