@@ -9,7 +9,8 @@ pub struct Strength {
     pub sigma1_peak_pa: f64,
     /// Axial strain at the centre of the peak window.
     pub strain_peak: f64,
-    /// Mean sigma_1 over the residual strain range (Pa); NaN if the test stopped before it.
+    /// Mean sigma_1 over the residual strain range (Pa); NaN if the test stopped before the
+    /// end of that range (see [`residual`]).
     pub sigma1_residual_pa: f64,
     /// Confining stress (Pa).
     pub sigma3_pa: f64,
@@ -60,6 +61,26 @@ pub fn mean_in(rows: &[SeriesRow], lo: f64, hi: f64) -> f64 {
     }
 }
 
+/// The residual strain range of protocol.md.
+pub const RESIDUAL_RANGE: (f64, f64) = (0.05, 0.10);
+
+/// How far short of the end of [`RESIDUAL_RANGE`] a test may stop and still have a
+/// residual: the width of the peak's moving window, so that a test stopped a few rows
+/// early keeps its residual.
+pub const RESIDUAL_END_SLACK: f64 = 0.002;
+
+/// Mean sigma_1 over [`RESIDUAL_RANGE`] of the compression rows `comp` (in increasing
+/// strain), or NaN when they stop more than [`RESIDUAL_END_SLACK`] before its end: a test
+/// stopped at strain 0.05 would otherwise report one row, and one stopped at 0.06 the
+/// strength just after the peak, as its residual.
+pub fn residual(comp: &[SeriesRow]) -> f64 {
+    let (lo, hi) = RESIDUAL_RANGE;
+    match comp.last() {
+        Some(last) if last.strain_axial >= hi - RESIDUAL_END_SLACK => mean_in(comp, lo, hi),
+        _ => f64::NAN,
+    }
+}
+
 /// Mohr-Coulomb angle through the origin for principal stresses s1 >= s3 (degrees).
 pub fn friction_angle_deg(s1: f64, s3: f64) -> f64 {
     ((s1 - s3) / (s1 + s3)).asin().to_degrees()
@@ -74,7 +95,7 @@ pub fn strength(rows: &[SeriesRow], sigma3: f64) -> Strength {
         .cloned()
         .collect();
     let (peak, at) = moving_peak(&comp, 0.002);
-    let residual = mean_in(&comp, 0.05, 0.10);
+    let residual = residual(&comp);
     Strength {
         sigma1_peak_pa: peak,
         strain_peak: at,
@@ -195,5 +216,20 @@ mod tests {
     fn residual_is_the_mean_over_the_range() {
         let r = rows(&[(0.04, 100.0), (0.05, 2.0), (0.07, 4.0), (0.1, 6.0), (0.11, 100.0)]);
         assert!((mean_in(&r, 0.05, 0.10) - 4.0).abs() < 1e-12);
+        // Rows past the range do not count: 0.11 is left out.
+        assert!((residual(&r) - 4.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn residual_needs_the_test_to_reach_the_end_of_its_range() {
+        // Stopped at 0.05: a single row would be the residual; at 0.07, the strength just
+        // after the peak. Neither is protocol.md's residual.
+        for end in [0.05, 0.07, 0.0979] {
+            let r = rows(&[(0.03, 9.0), (0.05, 2.0), (end, 4.0)]);
+            assert!(residual(&r).is_nan(), "stopped at {end}");
+        }
+        // Stopped a row short of 0.10 (within the 0.002 slack): the mean of the three rows.
+        let r = rows(&[(0.03, 9.0), (0.05, 2.0), (0.07, 4.0), (0.0985, 6.0)]);
+        assert!((residual(&r) - 4.0).abs() < 1e-12);
     }
 }

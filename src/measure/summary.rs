@@ -21,7 +21,8 @@ pub struct Summary {
     pub sigma1_peak_mpa: f64,
     /// Axial strain at the peak.
     pub strain_peak: f64,
-    /// Mean sigma_1 over axial strain 0.05-0.10 (MPa); null if the test ended before 0.05.
+    /// Mean sigma_1 over axial strain 0.05-0.10 (MPa); null if the test ended before strain
+    /// 0.098 (`measure::derived::residual`).
     pub sigma1_residual_mpa: Option<f64>,
     /// Mohr-Coulomb friction angle at the peak (degrees).
     pub phi_peak_deg: f64,
