@@ -232,7 +232,7 @@ impl Accumulator {
     }
 }
 
-/// Outer edges of the two strips (m): the mean over heights of the [`Outline`] of the
+/// Outer edges of the two strips (m): the mean over heights of the `Outline` of the
 /// left-strip and of the right-strip disks, over the heights crossed by both strips. The
 /// sample width `right - left` times the wall distance is the area between the outer edges
 /// of the strips and the walls (protocol.md's V).

@@ -1,5 +1,5 @@
 //! The biaxial test of Taboada et al. (2005) as a sequence of phases driven through the
-//! [`Backend`] interface: deposition and compaction (sample preparation), confinement
+//! [`Backend`](crate::backend::Backend) interface: deposition and compaction (sample preparation), confinement
 //! through deformable walls, and compression at constant axial velocity.
 //!
 //! The protocol holds only host-side state ([`LabState`]): the phase, the strips, the gauge

@@ -3,7 +3,7 @@
 //! `gv` holds the generalized velocities (vx, vy, spin) of every body: disks first, then
 //! walls. On entry it must already include the impulses the contacts carry (warm start).
 //!
-//! Gauss-Seidel sweeps run on [`Row`]s, a compact copy of the contacts made once per
+//! Gauss-Seidel sweeps run on `Row`s, a compact copy of the contacts made once per
 //! step: the full [`Contact`] is 192 bytes, three cache lines, and 10,000 of them do not
 //! fit in a core's L2 cache. A row keeps only what an update reads and writes (80 bytes),
 //! the inverse masses and lever arms live once per body in a small table, and the local
