@@ -506,7 +506,7 @@ fn report() -> Report {
                 sigma3_mpa: s3,
                 sigma1_peak_mpa: s1(m),
                 sigma1_residual_mpa: Some(s1(mr)),
-                kinetic_ratio_max: None,
+                ..Default::default()
             });
         }
     }
@@ -589,7 +589,7 @@ fn short_campaign_without_residual_still_draws() {
                 sigma3_mpa: s3,
                 sigma1_peak_mpa: 2.5 * s3,
                 sigma1_residual_mpa: None,
-                kinetic_ratio_max: None,
+                ..Default::default()
             })
         })
         .collect();

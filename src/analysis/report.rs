@@ -8,8 +8,12 @@ use super::fit::{Line, Saturation, saturation, through_origin, unconstrained};
 use crate::error::{Error, Result};
 use crate::measure::summary::QUASI_STATIC_KINETIC_RATIO;
 
+/// The largest overlap, relative to the smallest radius, that method.md allows at the
+/// largest confining pressure; the report names the tests that passed it.
+pub const OVERLAP_BOUND_REL: f64 = 0.01;
+
 /// One finished test as the report sees it.
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct TestPoint {
     /// The run directory.
     pub dir: PathBuf,
@@ -25,6 +29,12 @@ pub struct TestPoint {
     /// written before it existed).
     #[serde(default)]
     pub kinetic_ratio_max: Option<f64>,
+    /// The summary's largest overlap relative to r_min.
+    #[serde(default)]
+    pub overlap_max_rel: Option<f64>,
+    /// The test's time step (s); absent in summaries written before it was recorded.
+    #[serde(default)]
+    pub dt_s: Option<f64>,
 }
 
 /// The analysis of one contact friction.
@@ -52,6 +62,10 @@ pub struct FrictionRow {
     pub mu_macro_res: f64,
     /// See `mu_macro_res`.
     pub mu_macro_res_se: f64,
+    /// The distinct time steps of its tests (ms), in increasing order; empty when no
+    /// summary recorded one.
+    #[serde(default)]
+    pub dt_ms: Vec<f64>,
 }
 
 /// The whole report (`report.json`).
@@ -70,6 +84,11 @@ pub struct Report {
     /// quasi-static, their strengths suspect. They are in the fits; the table names them.
     #[serde(default)]
     pub suspect: Vec<(PathBuf, f64)>,
+    /// Tests whose largest overlap passed [`OVERLAP_BOUND_REL`] of r_min, with that
+    /// overlap: the solver fell short of method.md's bound. They are in the fits; the table
+    /// names them.
+    #[serde(default)]
+    pub overlapping: Vec<(PathBuf, f64)>,
 }
 
 /// `tan(asin(s))` and its standard error from that of `s`.
@@ -137,6 +156,9 @@ fn read_point(dir: &Path, path: &Path) -> Result<TestPoint> {
             sigma1_peak_mpa: s1,
             sigma1_residual_mpa: num("sigma1_residual_mpa"),
             kinetic_ratio_max: num("kinetic_ratio_max"),
+            overlap_max_rel: num("overlap_max_rel"),
+            // Summaries written before the time step was in them: the record has it.
+            dt_s: num("dt_s").or_else(|| crate::record::read_config(dir).ok().map(|c| c.solver.dt.si())),
         }),
         _ => Err(Error::Other(format!(
             "{}: not a cdlab test summary (needs mu, sigma3_mpa, sigma1_peak_mpa)",
@@ -193,6 +215,12 @@ pub fn analyse(points: &[TestPoint], missing: Vec<(PathBuf, String)>) -> Report 
             residual_fit,
             mu_macro_res: mr,
             mu_macro_res_se: mr_se,
+            dt_ms: {
+                let mut v: Vec<f64> = group.iter().filter_map(|t| t.dt_s.map(|d| d * 1e3)).collect();
+                v.sort_by(f64::total_cmp);
+                v.dedup();
+                v
+            },
         });
     }
     let fit_of = |f: &dyn Fn(&FrictionRow) -> f64| {
@@ -203,19 +231,24 @@ pub fn analyse(points: &[TestPoint], missing: Vec<(PathBuf, String)>) -> Report 
             .unzip();
         saturation(&x, &y)
     };
-    let suspect = points
-        .iter()
-        .filter_map(|t| {
-            let k = t.kinetic_ratio_max?;
-            (k > QUASI_STATIC_KINETIC_RATIO).then(|| (t.dir.clone(), k))
-        })
-        .collect();
+    let above = |figure: fn(&TestPoint) -> Option<f64>, bound: f64| {
+        points
+            .iter()
+            .filter_map(|t| {
+                let k = figure(t)?;
+                (k > bound).then(|| (t.dir.clone(), k))
+            })
+            .collect()
+    };
+    let suspect = above(|t| t.kinetic_ratio_max, QUASI_STATIC_KINETIC_RATIO);
+    let overlapping = above(|t| t.overlap_max_rel, OVERLAP_BOUND_REL);
     Report {
         mu_macro_fit: fit_of(&|r| r.mu_macro),
         mu_macro_res_fit: fit_of(&|r| r.mu_macro_res),
         frictions,
         missing,
         suspect,
+        overlapping,
     }
 }
 
@@ -223,11 +256,11 @@ impl Report {
     /// The friction table as CSV (header with units).
     pub fn csv(&self) -> String {
         let mut s = String::from(
-            "mu,tests,mu_macro,mu_macro_se,mu_macro_res,mu_macro_res_se,cohesion_peak_mpa,cohesion_peak_se_mpa\n",
+            "mu,tests,mu_macro,mu_macro_se,mu_macro_res,mu_macro_res_se,cohesion_peak_mpa,cohesion_peak_se_mpa,dt_ms\n",
         );
         for r in &self.frictions {
             s.push_str(&format!(
-                "{},{},{},{},{},{},{},{}\n",
+                "{},{},{},{},{},{},{},{},{}\n",
                 r.mu,
                 r.tests,
                 r.mu_macro,
@@ -235,18 +268,33 @@ impl Report {
                 r.mu_macro_res,
                 r.mu_macro_res_se,
                 r.peak_fit_free.intercept,
-                r.peak_fit_free.intercept_se
+                r.peak_fit_free.intercept_se,
+                Self::dt_text(r)
             ));
         }
         s
+    }
+
+    /// The time steps of a friction's tests for the CSV and the table (ms, `;` between
+    /// several), "n/a" when no summary recorded one.
+    fn dt_text(r: &FrictionRow) -> String {
+        if r.dt_ms.is_empty() {
+            "n/a".into()
+        } else {
+            r.dt_ms
+                .iter()
+                .map(|d| d.to_string())
+                .collect::<Vec<_>>()
+                .join(";")
+        }
     }
 
     /// A human-readable table; "n/a" marks a figure that the points cannot define (no
     /// standard error from one pressure, no intercept error from two).
     pub fn table(&self) -> String {
         let mut s = format!(
-            "{:>8} {:>6} {:>18} {:>18} {:>22}\n",
-            "mu", "tests", "mu_macro", "mu_macro_res", "cohesion (MPa)"
+            "{:>8} {:>6} {:>18} {:>18} {:>22} {:>8}\n",
+            "mu", "tests", "mu_macro", "mu_macro_res", "cohesion (MPa)", "dt (ms)"
         );
         let mut undefined = false;
         let mut num = |x: f64| {
@@ -259,7 +307,7 @@ impl Report {
         };
         for r in &self.frictions {
             s.push_str(&format!(
-                "{:>8} {:>6} {:>9} +- {:<6} {:>9} +- {:<6} {:>11} +- {:<6}\n",
+                "{:>8} {:>6} {:>9} +- {:<6} {:>9} +- {:<6} {:>11} +- {:<6} {:>8}\n",
                 r.mu,
                 r.tests,
                 num(r.mu_macro),
@@ -267,7 +315,8 @@ impl Report {
                 num(r.mu_macro_res),
                 num(r.mu_macro_res_se),
                 num(r.peak_fit_free.intercept),
-                num(r.peak_fit_free.intercept_se)
+                num(r.peak_fit_free.intercept_se),
+                Self::dt_text(r)
             ));
         }
         for (name, f) in [
@@ -306,6 +355,15 @@ impl Report {
                 d.display()
             ));
         }
+        for (d, o) in &self.overlapping {
+            s.push_str(&format!(
+                "overlap: {} (largest overlap {:.2}% of r_min, above method.md's {}%; its \
+                 points are in the fits)\n",
+                d.display(),
+                o * 100.0,
+                OVERLAP_BOUND_REL * 100.0
+            ));
+        }
         s
     }
 }
@@ -326,6 +384,7 @@ mod tests {
             sigma1_peak_mpa: 3.0,
             sigma1_residual_mpa: Some(2.0),
             kinetic_ratio_max: Some(1e-4),
+            ..Default::default()
         };
         let table = analyse(&[point], Vec::new()).table();
         assert!(table.contains("0.577 +- n/a"), "{table}");
@@ -345,6 +404,7 @@ mod tests {
             sigma1_peak_mpa: 3.0,
             sigma1_residual_mpa: Some(2.0),
             kinetic_ratio_max: k,
+            ..Default::default()
         };
         let rep = analyse(
             &[
@@ -361,5 +421,44 @@ mod tests {
             "{table}"
         );
         assert_eq!(table.matches("suspect").count(), 1, "{table}");
+    }
+
+    /// A test whose largest overlap passed 1% of r_min (method.md's bound) is named, one
+    /// at the bound is not; the time steps of a friction's tests are listed, several when
+    /// they differ.
+    #[test]
+    fn tests_past_the_overlap_bound_are_named_and_time_steps_listed() {
+        let point = |dir: &str, s3: f64, o: f64, dt: Option<f64>| TestPoint {
+            dir: PathBuf::from(dir),
+            mu: 3.0,
+            sigma3_mpa: s3,
+            sigma1_peak_mpa: 3.0 * s3,
+            sigma1_residual_mpa: Some(2.0 * s3),
+            overlap_max_rel: Some(o),
+            dt_s: dt,
+            ..Default::default()
+        };
+        let rep = analyse(
+            &[
+                point("low", 1.0, 0.01, Some(2.5e-4)),
+                point("deep", 4.0, 0.013, Some(5e-4)),
+                point("unknown", 8.0, 0.002, None),
+            ],
+            Vec::new(),
+        );
+        assert_eq!(rep.overlapping, vec![(PathBuf::from("deep"), 0.013)]);
+        assert_eq!(rep.frictions[0].dt_ms, vec![0.25, 0.5]);
+        let table = rep.table();
+        assert!(
+            table.contains("overlap: deep (largest overlap 1.30% of r_min, above method.md's 1%"),
+            "{table}"
+        );
+        assert_eq!(table.matches("overlap:").count(), 1, "{table}");
+        assert!(table.lines().nth(1).unwrap().ends_with("0.25;0.5"), "{table}");
+        assert!(
+            rep.csv().lines().nth(1).unwrap().ends_with(",0.25;0.5"),
+            "{}",
+            rep.csv()
+        );
     }
 }

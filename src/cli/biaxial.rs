@@ -276,6 +276,7 @@ fn finish(
         crate::backend::Backend::name(&lab.backend),
         started.elapsed().as_secs_f64(),
     );
+    summary.dt_s = Some(config.solver.dt.si());
     obs.recorder.finish()?;
     // From the record just closed: the snapshots are not kept in memory during the run.
     summary.shear_bands = match read_run(dir)

@@ -17,6 +17,10 @@ pub struct Summary {
     pub mu: f64,
     /// Confining stress (MPa).
     pub sigma3_mpa: f64,
+    /// Time step (s); null in summaries written before it was recorded, and in summaries
+    /// built without a configuration.
+    #[serde(default)]
+    pub dt_s: Option<f64>,
     /// Peak of sigma_1 averaged over a 0.002 strain window (MPa).
     pub sigma1_peak_mpa: f64,
     /// Axial strain at the peak.
@@ -105,6 +109,7 @@ impl Summary {
             disks,
             mu,
             sigma3_mpa: sigma3 / 1e6,
+            dt_s: None,
             sigma1_peak_mpa: st.sigma1_peak_pa / 1e6,
             strain_peak: st.strain_peak,
             sigma1_residual_mpa: finite(st.sigma1_residual_pa / 1e6),
@@ -136,7 +141,7 @@ impl Summary {
     /// A human-readable table (every number with its unit).
     pub fn table(&self) -> String {
         let opt = |x: Option<f64>, unit: &str| {
-            x.map_or("n/a (test ended before strain 0.05)".into(), |v| {
+            x.map_or("n/a (test ended before strain 0.098)".into(), |v| {
                 format!("{v:.3} {unit}")
             })
         };
@@ -146,6 +151,9 @@ impl Summary {
         line("backend", self.backend.clone());
         line("contact friction mu", format!("{}", self.mu));
         line("confining stress sigma3", format!("{:.3} MPa", self.sigma3_mpa));
+        if let Some(dt) = self.dt_s {
+            line("time step", format!("{} ms", dt * 1e3));
+        }
         line(
             "peak sigma1 (0.002 window)",
             format!(
