@@ -132,8 +132,17 @@ fn time_steps_by_friction_are_recorded_and_checked_on_rerun() {
         &format!("{grid}[[dt_by_friction]]\nmu_from = 0.5\ndt = \"0.25 ms\"\n"),
     );
     let s = sweep.to_str().unwrap();
-    let (ok, text) = cdlab(&["sweep", s, "--jobs", "2"]);
+    let (ok, text) = cdlab(&["sweep", s, "--jobs", "2", "--log-every", "0"]);
     assert!(ok, "{text}");
+    // In a log (stderr is a pipe here) each running test prints progress lines named by
+    // its directory; --log-every 0 prints one per recorded row.
+    for name in ["seed1_mu0.1_s2MPa", "seed1_mu0.5_s2MPa"] {
+        assert!(
+            text.contains(&format!("{name}: [")) && text.contains("strain 0.00"),
+            "{text}"
+        );
+    }
+    assert!(text.contains("campaign 0.0"), "{text}");
     let out = base.join("campaign");
     let dt = |name: &str| cdlab::record::read_config(out.join(name)).unwrap().solver.dt.si();
     // Expected: the built-in 0.5 ms below friction 0.5, the entry's 0.25 ms from it.

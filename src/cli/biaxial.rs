@@ -13,7 +13,7 @@ use crate::protocol::checkpoint::decode;
 use crate::protocol::{Observer, Phase, ProtocolParams, prepare};
 use crate::record::{Recorder, read_run};
 
-use super::run::{Recording, open_backend};
+use super::run::{Progress, Recording, open_backend};
 
 /// Options of `cdlab biaxial`.
 #[derive(clap::Args, Debug, Default)]
@@ -100,10 +100,22 @@ pub fn check_out_dir(dir: &Path, force: bool) -> Result<()> {
     Ok(())
 }
 
+/// A single test's progress display: its own, unless `--quiet`.
+fn progress_of(args: &Args) -> Progress {
+    if args.quiet {
+        Progress::Quiet
+    } else {
+        Progress::Own
+    }
+}
+
 /// Runs `cdlab biaxial`.
 pub fn run(args: &Args) -> Result<()> {
     let (dir, summary) = if let Some(dir) = &args.resume {
-        (dir.clone(), run_resume(dir, args.backend.as_deref(), args.quiet)?)
+        (
+            dir.clone(),
+            run_resume(dir, args.backend.as_deref(), &progress_of(args))?,
+        )
     } else {
         let mut config = configuration(args)?;
         let sample = match &args.sample {
@@ -116,7 +128,7 @@ pub fn run(args: &Args) -> Result<()> {
         };
         let dir = config.output.dir.clone();
         check_out_dir(&dir, args.force)?;
-        (dir.clone(), run_fresh(&config, &dir, sample, args.quiet)?)
+        (dir.clone(), run_fresh(&config, &dir, sample, &progress_of(args))?)
     };
     println!("biaxial test finished: {}\n{}", dir.display(), summary.table());
     Ok(())
@@ -211,8 +223,9 @@ pub fn run_fresh(
     config: &Config,
     dir: &Path,
     sample: Option<crate::model::Scene>,
-    quiet: bool,
+    progress: &Progress,
 ) -> Result<Summary> {
+    let quiet = progress.quiet();
     let started = Instant::now();
     let params = config.protocol();
     params.validate()?;
@@ -238,15 +251,15 @@ pub fn run_fresh(
     };
     let backend = open_backend(config, scene.clone(), params.step)?;
     let lab = Lab::new(backend, params.clone(), &scene, compacted)?;
-    let obs = Recording::new(Recorder::create(dir, config)?, params.strain_end, quiet);
+    let obs = Recording::new(Recorder::create(dir, config)?, params.strain_end, progress);
     finish(config, dir, lab, obs, started, quiet)
 }
 
 /// Continues the run recorded in `dir` from its last checkpoint and writes its summary.
-pub fn run_resume(dir: &Path, backend: Option<&str>, quiet: bool) -> Result<Summary> {
+pub fn run_resume(dir: &Path, backend: Option<&str>, progress: &Progress) -> Result<Summary> {
     let started = Instant::now();
-    let (config, lab, obs) = resume(dir, backend, quiet)?;
-    finish(&config, dir, lab, obs, started, quiet)
+    let (config, lab, obs) = resume(dir, backend, progress)?;
+    finish(&config, dir, lab, obs, started, progress.quiet())
 }
 
 fn finish(
@@ -308,7 +321,7 @@ type Resumed = (Config, Lab<Box<dyn crate::backend::Backend>>, Recording);
 /// Reopens a run directory: reads its record, rewrites it up to the last checkpoint (rows
 /// and snapshots after it are dropped: the resumed run recomputes them exactly), and
 /// restores the lab from the checkpoint.
-fn resume(dir: &Path, backend: Option<&str>, quiet: bool) -> Result<Resumed> {
+fn resume(dir: &Path, backend: Option<&str>, progress: &Progress) -> Result<Resumed> {
     let rec = read_run(dir)?;
     let mut config = rec.config()?;
     if let Some(b) = backend {
@@ -332,7 +345,7 @@ fn resume(dir: &Path, backend: Option<&str>, quiet: bool) -> Result<Resumed> {
     let time = ck.scene.time;
     let lab = Lab::resume(backend, ck)?;
     // Only now, with everything read and checked, replace the files.
-    let mut obs = Recording::new(Recorder::create(dir, &config)?, params.strain_end, quiet);
+    let mut obs = Recording::new(Recorder::create(dir, &config)?, params.strain_end, progress);
     for row in rec.series.iter().filter(|r| r.step <= step) {
         obs.series(row)?;
     }
@@ -341,7 +354,7 @@ fn resume(dir: &Path, backend: Option<&str>, quiet: bool) -> Result<Resumed> {
     }
     obs.ends = lab.state.ends.clone();
     obs.recorder.checkpoint(step, time, &bytes)?;
-    if !quiet {
+    if !progress.quiet() {
         eprintln!(
             "resuming {} from step {step} (t = {time:.3} s, phase {})",
             dir.display(),

@@ -33,6 +33,36 @@ pub fn open_backend(config: &Config, scene: Scene, params: StepParams) -> Result
     }
 }
 
+/// How a test shows its progress.
+#[derive(Clone, Debug)]
+pub enum Progress {
+    /// Nothing.
+    Quiet,
+    /// A test on its own: a bar on a terminal, a line every 5 s otherwise (CI, logs), and
+    /// its other messages (backend, deposition, phase ends).
+    Own,
+    /// One test of a campaign, whose other messages the sweep replaces with its own: on a
+    /// terminal, `bar` (the test's line in the campaign's display); otherwise a line every
+    /// `every_s` seconds starting with `label`, so that a log shows where an hour-long
+    /// test stands.
+    Campaign {
+        /// Names the test in log lines.
+        label: String,
+        /// The test's bar in the campaign's display.
+        bar: Option<ProgressBar>,
+        /// Seconds between two log lines.
+        every_s: f64,
+    },
+}
+
+impl Progress {
+    /// Whether the messages around the progress display (backend, deposition, phase ends,
+    /// resume) are left out.
+    pub fn quiet(&self) -> bool {
+        !matches!(self, Progress::Own)
+    }
+}
+
 /// Records every row, snapshot and checkpoint, and shows progress: a bar on a terminal,
 /// plain lines every few seconds otherwise (CI, logs).
 pub struct Recording {
@@ -46,20 +76,33 @@ pub struct Recording {
     bar: Option<ProgressBar>,
     started: Instant,
     last_line: Instant,
+    /// Label and interval of the plain progress lines; none when they are off.
+    lines: Option<(String, f64)>,
     quiet: bool,
 }
 
 impl Recording {
-    /// A recording observer; `quiet` silences the progress display.
-    pub fn new(recorder: Recorder, strain_end: f64, quiet: bool) -> Self {
-        let bar = (!quiet && std::io::stderr().is_terminal()).then(|| {
-            let b = ProgressBar::new(1000);
-            b.set_style(
-                ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {msg} (ETA {eta})")
-                    .expect("valid template"),
-            );
-            b
-        });
+    /// A recording observer showing its progress as `progress` says.
+    pub fn new(recorder: Recorder, strain_end: f64, progress: &Progress) -> Self {
+        let terminal = std::io::stderr().is_terminal();
+        let (bar, lines) = match progress {
+            Progress::Quiet => (None, None),
+            Progress::Own if terminal => {
+                let b = ProgressBar::new(1000);
+                b.set_style(
+                    ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {msg} (ETA {eta})")
+                        .expect("valid template"),
+                );
+                (Some(b), None)
+            }
+            Progress::Own => (None, Some((String::new(), 5.0))),
+            Progress::Campaign { bar: Some(b), .. } => (Some(b.clone()), None),
+            Progress::Campaign {
+                label,
+                bar: None,
+                every_s,
+            } => (None, Some((format!("{label}: "), *every_s))),
+        };
         Recording {
             recorder,
             rows: Vec::new(),
@@ -68,7 +111,8 @@ impl Recording {
             bar,
             started: Instant::now(),
             last_line: Instant::now(),
-            quiet,
+            lines,
+            quiet: progress.quiet(),
         }
     }
 
@@ -97,8 +141,10 @@ impl Observer for Recording {
                 b.set_position((1000.0 * row.strain_axial / self.strain_end).min(1000.0) as u64);
             }
             b.set_message(msg);
-        } else if !self.quiet && self.last_line.elapsed().as_secs_f64() >= 5.0 {
-            eprintln!("[{:7.1} s] {msg}", self.started.elapsed().as_secs_f64());
+        } else if let Some((label, every)) = &self.lines
+            && self.last_line.elapsed().as_secs_f64() >= *every
+        {
+            eprintln!("{label}[{:7.1} s] {msg}", self.started.elapsed().as_secs_f64());
             self.last_line = Instant::now();
         }
         self.rows.push(row.clone());
@@ -119,10 +165,11 @@ impl Observer for Recording {
             end.kinetic_ratio,
             end.force_imbalance
         );
-        match &self.bar {
-            Some(b) => b.println(line),
-            None if !self.quiet => eprintln!("{line}"),
-            None => {}
+        if !self.quiet {
+            match &self.bar {
+                Some(b) => b.println(line),
+                None => eprintln!("{line}"),
+            }
         }
         self.ends.push(end.clone());
         Ok(())

@@ -4,8 +4,12 @@
 //! half-finished ones resumed. `--shard I/N` runs the I-th of N disjoint parts (0 <= I < N).
 
 use std::collections::VecDeque;
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
+use std::time::Instant;
+
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
 use serde::Deserialize;
 
@@ -14,6 +18,7 @@ use crate::config::{Config, Duration, Pressure};
 use crate::error::{Error, Result};
 
 use super::biaxial::{read_sample, run_fresh, run_resume, sample_differences};
+use super::run::Progress;
 
 /// Options of `cdlab sweep`.
 #[derive(clap::Args, Debug)]
@@ -28,6 +33,10 @@ pub struct Args {
     /// Tests run at once (default: the number of cores).
     #[arg(long)]
     pub jobs: Option<usize>,
+    /// Seconds between two progress lines of each running test when stderr is not a
+    /// terminal (a log); on a terminal the campaign's display updates continuously.
+    #[arg(long, default_value_t = 120.0)]
+    pub log_every: f64,
 }
 
 /// The sweep file.
@@ -141,6 +150,9 @@ pub fn run(args: &Args) -> Result<()> {
             out: None,
         });
     }
+    if !(args.log_every.is_finite() && args.log_every >= 0.0) {
+        return Err(Error::invalid("--log-every", args.log_every, "seconds >= 0"));
+    }
     let (shard, of) = args
         .shard
         .as_deref()
@@ -222,6 +234,25 @@ pub fn run(args: &Args) -> Result<()> {
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
         base.solver.threads = (cores / jobs).max(1);
     }
+    // On a terminal, one display for the campaign: a bar of finished tests and one line per
+    // running test. In a log, each test's start and end, and a line per running test every
+    // `--log-every` seconds.
+    let display = std::io::stderr().is_terminal().then(MultiProgress::new);
+    let overall = display.as_ref().map(|m| {
+        let b = m.add(ProgressBar::new(mine.len() as u64));
+        b.set_style(
+            ProgressStyle::with_template("campaign [{elapsed_precise}] {bar:30} {pos}/{len} tests")
+                .expect("valid template"),
+        );
+        b
+    });
+    let say = |line: &str| match &display {
+        Some(m) => {
+            let _ = m.println(line);
+        }
+        None => eprintln!("{line}"),
+    };
+    let started = Instant::now();
     let queue = Mutex::new(mine.iter().cloned().collect::<VecDeque<Point>>());
     let samples: Mutex<Vec<(u64, crate::model::Scene)>> = Mutex::new(Vec::new());
     let done = Mutex::new((0usize, Vec::<(PathBuf, String)>::new()));
@@ -235,13 +266,46 @@ pub fn run(args: &Args) -> Result<()> {
                     // time whatever --jobs said.
                     let next = queue.lock().expect("queue").pop_front();
                     let Some(p) = next else { break };
-                    let outcome = run_point(&base, &sweep.out, &p, &samples);
+                    let label = p
+                        .dir
+                        .file_name()
+                        .map_or(String::new(), |n| n.to_string_lossy().into());
+                    let bar = display.as_ref().map(|m| {
+                        let b = m.add(ProgressBar::new(1000));
+                        b.set_style(
+                            ProgressStyle::with_template("  {prefix:<22} {bar:20} {msg}")
+                                .expect("valid template"),
+                        );
+                        b.set_prefix(label.clone());
+                        b
+                    });
+                    let progress = Progress::Campaign {
+                        label,
+                        bar: bar.clone(),
+                        every_s: args.log_every,
+                    };
+                    let outcome = run_point(&base, &sweep.out, &p, &samples, &progress, &say);
+                    if let (Some(m), Some(b)) = (&display, &bar) {
+                        m.remove(b);
+                    }
                     let mut d = done.lock().expect("progress");
                     d.0 += 1;
+                    if let Some(b) = &overall {
+                        b.inc(1);
+                    }
+                    let hours = started.elapsed().as_secs_f64() / 3600.0;
                     match outcome {
-                        Ok(line) => eprintln!("[{}/{total}] {}: {line}", d.0, p.dir.display()),
+                        Ok(line) => say(&format!(
+                            "[{}/{total}, campaign {hours:.2} h] {}: {line}",
+                            d.0,
+                            p.dir.display()
+                        )),
                         Err(e) => {
-                            eprintln!("[{}/{total}] {}: FAILED: {e}", d.0, p.dir.display());
+                            say(&format!(
+                                "[{}/{total}, campaign {hours:.2} h] {}: FAILED: {e}",
+                                d.0,
+                                p.dir.display()
+                            ));
                             d.1.push((p.dir.clone(), e.to_string()));
                         }
                     }
@@ -249,6 +313,9 @@ pub fn run(args: &Args) -> Result<()> {
             });
         }
     });
+    if let Some(b) = &overall {
+        b.finish_and_clear();
+    }
     let failed = done.into_inner().expect("progress").1;
     if failed.is_empty() {
         eprintln!(
@@ -270,6 +337,8 @@ fn run_point(
     out: &Path,
     p: &Point,
     samples: &Mutex<Vec<(u64, crate::model::Scene)>>,
+    progress: &Progress,
+    say: &dyn Fn(&str),
 ) -> Result<String> {
     let mut config = base.clone();
     config.sample.seed = p.seed;
@@ -313,9 +382,9 @@ fn run_point(
         (true, false) => "restarting (its record holds no checkpoint yet)",
         _ => "starting",
     };
-    eprintln!("sweep: {how} {}", p.dir.display());
+    say(&format!("sweep: {how} {}", p.dir.display()));
     let summary = if resume {
-        run_resume(&p.dir, Some("cpu"), true)?
+        run_resume(&p.dir, Some("cpu"), progress)?
     } else {
         config.validate()?;
         // The sample is prepared with the base configuration's settings, whichever test
@@ -323,14 +392,16 @@ fn run_point(
         let mut prepare = base.clone();
         prepare.sample.seed = p.seed;
         let scene = sample(&prepare, out, p.seed, samples)?;
-        run_fresh(&config, &p.dir, Some(scene), true)?
+        run_fresh(&config, &p.dir, Some(scene), progress)?
     };
     Ok(format!(
-        "peak sigma1 {:.3} MPa, residual {} MPa, {:.0} s",
+        "peak sigma1 {:.3} MPa, residual {}, {:.0} s",
         summary.sigma1_peak_mpa,
         summary
             .sigma1_residual_mpa
-            .map_or("n/a".into(), |v| format!("{v:.3}")),
+            .map_or("n/a (ended before strain 0.098)".into(), |v| format!(
+                "{v:.3} MPa"
+            )),
         summary.wall_time_s
     ))
 }
