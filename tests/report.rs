@@ -61,3 +61,20 @@ fn report_recovers_the_macroscopic_friction_and_its_saturation() {
     assert!(rep.csv().lines().count() == 6);
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// The 1000-disk campaign's report shipped in `assets/results/` (README, "Measured
+/// results") reads back as a report of the current format, with the paper's 13 frictions
+/// of 5 pressures each and both saturation fits.
+#[test]
+fn shipped_campaign_report_reads_back() {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/results/campaign1000_report.json");
+    let rep: cdlab::analysis::report::Report =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    assert_eq!(rep.frictions.len(), 13);
+    assert!(rep.frictions.iter().all(|r| r.tests == 5 && !r.dt_ms.is_empty()));
+    let fit = rep.mu_macro_fit.expect("peak saturation fit");
+    // The README's plateau: 0.474 at the peak.
+    assert!((fit.a - 0.474).abs() < 5e-4, "{}", fit.a);
+    assert!(rep.mu_macro_res_fit.is_some());
+}

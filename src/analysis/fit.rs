@@ -2,16 +2,37 @@
 //! Mohr-Coulomb line through the origin `q = p sin(phi)`, the unconstrained line
 //! `q = c + p s`, and the saturation `mu_macro = a - b exp(-c mu)`, each with standard errors.
 
+/// Reading back figures that JSON wrote as `null`: serde_json writes NaN (a figure the
+/// points do not define) as `null`, which a plain `f64` refuses, so a `report.json` could
+/// not be reopened. These read `null` as NaN.
+pub mod nan_as_null {
+    use serde::{Deserialize, Deserializer};
+
+    /// A number, or NaN for `null`.
+    pub fn number<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+    }
+
+    /// Three numbers, each NaN for `null`.
+    pub fn three<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 3], D::Error> {
+        Ok(<[Option<f64>; 3]>::deserialize(d)?.map(|v| v.unwrap_or(f64::NAN)))
+    }
+}
+
 /// A straight-line fit with standard errors.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Line {
     /// Slope.
+    #[serde(deserialize_with = "nan_as_null::number")]
     pub slope: f64,
     /// Standard error of the slope (NaN with too few points).
+    #[serde(deserialize_with = "nan_as_null::number")]
     pub slope_se: f64,
     /// Intercept (0 for a fit through the origin).
+    #[serde(deserialize_with = "nan_as_null::number")]
     pub intercept: f64,
     /// Standard error of the intercept (NaN for a fit through the origin or too few points).
+    #[serde(deserialize_with = "nan_as_null::number")]
     pub intercept_se: f64,
     /// Number of points.
     pub n: usize,
@@ -73,15 +94,20 @@ pub fn unconstrained(x: &[f64], y: &[f64]) -> Line {
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Saturation {
     /// Asymptote `a`.
+    #[serde(deserialize_with = "nan_as_null::number")]
     pub a: f64,
     /// Amplitude `b`.
+    #[serde(deserialize_with = "nan_as_null::number")]
     pub b: f64,
     /// Rate `c`.
+    #[serde(deserialize_with = "nan_as_null::number")]
     pub c: f64,
     /// Standard errors of `a`, `b`, `c` (from the Gauss-Newton covariance; NaN with fewer
     /// than four points).
+    #[serde(deserialize_with = "nan_as_null::three")]
     pub se: [f64; 3],
     /// Root-mean-square residual.
+    #[serde(deserialize_with = "nan_as_null::number")]
     pub rms: f64,
 }
 

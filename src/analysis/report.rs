@@ -53,14 +53,18 @@ pub struct FrictionRow {
     /// The unconstrained line at the peak (its intercept is the cohesion estimate, MPa).
     pub peak_fit_free: Line,
     /// Macroscopic friction at the peak `tan(phi)` and its standard error.
+    #[serde(deserialize_with = "super::fit::nan_as_null::number")]
     pub mu_macro: f64,
     /// See `mu_macro`.
+    #[serde(deserialize_with = "super::fit::nan_as_null::number")]
     pub mu_macro_se: f64,
     /// `q = p sin(phi)` through the origin at the residual (NaN slope when no residual).
     pub residual_fit: Line,
     /// Residual macroscopic friction and its standard error.
+    #[serde(deserialize_with = "super::fit::nan_as_null::number")]
     pub mu_macro_res: f64,
     /// See `mu_macro_res`.
+    #[serde(deserialize_with = "super::fit::nan_as_null::number")]
     pub mu_macro_res_se: f64,
     /// The distinct time steps of its tests (ms), in increasing order; empty when no
     /// summary recorded one.
@@ -460,5 +464,28 @@ mod tests {
             "{}",
             rep.csv()
         );
+    }
+
+    /// A report whose figures include NaN (one pressure: no standard errors) is written as
+    /// JSON with `null` there and reads back with NaN in the same places.
+    #[test]
+    fn report_json_with_undefined_figures_reads_back() {
+        let point = TestPoint {
+            dir: PathBuf::from("run"),
+            mu: 0.3,
+            sigma3_mpa: 1.0,
+            sigma1_peak_mpa: 3.0,
+            sigma1_residual_mpa: Some(2.0),
+            ..Default::default()
+        };
+        let rep = analyse(&[point], Vec::new());
+        assert!(rep.frictions[0].mu_macro_se.is_nan());
+        let json = serde_json::to_string(&rep).unwrap();
+        assert!(json.contains("\"mu_macro_se\":null"), "{json}");
+        let back: Report = serde_json::from_str(&json).unwrap();
+        let (a, b) = (&rep.frictions[0], &back.frictions[0]);
+        assert_eq!(a.mu_macro, b.mu_macro);
+        assert!(b.mu_macro_se.is_nan() && b.peak_fit.intercept_se.is_nan());
+        assert!(b.peak_fit_free.slope.is_nan());
     }
 }
