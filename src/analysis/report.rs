@@ -376,12 +376,9 @@ impl Report {
 mod tests {
     use super::*;
 
-    /// One pressure defines mu_macro (tan phi from sin phi = q / p: here q/p = 0.5, so
-    /// phi = 30 degrees and mu_macro = 0.577) but not its standard error: the table says
-    /// n/a, never NaN.
-    #[test]
-    fn table_marks_undefined_figures_as_not_available() {
-        let point = TestPoint {
+    /// A friction tested at one pressure only: q/p = 0.5.
+    fn one_pressure_point() -> TestPoint {
+        TestPoint {
             dir: PathBuf::from("run"),
             mu: 0.3,
             sigma3_mpa: 1.0,
@@ -389,8 +386,15 @@ mod tests {
             sigma1_residual_mpa: Some(2.0),
             kinetic_ratio_max: Some(1e-4),
             ..Default::default()
-        };
-        let table = analyse(&[point], Vec::new()).table();
+        }
+    }
+
+    /// One pressure defines mu_macro (tan phi from sin phi = q / p: here q/p = 0.5, so
+    /// phi = 30 degrees and mu_macro = 0.577) but not its standard error: the table says
+    /// n/a, never NaN.
+    #[test]
+    fn table_marks_undefined_figures_as_not_available() {
+        let table = analyse(&[one_pressure_point()], Vec::new()).table();
         assert!(table.contains("0.577 +- n/a"), "{table}");
         assert!(table.contains("n/a: not defined"), "{table}");
         assert!(!table.contains("NaN"), "{table}");
@@ -470,15 +474,7 @@ mod tests {
     /// JSON with `null` there and reads back with NaN in the same places.
     #[test]
     fn report_json_with_undefined_figures_reads_back() {
-        let point = TestPoint {
-            dir: PathBuf::from("run"),
-            mu: 0.3,
-            sigma3_mpa: 1.0,
-            sigma1_peak_mpa: 3.0,
-            sigma1_residual_mpa: Some(2.0),
-            ..Default::default()
-        };
-        let rep = analyse(&[point], Vec::new());
+        let rep = analyse(&[one_pressure_point()], Vec::new());
         assert!(rep.frictions[0].mu_macro_se.is_nan());
         let json = serde_json::to_string(&rep).unwrap();
         assert!(json.contains("\"mu_macro_se\":null"), "{json}");

@@ -175,14 +175,24 @@ pub fn sample_differences(config: &Config, sample: &ProtocolParams) -> Vec<Strin
         ("compaction.sigma_c", c.sigma_c, sample.sigma_c, " Pa"),
         ("compaction.friction", c.mu_compaction, sample.mu_compaction, ""),
     ];
+    differences(&counts, &values, "the sample")
+}
+
+/// `key: ours here, theirs in WHERE` for each setting that differs: `counts` as
+/// `(key, ours, theirs)`, then `values` as `(key, ours, theirs, unit)`.
+pub fn differences(
+    counts: &[(&str, u64, u64)],
+    values: &[(&str, f64, f64, &str)],
+    theirs_in: &str,
+) -> Vec<String> {
     let counts = counts
-        .into_iter()
+        .iter()
         .filter(|(_, ours, theirs)| ours != theirs)
-        .map(|(key, ours, theirs)| format!("{key}: {ours} here, {theirs} in the sample"));
+        .map(|(key, ours, theirs)| format!("{key}: {ours} here, {theirs} in {theirs_in}"));
     let values = values
-        .into_iter()
+        .iter()
         .filter(|(_, ours, theirs, _)| ours != theirs)
-        .map(|(key, ours, theirs, unit)| format!("{key}: {ours}{unit} here, {theirs}{unit} in the sample"));
+        .map(|(key, ours, theirs, unit)| format!("{key}: {ours}{unit} here, {theirs}{unit} in {theirs_in}"));
     counts.chain(values).collect()
 }
 

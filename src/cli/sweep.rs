@@ -17,7 +17,7 @@ use crate::config::units::{Dimension, parse_quantity};
 use crate::config::{Config, Duration, Pressure};
 use crate::error::{Error, Result};
 
-use super::biaxial::{read_sample, run_fresh, run_resume, sample_differences};
+use super::biaxial::{differences, read_sample, run_fresh, run_resume, sample_differences};
 use super::run::Progress;
 
 /// Options of `cdlab sweep`.
@@ -397,11 +397,13 @@ fn run_point(
     Ok(format!(
         "peak sigma1 {:.3} MPa, residual {}, {:.0} s",
         summary.sigma1_peak_mpa,
-        summary
-            .sigma1_residual_mpa
-            .map_or("n/a (ended before strain 0.098)".into(), |v| format!(
-                "{v:.3} MPa"
-            )),
+        summary.sigma1_residual_mpa.map_or(
+            format!(
+                "n/a (ended before strain {:.3})",
+                crate::measure::derived::RESIDUAL_MIN_END
+            ),
+            |v| format!("{v:.3} MPa")
+        ),
         summary.wall_time_s
     ))
 }
@@ -411,34 +413,26 @@ fn run_point(
 /// enter the report as one of this campaign's, and a half-finished one would resume with its
 /// own.
 fn point_differences(ours: &Config, recorded: &Config) -> Vec<String> {
-    let values = [
-        ("test.mu", ours.test.mu, recorded.test.mu, ""),
-        (
-            "test.sigma3",
-            ours.test.sigma3.si(),
-            recorded.test.sigma3.si(),
-            " Pa",
-        ),
-        (
-            "test.strain_end",
-            ours.test.strain_end,
-            recorded.test.strain_end,
-            "",
-        ),
-        ("solver.dt", ours.solver.dt.si(), recorded.solver.dt.si(), " s"),
-    ];
-    let mut differ: Vec<String> = values
-        .into_iter()
-        .filter(|(_, a, b, _)| a != b)
-        .map(|(key, a, b, unit)| format!("{key}: {a}{unit} here, {b}{unit} in the test"))
-        .collect();
-    if ours.sample.seed != recorded.sample.seed {
-        differ.push(format!(
-            "sample.seed: {} here, {} in the test",
-            ours.sample.seed, recorded.sample.seed
-        ));
-    }
-    differ
+    differences(
+        &[("sample.seed", ours.sample.seed, recorded.sample.seed)],
+        &[
+            ("test.mu", ours.test.mu, recorded.test.mu, ""),
+            (
+                "test.sigma3",
+                ours.test.sigma3.si(),
+                recorded.test.sigma3.si(),
+                " Pa",
+            ),
+            (
+                "test.strain_end",
+                ours.test.strain_end,
+                recorded.test.strain_end,
+                "",
+            ),
+            ("solver.dt", ours.solver.dt.si(), recorded.solver.dt.si(), " s"),
+        ],
+        "the test",
+    )
 }
 
 /// The compacted sample of `seed`: from memory, from `out/samples/seedS.bin`, or prepared

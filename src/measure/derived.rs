@@ -69,6 +69,9 @@ pub const RESIDUAL_RANGE: (f64, f64) = (0.05, 0.10);
 /// early keeps its residual.
 pub const RESIDUAL_END_SLACK: f64 = 0.002;
 
+/// The smallest final strain of a test with a residual.
+pub const RESIDUAL_MIN_END: f64 = RESIDUAL_RANGE.1 - RESIDUAL_END_SLACK;
+
 /// Mean sigma_1 over [`RESIDUAL_RANGE`] of the compression rows `comp` (in increasing
 /// strain), or NaN when they stop more than [`RESIDUAL_END_SLACK`] before its end: a test
 /// stopped at strain 0.05 would otherwise report one row, and one stopped at 0.06 the
@@ -76,7 +79,7 @@ pub const RESIDUAL_END_SLACK: f64 = 0.002;
 pub fn residual(comp: &[SeriesRow]) -> f64 {
     let (lo, hi) = RESIDUAL_RANGE;
     match comp.last() {
-        Some(last) if last.strain_axial >= hi - RESIDUAL_END_SLACK => mean_in(comp, lo, hi),
+        Some(last) if last.strain_axial >= RESIDUAL_MIN_END => mean_in(comp, lo, hi),
         _ => f64::NAN,
     }
 }

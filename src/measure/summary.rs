@@ -141,9 +141,13 @@ impl Summary {
     /// A human-readable table (every number with its unit).
     pub fn table(&self) -> String {
         let opt = |x: Option<f64>, unit: &str| {
-            x.map_or("n/a (test ended before strain 0.098)".into(), |v| {
-                format!("{v:.3} {unit}")
-            })
+            x.map_or(
+                format!(
+                    "n/a (test ended before strain {:.3})",
+                    super::derived::RESIDUAL_MIN_END
+                ),
+                |v| format!("{v:.3} {unit}"),
+            )
         };
         let mut s = String::new();
         let mut line = |k: &str, v: String| s.push_str(&format!("  {k:<34} {v}\n"));
