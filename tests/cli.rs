@@ -75,6 +75,29 @@ fn biaxial_run_records_resumes_and_refuses_to_overwrite() {
     ] {
         assert_eq!(summary[key], resumed[key], "{key}");
     }
+    // The wall time runs on over the parts: the rows kept from the first part hold their
+    // wall time unchanged, the new ones continue from it, and the summary counts both
+    // parts (a summary of the resumed part alone would fall short of the first part's).
+    let after = cdlab::record::read_run(&cut).unwrap();
+    let kept = partial.last_checkpoint.as_ref().unwrap().0;
+    let first: Vec<f64> = partial
+        .series
+        .iter()
+        .filter(|r| r.step <= kept)
+        .map(|r| r.wall_s)
+        .collect();
+    let replayed: Vec<f64> = after.series.iter().take(first.len()).map(|r| r.wall_s).collect();
+    assert_eq!(first, replayed);
+    let walls: Vec<f64> = after.series.iter().map(|r| r.wall_s).collect();
+    assert!(walls.iter().all(|w| w.is_finite() && *w >= 0.0), "{walls:?}");
+    assert!(walls.windows(2).all(|w| w[0] <= w[1]), "{walls:?}");
+    let first_part = *first.last().expect("rows before the checkpoint");
+    let total = resumed["wall_time_s"].as_f64().unwrap();
+    assert!(
+        total >= first_part && first_part > 0.0,
+        "{total} s against {first_part} s"
+    );
+    assert!(total >= *walls.last().unwrap());
     let _ = std::fs::remove_dir_all(&base);
 }
 

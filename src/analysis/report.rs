@@ -35,6 +35,9 @@ pub struct TestPoint {
     /// The test's time step (s); absent in summaries written before it was recorded.
     #[serde(default)]
     pub dt_s: Option<f64>,
+    /// The summary's wall-clock time (s), over all the parts of a resumed test.
+    #[serde(default)]
+    pub wall_time_s: Option<f64>,
 }
 
 /// The analysis of one contact friction.
@@ -70,6 +73,9 @@ pub struct FrictionRow {
     /// summary recorded one.
     #[serde(default)]
     pub dt_ms: Vec<f64>,
+    /// Wall-clock time of its tests, summed (hours; each test on its own threads).
+    #[serde(default)]
+    pub wall_time_h: f64,
 }
 
 /// The whole report (`report.json`).
@@ -93,6 +99,10 @@ pub struct Report {
     /// names them.
     #[serde(default)]
     pub overlapping: Vec<(PathBuf, f64)>,
+    /// Wall-clock time of all the tests, summed (hours): what the campaign cost in
+    /// test-hours, whatever the tests ran on and however many ran at once.
+    #[serde(default)]
+    pub wall_time_h: f64,
 }
 
 /// `tan(asin(s))` and its standard error from that of `s`.
@@ -107,6 +117,12 @@ fn distinct(values: impl Iterator<Item = f64>) -> usize {
     v.sort_by(f64::total_cmp);
     v.dedup();
     v.len()
+}
+
+/// The tests' wall-clock times summed, in hours (a summary without one adds nothing).
+fn wall_time_h(tests: &[&TestPoint]) -> f64 {
+    // A fold from +0: an empty f64 sum is -0, which the table would print as "-0.00".
+    tests.iter().filter_map(|t| t.wall_time_s).fold(0.0, |a, b| a + b) / 3600.0
 }
 
 /// Finds every `summary.json` below `roots` (a run directory or a directory of runs).
@@ -163,6 +179,7 @@ fn read_point(dir: &Path, path: &Path) -> Result<TestPoint> {
             overlap_max_rel: num("overlap_max_rel"),
             // Summaries written before the time step was in them: the record has it.
             dt_s: num("dt_s").or_else(|| crate::record::read_config(dir).ok().map(|c| c.solver.dt.si())),
+            wall_time_s: num("wall_time_s"),
         }),
         _ => Err(Error::Other(format!(
             "{}: not a cdlab test summary (needs mu, sigma3_mpa, sigma1_peak_mpa)",
@@ -225,6 +242,7 @@ pub fn analyse(points: &[TestPoint], missing: Vec<(PathBuf, String)>) -> Report 
                 v.dedup();
                 v
             },
+            wall_time_h: wall_time_h(&group),
         });
     }
     let fit_of = |f: &dyn Fn(&FrictionRow) -> f64| {
@@ -247,6 +265,7 @@ pub fn analyse(points: &[TestPoint], missing: Vec<(PathBuf, String)>) -> Report 
     let suspect = above(|t| t.kinetic_ratio_max, QUASI_STATIC_KINETIC_RATIO);
     let overlapping = above(|t| t.overlap_max_rel, OVERLAP_BOUND_REL);
     Report {
+        wall_time_h: wall_time_h(&points.iter().collect::<Vec<_>>()),
         mu_macro_fit: fit_of(&|r| r.mu_macro),
         mu_macro_res_fit: fit_of(&|r| r.mu_macro_res),
         frictions,
@@ -260,11 +279,11 @@ impl Report {
     /// The friction table as CSV (header with units).
     pub fn csv(&self) -> String {
         let mut s = String::from(
-            "mu,tests,mu_macro,mu_macro_se,mu_macro_res,mu_macro_res_se,cohesion_peak_mpa,cohesion_peak_se_mpa,dt_ms\n",
+            "mu,tests,mu_macro,mu_macro_se,mu_macro_res,mu_macro_res_se,cohesion_peak_mpa,cohesion_peak_se_mpa,dt_ms,wall_time_h\n",
         );
         for r in &self.frictions {
             s.push_str(&format!(
-                "{},{},{},{},{},{},{},{},{}\n",
+                "{},{},{},{},{},{},{},{},{},{}\n",
                 r.mu,
                 r.tests,
                 r.mu_macro,
@@ -273,7 +292,8 @@ impl Report {
                 r.mu_macro_res_se,
                 r.peak_fit_free.intercept,
                 r.peak_fit_free.intercept_se,
-                Self::dt_text(r)
+                Self::dt_text(r),
+                r.wall_time_h
             ));
         }
         s
@@ -297,8 +317,8 @@ impl Report {
     /// standard error from one pressure, no intercept error from two).
     pub fn table(&self) -> String {
         let mut s = format!(
-            "{:>8} {:>6} {:>18} {:>18} {:>22} {:>8}\n",
-            "mu", "tests", "mu_macro", "mu_macro_res", "cohesion (MPa)", "dt (ms)"
+            "{:>8} {:>6} {:>18} {:>18} {:>22} {:>8} {:>9}\n",
+            "mu", "tests", "mu_macro", "mu_macro_res", "cohesion (MPa)", "dt (ms)", "wall (h)"
         );
         let mut undefined = false;
         let mut num = |x: f64| {
@@ -311,7 +331,7 @@ impl Report {
         };
         for r in &self.frictions {
             s.push_str(&format!(
-                "{:>8} {:>6} {:>9} +- {:<6} {:>9} +- {:<6} {:>11} +- {:<6} {:>8}\n",
+                "{:>8} {:>6} {:>9} +- {:<6} {:>9} +- {:<6} {:>11} +- {:<6} {:>8} {:>9.2}\n",
                 r.mu,
                 r.tests,
                 num(r.mu_macro),
@@ -320,9 +340,15 @@ impl Report {
                 num(r.mu_macro_res_se),
                 num(r.peak_fit_free.intercept),
                 num(r.peak_fit_free.intercept_se),
-                Self::dt_text(r)
+                Self::dt_text(r),
+                r.wall_time_h
             ));
         }
+        s.push_str(&format!(
+            "wall time of the tests: {:.2} h summed over {} tests (each on its own threads)\n",
+            self.wall_time_h,
+            self.frictions.iter().map(|r| r.tests).sum::<usize>()
+        ));
         for (name, f) in [
             ("mu_macro", &self.mu_macro_fit),
             ("mu_macro_res", &self.mu_macro_res_fit),
@@ -387,6 +413,37 @@ mod tests {
             kinetic_ratio_max: Some(1e-4),
             ..Default::default()
         }
+    }
+
+    /// The wall times of the tests are summed per friction and over the campaign, in
+    /// hours (1800 s + 5400 s = 2 h at friction 0.3; 3600 s more at friction 0.5 makes 3 h);
+    /// a summary without one adds nothing.
+    #[test]
+    fn wall_times_are_summed_in_hours() {
+        let at = |mu: f64, s3: f64, wall: Option<f64>| TestPoint {
+            mu,
+            sigma3_mpa: s3,
+            wall_time_s: wall,
+            ..one_pressure_point()
+        };
+        let rep = analyse(
+            &[
+                at(0.3, 1.0, Some(1800.0)),
+                at(0.3, 2.0, Some(5400.0)),
+                at(0.5, 1.0, Some(3600.0)),
+                at(0.5, 2.0, None),
+            ],
+            Vec::new(),
+        );
+        assert_eq!(rep.frictions[0].wall_time_h, 2.0);
+        assert_eq!(rep.frictions[1].wall_time_h, 1.0);
+        assert_eq!(rep.wall_time_h, 3.0);
+        assert!(
+            rep.table().contains("3.00 h summed over 4 tests"),
+            "{}",
+            rep.table()
+        );
+        assert!(rep.csv().lines().nth(1).unwrap().ends_with(",2"), "{}", rep.csv());
     }
 
     /// One pressure defines mu_macro (tan phi from sin phi = q / p: here q/p = 0.5, so
@@ -462,9 +519,9 @@ mod tests {
             "{table}"
         );
         assert_eq!(table.matches("overlap:").count(), 1, "{table}");
-        assert!(table.lines().nth(1).unwrap().ends_with("0.25;0.5"), "{table}");
+        assert!(table.lines().nth(1).unwrap().contains(" 0.25;0.5 "), "{table}");
         assert!(
-            rep.csv().lines().nth(1).unwrap().ends_with(",0.25;0.5"),
+            rep.csv().lines().nth(1).unwrap().ends_with(",0.25;0.5,0"),
             "{}",
             rep.csv()
         );

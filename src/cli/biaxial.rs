@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 use crate::measure::summary::Summary;
 use crate::protocol::biaxial::Lab;
 use crate::protocol::checkpoint::decode;
-use crate::protocol::{Observer, Phase, ProtocolParams, prepare};
+use crate::protocol::{Phase, ProtocolParams, prepare};
 use crate::record::{Recorder, read_run};
 
 use super::run::{Progress, Recording, open_backend};
@@ -261,15 +261,19 @@ pub fn run_fresh(
     };
     let backend = open_backend(config, scene.clone(), params.step)?;
     let lab = Lab::new(backend, params.clone(), &scene, compacted)?;
-    let obs = Recording::new(Recorder::create(dir, config)?, params.strain_end, progress);
-    finish(config, dir, lab, obs, started, quiet)
+    let obs = Recording::new(
+        Recorder::create(dir, config)?,
+        params.strain_end,
+        progress,
+        started,
+    );
+    finish(config, dir, lab, obs, quiet)
 }
 
 /// Continues the run recorded in `dir` from its last checkpoint and writes its summary.
 pub fn run_resume(dir: &Path, backend: Option<&str>, progress: &Progress) -> Result<Summary> {
-    let started = Instant::now();
     let (config, lab, obs) = resume(dir, backend, progress)?;
-    finish(&config, dir, lab, obs, started, progress.quiet())
+    finish(&config, dir, lab, obs, progress.quiet())
 }
 
 fn finish(
@@ -277,7 +281,6 @@ fn finish(
     dir: &Path,
     mut lab: Lab<Box<dyn crate::backend::Backend>>,
     mut obs: Recording,
-    started: Instant,
     quiet: bool,
 ) -> Result<Summary> {
     if !quiet {
@@ -297,7 +300,7 @@ fn finish(
         config.test.mu,
         config.sample.disks,
         crate::backend::Backend::name(&lab.backend),
-        started.elapsed().as_secs_f64(),
+        obs.wall_s(),
     );
     summary.dt_s = Some(config.solver.dt.si());
     obs.recorder.finish()?;
@@ -332,6 +335,7 @@ type Resumed = (Config, Lab<Box<dyn crate::backend::Backend>>, Recording);
 /// and snapshots after it are dropped: the resumed run recomputes them exactly), and
 /// restores the lab from the checkpoint.
 fn resume(dir: &Path, backend: Option<&str>, progress: &Progress) -> Result<Resumed> {
+    let started = Instant::now();
     let rec = read_run(dir)?;
     let mut config = rec.config()?;
     if let Some(b) = backend {
@@ -355,9 +359,14 @@ fn resume(dir: &Path, backend: Option<&str>, progress: &Progress) -> Result<Resu
     let time = ck.scene.time;
     let lab = Lab::resume(backend, ck)?;
     // Only now, with everything read and checked, replace the files.
-    let mut obs = Recording::new(Recorder::create(dir, &config)?, params.strain_end, progress);
+    let mut obs = Recording::new(
+        Recorder::create(dir, &config)?,
+        params.strain_end,
+        progress,
+        started,
+    );
     for row in rec.series.iter().filter(|r| r.step <= step) {
-        obs.series(row)?;
+        obs.replay(row)?;
     }
     for snap in rec.snapshots.iter().filter(|s| s.time_s <= time) {
         obs.recorder.snapshot(snap)?;

@@ -75,6 +75,8 @@ pub struct Recording {
     strain_end: f64,
     bar: Option<ProgressBar>,
     started: Instant,
+    /// Wall-clock seconds of the run's earlier parts (a resumed run's replayed rows).
+    wall_before: f64,
     last_line: Instant,
     /// Label and interval of the plain progress lines; none when they are off.
     lines: Option<(String, f64)>,
@@ -82,8 +84,9 @@ pub struct Recording {
 }
 
 impl Recording {
-    /// A recording observer showing its progress as `progress` says.
-    pub fn new(recorder: Recorder, strain_end: f64, progress: &Progress) -> Self {
+    /// A recording observer showing its progress as `progress` says; its wall clock runs
+    /// from `started` (before the deposition or the reading of a record it follows).
+    pub fn new(recorder: Recorder, strain_end: f64, progress: &Progress, started: Instant) -> Self {
         let terminal = std::io::stderr().is_terminal();
         let (bar, lines) = match progress {
             Progress::Quiet => (None, None),
@@ -109,11 +112,30 @@ impl Recording {
             ends: Vec::new(),
             strain_end,
             bar,
-            started: Instant::now(),
+            started,
+            wall_before: 0.0,
             last_line: Instant::now(),
             lines,
             quiet: progress.quiet(),
         }
+    }
+
+    /// Wall-clock seconds of the run so far, its earlier parts included.
+    pub fn wall_s(&self) -> f64 {
+        self.wall_before + self.started.elapsed().as_secs_f64()
+    }
+
+    /// Records a row of an earlier part of the run (a resumed run's rows up to its
+    /// checkpoint) as it was, and counts that part's wall-clock time into this one's. A row
+    /// from a record written before rows held the wall time adds nothing, so such a run's
+    /// total is that of its last part only.
+    pub fn replay(&mut self, row: &SeriesRow) -> Result<()> {
+        self.recorder.series(row)?;
+        if row.wall_s.is_finite() {
+            self.wall_before = row.wall_s;
+        }
+        self.rows.push(row.clone());
+        Ok(())
     }
 
     /// Ends the progress display.
@@ -126,6 +148,10 @@ impl Recording {
 
 impl Observer for Recording {
     fn series(&mut self, row: &SeriesRow) -> Result<()> {
+        let row = &SeriesRow {
+            wall_s: self.wall_s(),
+            ..row.clone()
+        };
         self.recorder.series(row)?;
         let msg = format!(
             "{:<11} t {:8.3} s  strain {:.4}  sigma1 {:7.3} MPa  dV/V0 {:+.4}  iterations/step {:6.1}",
@@ -144,7 +170,7 @@ impl Observer for Recording {
         } else if let Some((label, every)) = &self.lines
             && self.last_line.elapsed().as_secs_f64() >= *every
         {
-            eprintln!("{label}[{:7.1} s] {msg}", self.started.elapsed().as_secs_f64());
+            eprintln!("{label}[{:7.1} s] {msg}", row.wall_s);
             self.last_line = Instant::now();
         }
         self.rows.push(row.clone());

@@ -81,6 +81,9 @@ impl Gauge {
             inertial_number: inertial,
             height_m: h,
             width_m: w,
+            // The clock is the recording's, which sets it; 0 keeps rows of the same
+            // physics equal (resume tests compare them whole).
+            wall_s: 0.0,
         }
     }
 }

@@ -68,6 +68,15 @@ pub struct SeriesRow {
     /// Sample width between the outer edges of the strips (m).
     #[serde(deserialize_with = "f64_or_nan")]
     pub width_m: f64,
+    /// Wall-clock time since the run started (s), summed over the parts of a resumed run
+    /// (the time between a part's last checkpoint and its interruption is not counted).
+    /// Filled by the recording, not the protocol; NaN in records written before it.
+    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
+    pub wall_s: f64,
+}
+
+fn nan() -> f64 {
+    f64::NAN
 }
 
 /// JSON `null` (how serde_json writes NaN and infinities) becomes NaN.
@@ -119,6 +128,11 @@ pub const SERIES_FIELDS: &[(&str, &str, &str)] = &[
     ("inertial_number", "number", "inertial number I"),
     ("height_m", "number", "sample height (m)"),
     ("width_m", "number", "sample width (m)"),
+    (
+        "wall_s",
+        "number",
+        "wall-clock time since the run started, over its resumed parts (s)",
+    ),
 ];
 
 /// The JSON schema of `/series` messages (Foxglove uses it to offer the fields in plots).
@@ -180,7 +194,7 @@ impl SeriesRow {
             self.phase.clone()
         };
         format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             self.time_s,
             self.step,
             phase,
@@ -203,6 +217,7 @@ impl SeriesRow {
             self.inertial_number,
             self.height_m,
             self.width_m,
+            self.wall_s,
         )
     }
 }

@@ -48,6 +48,7 @@ fn row(k: u64) -> SeriesRow {
         inertial_number: 1e-4,
         height_m: 97.0 - x * 1e-3,
         width_m: 39.0 + x * 1e-4,
+        wall_s: 0.37 * x,
     }
 }
 
@@ -361,4 +362,15 @@ fn kinetic_ratio_of_a_row() {
         let r = bad.kinetic_ratio();
         assert!(r.is_nan() && r.partial_cmp(&1.0).is_none(), "{r}");
     }
+}
+
+/// A row of a record written before rows held the wall time reads back with it NaN (not
+/// 0, which would pass for a measured time); the other fields as written.
+#[test]
+fn rows_without_wall_time_read_back_as_nan() {
+    let mut v = serde_json::to_value(row(3)).unwrap();
+    v.as_object_mut().unwrap().remove("wall_s");
+    let back: SeriesRow = serde_json::from_value(v).unwrap();
+    assert!(back.wall_s.is_nan());
+    assert_eq!(back.sigma1_pa, row(3).sigma1_pa);
 }
