@@ -77,4 +77,9 @@ fn shipped_campaign_report_reads_back() {
     // The README's plateau: 0.474 at the peak.
     assert!((fit.a - 0.474).abs() < 5e-4, "{}", fit.a);
     assert!(rep.mu_macro_res_fit.is_some());
+    // The campaign file's time steps: 0.25 ms from friction 3, 0.125 ms at 12.
+    assert_eq!(rep.frictions[12].dt_ms, vec![0.125]);
+    // Its tests' wall times, summed over the frictions, make the campaign's total.
+    let sum: f64 = rep.frictions.iter().map(|r| r.wall_time_h).sum();
+    assert!(rep.wall_time_h > 0.0 && (sum - rep.wall_time_h).abs() < 1e-9, "{sum} h");
 }
