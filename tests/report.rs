@@ -81,5 +81,8 @@ fn shipped_campaign_report_reads_back() {
     assert_eq!(rep.frictions[12].dt_ms, vec![0.125]);
     // Its tests' wall times, summed over the frictions, make the campaign's total.
     let sum: f64 = rep.frictions.iter().map(|r| r.wall_time_h).sum();
-    assert!(rep.wall_time_h > 0.0 && (sum - rep.wall_time_h).abs() < 1e-9, "{sum} h");
+    assert!(
+        rep.wall_time_h > 0.0 && (sum - rep.wall_time_h).abs() < 1e-9,
+        "{sum} h"
+    );
 }
