@@ -120,9 +120,13 @@ fn distinct(values: impl Iterator<Item = f64>) -> usize {
 }
 
 /// The tests' wall-clock times summed, in hours (a summary without one adds nothing).
-fn wall_time_h(tests: &[&TestPoint]) -> f64 {
+fn wall_time_h<'a>(tests: impl IntoIterator<Item = &'a TestPoint>) -> f64 {
     // A fold from +0: an empty f64 sum is -0, which the table would print as "-0.00".
-    tests.iter().filter_map(|t| t.wall_time_s).fold(0.0, |a, b| a + b) / 3600.0
+    tests
+        .into_iter()
+        .filter_map(|t| t.wall_time_s)
+        .fold(0.0, |a, b| a + b)
+        / 3600.0
 }
 
 /// Finds every `summary.json` below `roots` (a run directory or a directory of runs).
@@ -242,7 +246,7 @@ pub fn analyse(points: &[TestPoint], missing: Vec<(PathBuf, String)>) -> Report 
                 v.dedup();
                 v
             },
-            wall_time_h: wall_time_h(&group),
+            wall_time_h: wall_time_h(group.iter().copied()),
         });
     }
     let fit_of = |f: &dyn Fn(&FrictionRow) -> f64| {
@@ -265,7 +269,7 @@ pub fn analyse(points: &[TestPoint], missing: Vec<(PathBuf, String)>) -> Report 
     let suspect = above(|t| t.kinetic_ratio_max, QUASI_STATIC_KINETIC_RATIO);
     let overlapping = above(|t| t.overlap_max_rel, OVERLAP_BOUND_REL);
     Report {
-        wall_time_h: wall_time_h(&points.iter().collect::<Vec<_>>()),
+        wall_time_h: wall_time_h(points),
         mu_macro_fit: fit_of(&|r| r.mu_macro),
         mu_macro_res_fit: fit_of(&|r| r.mu_macro_res),
         frictions,

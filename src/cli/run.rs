@@ -148,11 +148,11 @@ impl Recording {
 
 impl Observer for Recording {
     fn series(&mut self, row: &SeriesRow) -> Result<()> {
-        let row = &SeriesRow {
+        let row = SeriesRow {
             wall_s: self.wall_s(),
             ..row.clone()
         };
-        self.recorder.series(row)?;
+        self.recorder.series(&row)?;
         let msg = format!(
             "{:<11} t {:8.3} s  strain {:.4}  sigma1 {:7.3} MPa  dV/V0 {:+.4}  iterations/step {:6.1}",
             row.phase,
@@ -173,7 +173,7 @@ impl Observer for Recording {
             eprintln!("{label}[{:7.1} s] {msg}", row.wall_s);
             self.last_line = Instant::now();
         }
-        self.rows.push(row.clone());
+        self.rows.push(row);
         Ok(())
     }
 

@@ -68,7 +68,8 @@ pub struct Summary {
     pub time_s: f64,
     /// Wall-clock time of the run (s), summed over the parts of a resumed run (the time
     /// between a part's last checkpoint and its interruption is lost with the steps it
-    /// computed). In records whose rows hold no `wall_s` (written before it) a resumed run counts its last part only.
+    /// computed). In records whose rows hold no `wall_s` (written before it) a resumed run
+    /// counts its last part only.
     pub wall_time_s: f64,
     /// Steps per wall-clock second (over all the run's steps and parts).
     pub steps_per_second: f64,
