@@ -163,3 +163,81 @@ fn time_steps_by_friction_are_recorded_and_checked_on_rerun() {
     assert!(text.contains("already finished, skipped"), "{text}");
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// `cdlab archive` keeps a campaign without its records: the report of the archive gives
+/// the same figures as the report of the runs, and a new output directory seeded with the
+/// archive skips the archived tests, runs only the new point, and refuses an archived test
+/// whose settings differ from the sweep's, by name.
+#[test]
+fn an_archived_campaign_reports_and_resumes_without_its_records() {
+    let (base, sweep) = tiny_campaign("sweep-archive", "mu = [0.3]\nsigma3 = [\"1 MPa\", \"4 MPa\"]\n");
+    let s = sweep.to_str().unwrap();
+    let (ok, text) = cdlab(&["sweep", s, "--jobs", "2"]);
+    assert!(ok, "{text}");
+    let campaign = base.join("campaign");
+    let archive = base.join("archive");
+    let (a, c) = (archive.to_str().unwrap(), campaign.to_str().unwrap());
+    let (ok, text) = cdlab(&["archive", c, "--to", a, "--series-rows", "5"]);
+    assert!(ok && text.contains("2 tests archived, 0 already there"), "{text}");
+    for name in ["seed1_mu0.3_s1MPa", "seed1_mu0.3_s4MPa"] {
+        let dir = archive.join(name);
+        assert!(!dir.join("run.mcap").exists());
+        let series = std::fs::read_to_string(dir.join("series_thinned.csv")).unwrap();
+        // A header and about 5 of the test's rows (6 with the last row).
+        let rows = series.lines().count() - 1;
+        assert!((5..=6).contains(&rows), "{rows} rows:\n{series}");
+        assert_eq!(
+            cdlab::record::read_config(&dir).unwrap(),
+            cdlab::record::read_config(campaign.join(name)).unwrap()
+        );
+    }
+    // Archiving again finds the same tests in place.
+    let (ok, text) = cdlab(&["archive", c, "--to", a]);
+    assert!(ok && text.contains("0 tests archived, 2 already there"), "{text}");
+
+    let mu_macro = |dir: &std::path::Path| {
+        let (ok, text) = cdlab(&["report", dir.to_str().unwrap()]);
+        assert!(ok, "{text}");
+        let r: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).unwrap()).unwrap();
+        r["frictions"][0]["mu_macro"].as_f64().unwrap()
+    };
+    assert_eq!(mu_macro(&archive), mu_macro(&campaign));
+
+    // A fresh output directory seeded with the archive, one pressure added to the grid.
+    let seeded = base.join("seeded");
+    std::fs::create_dir_all(&seeded).unwrap();
+    for name in ["seed1_mu0.3_s1MPa", "seed1_mu0.3_s4MPa"] {
+        let to = seeded.join(name);
+        std::fs::create_dir_all(&to).unwrap();
+        for f in std::fs::read_dir(archive.join(name)).unwrap().flatten() {
+            std::fs::copy(f.path(), to.join(f.file_name())).unwrap();
+        }
+    }
+    let text = std::fs::read_to_string(&sweep)
+        .unwrap()
+        .replace(c, seeded.to_str().unwrap())
+        .replace("\"4 MPa\"]", "\"4 MPa\", \"2 MPa\"]");
+    std::fs::write(&sweep, text).unwrap();
+    let (ok, text) = cdlab(&["sweep", s]);
+    assert!(ok, "{text}");
+    assert_eq!(text.matches("already finished, skipped").count(), 2, "{text}");
+    assert_eq!(text.matches("sweep: starting").count(), 1, "{text}");
+    assert!(
+        text.contains("starting") && text.contains("seed1_mu0.3_s2MPa"),
+        "{text}"
+    );
+
+    // An archived test of another friction than its directory says is refused by name.
+    let config = seeded.join("seed1_mu0.3_s4MPa/config.toml");
+    let toml = std::fs::read_to_string(&config).unwrap();
+    assert!(toml.contains("mu = 0.3"), "{toml}");
+    std::fs::write(&config, toml.replace("mu = 0.3", "mu = 0.4")).unwrap();
+    let (ok, text) = cdlab(&["sweep", s]);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("seed1_mu0.3_s4MPa holds a test of other settings") && text.contains("test.mu"),
+        "{text}"
+    );
+    let _ = std::fs::remove_dir_all(&base);
+}

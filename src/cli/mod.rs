@@ -1,6 +1,7 @@
 //! The `cdlab` command line. Each subcommand lives in its own file with an `Args` struct
 //! (clap) and a `run` function; this file only dispatches.
 
+pub mod archive;
 pub mod bands;
 pub mod bench;
 pub mod biaxial;
@@ -39,6 +40,9 @@ pub enum Command {
     /// Run a friction x pressure campaign (`sweep FILE.toml [--shard I/N]`), or merge
     /// campaign directories into one report (`sweep collect DIR...`).
     Sweep(sweep::Args),
+    /// Keep finished tests without their records (summary, configuration, thinned series):
+    /// a campaign to store, move or resume elsewhere (`archive DIR... --to DEST`).
+    Archive(archive::Args),
     /// Export a run's snapshots as VTK files (ParaView).
     Export(export::Args),
     /// Shear bands of a recorded run: angle from the axial direction, width in mean
@@ -66,6 +70,7 @@ pub fn main() -> i32 {
         Command::Prepare(args) => prepare::run(&args),
         Command::Report(args) => report::run(&args),
         Command::Sweep(args) => sweep::run(&args),
+        Command::Archive(args) => archive::run(&args),
         Command::Export(args) => export::run(&args),
         Command::Bands(args) => bands::run(&args),
         Command::Render(args) => render::run(&args),

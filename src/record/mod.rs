@@ -28,6 +28,10 @@ pub use series::{SERIES_FIELDS, SeriesRow, csv_header, series_json_schema};
 pub use snapshot::{ContactClass, ContactRecord, DiskRecord, SNAPSHOT_SCHEMA, Snapshot};
 pub use writer::Recorder;
 
+/// The configuration of a test kept by `cdlab archive` in place of its record
+/// ([`read_config`] reads it when the directory holds no record).
+pub const ARCHIVED_CONFIG_FILE: &str = "config.toml";
+
 /// File name of the MCAP record inside a run directory.
 pub const MCAP_FILE: &str = "run.mcap";
 /// File name of the CSV time series inside a run directory.

@@ -64,9 +64,17 @@ fn mcap_path(path: &Path) -> PathBuf {
 /// it first and its chunks are small, so the file's first megabyte normally holds it: a sweep
 /// checks every finished test of a campaign this way without reading whole records. A head
 /// that does not hold it falls back to [`read_run`], with its errors.
+///
+/// A directory written by `cdlab archive` holds no record but the test's configuration as
+/// [`ARCHIVED_CONFIG_FILE`]: that file is read instead.
 pub fn read_config(path: impl AsRef<Path>) -> Result<Config> {
     use std::io::Read;
-    let path = mcap_path(path.as_ref());
+    let dir = path.as_ref();
+    let archived = dir.join(ARCHIVED_CONFIG_FILE);
+    if dir.is_dir() && !dir.join(MCAP_FILE).exists() && archived.exists() {
+        return Config::load(&archived);
+    }
+    let path = mcap_path(dir);
     let mut head = Vec::new();
     std::fs::File::open(&path)
         .and_then(|f| f.take(1 << 20).read_to_end(&mut head))

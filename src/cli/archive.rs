@@ -1,0 +1,162 @@
+//! `cdlab archive DIR... --to DEST`: the finished tests below the given directories kept
+//! without their records (snapshots and checkpoints make a 5000-disk test's record tens of
+//! megabytes): per test, its summary (`summary.json`, `summary.txt`), its configuration
+//! (`config.toml`) and its time series thinned to a few hundred rows. An archived test
+//! counts as finished for `cdlab sweep` (checked against the sweep's settings through its
+//! `config.toml`) and `cdlab report` reads it like a run, so a campaign can be kept in a
+//! repository, moved between machines and resumed by copying the archive into its output
+//! directory.
+
+use std::path::{Path, PathBuf};
+
+use crate::analysis::report::collect;
+use crate::error::{Error, Result};
+use crate::record::{ARCHIVED_CONFIG_FILE, CSV_FILE, read_config};
+
+/// File name of the thinned time series in an archived test.
+pub const THINNED_SERIES_FILE: &str = "series_thinned.csv";
+
+/// Options of `cdlab archive`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Run directories, or directories holding runs (searched recursively).
+    #[arg(required = true)]
+    pub dirs: Vec<PathBuf>,
+    /// The archive directory; each test goes to a subdirectory of its run directory's name.
+    #[arg(long)]
+    pub to: PathBuf,
+    /// Rows of the time series kept per test (every k-th row, the last one included);
+    /// 0 keeps none.
+    #[arg(long, default_value_t = 400)]
+    pub series_rows: usize,
+}
+
+/// Runs `cdlab archive`.
+pub fn run(args: &Args) -> Result<()> {
+    for d in &args.dirs {
+        if !d.is_dir() {
+            return Err(Error::Other(format!("{}: not a directory", d.display())));
+        }
+    }
+    let (points, missing) = collect(&args.dirs);
+    if points.is_empty() {
+        return Err(Error::Other(format!(
+            "no finished test (summary.json) below {:?}",
+            args.dirs
+        )));
+    }
+    std::fs::create_dir_all(&args.to).map_err(|e| Error::io(&args.to, e))?;
+    let (mut written, mut same) = (0, 0);
+    for p in &points {
+        let name = p
+            .dir
+            .file_name()
+            .ok_or_else(|| Error::Other(format!("{}: a run directory needs a name", p.dir.display())))?;
+        let dest = args.to.join(name);
+        if archive_one(&p.dir, &dest, args.series_rows)? {
+            written += 1;
+        } else {
+            same += 1;
+        }
+    }
+    println!(
+        "{written} tests archived, {same} already there -> {}",
+        args.to.display()
+    );
+    for (dir, why) in &missing {
+        println!("  not archived: {}: {why}", dir.display());
+    }
+    Ok(())
+}
+
+/// Archives the finished test in `src` to `dest`; false when `dest` already holds this
+/// very test (same summary). A different test already in `dest` is an error: an archive
+/// never overwrites one test with another.
+fn archive_one(src: &Path, dest: &Path, series_rows: usize) -> Result<bool> {
+    let read = |p: &Path| std::fs::read(p).map_err(|e| Error::io(p, e));
+    let summary = read(&src.join("summary.json"))?;
+    let kept = dest.join("summary.json");
+    if kept.exists() {
+        if read(&kept)? == summary {
+            return Ok(false);
+        }
+        return Err(Error::Other(format!(
+            "{} already holds another test than {}: archive into another directory",
+            dest.display(),
+            src.display()
+        )));
+    }
+    // The configuration first: a run whose record cannot give it is not archived at all.
+    let config = read_config(src)?.to_toml_string()?;
+    std::fs::create_dir_all(dest).map_err(|e| Error::io(dest, e))?;
+    let write = |name: &str, bytes: &[u8]| {
+        let p = dest.join(name);
+        std::fs::write(&p, bytes).map_err(|e| Error::io(&p, e))
+    };
+    write(ARCHIVED_CONFIG_FILE, config.as_bytes())?;
+    let text = src.join("summary.txt");
+    if text.exists() {
+        write("summary.txt", &read(&text)?)?;
+    }
+    if series_rows > 0 {
+        let full = src.join(CSV_FILE);
+        let thinned = src.join(THINNED_SERIES_FILE);
+        // An archived test keeps only its thinned series; archiving it again copies that.
+        let (from, rows) = if full.exists() {
+            (full, series_rows)
+        } else {
+            (thinned, usize::MAX)
+        };
+        if from.exists() {
+            let csv = std::fs::read_to_string(&from).map_err(|e| Error::io(&from, e))?;
+            write(THINNED_SERIES_FILE, thin_csv(&csv, rows).as_bytes())?;
+        }
+    }
+    // The summary last: a directory with one is a finished test to the sweep and the report.
+    write("summary.json", &summary)?;
+    Ok(true)
+}
+
+/// The header and at most about `rows` data rows of a CSV text: every k-th row from the
+/// first, and the last row always.
+pub fn thin_csv(csv: &str, rows: usize) -> String {
+    let mut lines = csv.lines();
+    let mut out = String::new();
+    let Some(header) = lines.next() else {
+        return out;
+    };
+    out.push_str(header);
+    out.push('\n');
+    let data: Vec<&str> = lines.filter(|l| !l.is_empty()).collect();
+    if data.is_empty() || rows == 0 {
+        return out;
+    }
+    let every = data.len().div_ceil(rows).max(1);
+    for (k, line) in data.iter().enumerate() {
+        if k % every == 0 || k + 1 == data.len() {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::thin_csv;
+
+    /// 10 rows thinned to about 4: rows 0, 3, 6, 9 (every third, the last one included);
+    /// 10 rows to 20 keeps all; a header alone stays a header.
+    #[test]
+    fn thinning_keeps_every_kth_row_and_the_last() {
+        let csv: String = std::iter::once("h".to_string())
+            .chain((0..10).map(|k| k.to_string()))
+            .collect::<Vec<_>>()
+            .join("\n");
+        assert_eq!(thin_csv(&csv, 4), "h\n0\n3\n6\n9\n");
+        assert_eq!(thin_csv(&csv, 3), "h\n0\n4\n8\n9\n");
+        assert_eq!(thin_csv(&csv, 20).lines().count(), 11);
+        assert_eq!(thin_csv("h\n", 5), "h\n");
+        assert_eq!(thin_csv(&csv, 0), "h\n");
+    }
+}
