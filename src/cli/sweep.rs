@@ -37,6 +37,11 @@ pub struct Args {
     /// terminal (a log); on a terminal the campaign's display updates continuously.
     #[arg(long, default_value_t = 120.0)]
     pub log_every: f64,
+    /// Run nothing: say what the sweep would do with each test (skip, resume, start),
+    /// after checking the tests found in the output directory against the sweep's
+    /// settings (a campaign copied from an archive, say).
+    #[arg(long)]
+    pub dry_run: bool,
 }
 
 /// The sweep file.
@@ -284,7 +289,11 @@ pub fn run(args: &Args) -> Result<()> {
                         bar: bar.clone(),
                         every_s: args.log_every,
                     };
-                    let outcome = run_point(&base, &sweep.out, &p, &samples, &progress, &say);
+                    let outcome = if args.dry_run {
+                        check_point(&base, &p).map(|what| what.dry_run().to_string())
+                    } else {
+                        run_point(&base, &sweep.out, &p, &samples, &progress, &say)
+                    };
                     if let (Some(m), Some(b)) = (&display, &bar) {
                         m.remove(b);
                     }
@@ -317,7 +326,10 @@ pub fn run(args: &Args) -> Result<()> {
         b.finish_and_clear();
     }
     let failed = done.into_inner().expect("progress").1;
-    if failed.is_empty() {
+    if failed.is_empty() && args.dry_run {
+        eprintln!("sweep: dry run, nothing was run; {total} tests checked");
+        Ok(())
+    } else if failed.is_empty() {
         eprintln!(
             "sweep: all {total} tests of this shard finished; `cdlab report {}` analyses them",
             sweep.out.display()
@@ -331,21 +343,46 @@ pub fn run(args: &Args) -> Result<()> {
     }
 }
 
-/// Runs, resumes or skips one test; returns a one-line outcome.
-fn run_point(
-    base: &Config,
-    out: &Path,
-    p: &Point,
-    samples: &Mutex<Vec<(u64, crate::model::Scene)>>,
-    progress: &Progress,
-    say: &dyn Fn(&str),
-) -> Result<String> {
+/// What the sweep does with one test, found from its directory.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum State {
+    /// Finished (a summary): skipped.
+    Finished,
+    /// A record with a checkpoint: resumed.
+    Resumable,
+    /// A record without a checkpoint (killed in its first minutes): started again.
+    Restart,
+    /// Nothing yet: started.
+    New,
+}
+
+impl State {
+    /// The line `--dry-run` prints.
+    fn dry_run(self) -> &'static str {
+        match self {
+            State::Finished => "already finished, would be skipped",
+            State::Resumable => "would resume from its last checkpoint",
+            State::Restart => "would restart (its record holds no checkpoint yet)",
+            State::New => "would start",
+        }
+    }
+}
+
+/// The test's configuration in this sweep.
+fn point_config(base: &Config, p: &Point) -> Config {
     let mut config = base.clone();
     config.sample.seed = p.seed;
     config.test.mu = p.mu;
     config.test.sigma3 = Pressure(p.sigma3);
     config.solver.dt = Duration(p.dt);
     config.output.dir = p.dir.clone();
+    config
+}
+
+/// Finds what state test `p` is in and checks that a test found in its directory (finished
+/// or to resume) has this sweep's settings.
+fn check_point(base: &Config, p: &Point) -> Result<State> {
+    let config = point_config(base, p);
     // A finished test is skipped and a half-finished one resumes with its own settings, so
     // both must be this sweep's tests. A record without a checkpoint (a test killed in its
     // first minutes) has nothing to resume: the test starts again. An unreadable record is
@@ -374,13 +411,31 @@ fn run_point(
             )));
         }
     }
-    if finished {
-        return Ok("already finished, skipped".into());
-    }
-    let how = match (started, resume) {
-        (_, true) => "resuming",
-        (true, false) => "restarting (its record holds no checkpoint yet)",
-        _ => "starting",
+    Ok(match (finished, started, resume) {
+        (true, _, _) => State::Finished,
+        (_, _, true) => State::Resumable,
+        (_, true, false) => State::Restart,
+        _ => State::New,
+    })
+}
+
+/// Runs, resumes or skips one test; returns a one-line outcome.
+fn run_point(
+    base: &Config,
+    out: &Path,
+    p: &Point,
+    samples: &Mutex<Vec<(u64, crate::model::Scene)>>,
+    progress: &Progress,
+    say: &dyn Fn(&str),
+) -> Result<String> {
+    let config = point_config(base, p);
+    let state = check_point(base, p)?;
+    let resume = state == State::Resumable;
+    let how = match state {
+        State::Finished => return Ok("already finished, skipped".into()),
+        State::Resumable => "resuming",
+        State::Restart => "restarting (its record holds no checkpoint yet)",
+        State::New => "starting",
     };
     say(&format!("sweep: {how} {}", p.dir.display()));
     let summary = if resume {
