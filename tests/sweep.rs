@@ -313,3 +313,103 @@ fn the_shipped_5000_disk_archive_resumes_under_the_shipped_sweep_file() {
     assert!(text.contains(&format!("{} tests", names.len())), "{text}");
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// `cdlab archive --with-unfinished` keeps a test killed midway as a slim record (no
+/// snapshots, its checkpoint kept): a sweep seeded with it resumes the test and ends it with
+/// the summary of the uninterrupted test, bit for bit (CPU path). Without the flag the test
+/// is named as not archived.
+#[test]
+fn an_unfinished_test_is_archived_to_resume_and_ends_as_if_uninterrupted() {
+    let (base, sweep) = tiny_campaign("sweep-unfinished", "mu = [0.3]\nsigma3 = [\"2 MPa\"]\n");
+    // Checkpoints every 200 steps and snapshots every 0.001 of strain, so that a cut record
+    // holds both.
+    let config = base.join("base.toml");
+    let toml = std::fs::read_to_string(&config)
+        .unwrap()
+        .replace("snapshot_every = 0.0", "snapshot_every = 0.001");
+    std::fs::write(&config, format!("{toml}checkpoint_every = 200\n")).unwrap();
+    let s = sweep.to_str().unwrap();
+    let (ok, text) = cdlab(&["sweep", s]);
+    assert!(ok, "{text}");
+    let name = "seed1_mu0.3_s2MPa";
+    let full = base.join("campaign").join(name);
+    let whole = std::fs::read(full.join("run.mcap")).unwrap();
+    // What a killed test leaves: its record cut at 70% (past its confinement checkpoint).
+    let killed = base.join("killed");
+    std::fs::create_dir_all(killed.join(name)).unwrap();
+    std::fs::write(killed.join(name).join("run.mcap"), &whole[..whole.len() * 7 / 10]).unwrap();
+    let partial = cdlab::record::read_run(killed.join(name)).unwrap();
+    let (step, _) = partial
+        .last_checkpoint
+        .clone()
+        .expect("a checkpoint before the cut");
+    assert!(!partial.snapshots.is_empty());
+
+    let archive = base.join("archive");
+    let (k, a) = (killed.to_str().unwrap(), archive.to_str().unwrap());
+    // Beside a finished test (an archive needs one), the unfinished one is kept on demand.
+    let done = killed.join("seed1_mu0.3_s1MPa");
+    std::fs::create_dir_all(&done).unwrap();
+    for f in ["run.mcap", "summary.json"] {
+        std::fs::copy(full.join(f), done.join(f)).unwrap();
+    }
+    let (ok, text) = cdlab(&["archive", k, "--to", a]);
+    assert!(
+        ok && text.contains(&format!("not archived: {}", killed.join(name).display())),
+        "{text}"
+    );
+    let (ok, text) = cdlab(&["archive", k, "--to", a, "--with-unfinished"]);
+    assert!(ok, "{text}");
+    assert!(
+        text.contains(&format!("unfinished, kept to resume from step {step}"))
+            && text.contains("1 unfinished tests kept to resume"),
+        "{text}"
+    );
+    let slim = cdlab::record::read_run(archive.join(name)).unwrap();
+    assert!(slim.truncated.is_none() && slim.snapshots.is_empty());
+    assert_eq!(slim.last_checkpoint, partial.last_checkpoint);
+    assert_eq!(
+        slim.series.len(),
+        partial.series.iter().filter(|r| r.step <= step).count()
+    );
+    assert!(!archive.join(name).join("series.csv").exists());
+
+    // A fresh output directory seeded with the slim record: the sweep resumes it.
+    let seeded = base.join("seeded");
+    std::fs::create_dir_all(seeded.join(name)).unwrap();
+    std::fs::copy(
+        archive.join(name).join("run.mcap"),
+        seeded.join(name).join("run.mcap"),
+    )
+    .unwrap();
+    let text = std::fs::read_to_string(&sweep)
+        .unwrap()
+        .replace(base.join("campaign").to_str().unwrap(), seeded.to_str().unwrap());
+    std::fs::write(&sweep, text).unwrap();
+    let (ok, text) = cdlab(&["sweep", s, "--dry-run"]);
+    assert!(
+        ok && text.contains("would resume from its last checkpoint"),
+        "{text}"
+    );
+    let (ok, text) = cdlab(&["sweep", s]);
+    assert!(ok && text.contains("resuming"), "{text}");
+    let read = |d: &std::path::Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(d.join("summary.json")).unwrap()).unwrap()
+    };
+    let (before, after) = (read(&full), read(&seeded.join(name)));
+    for key in [
+        "sigma1_peak_mpa",
+        "strain_peak",
+        "volumetric_strain_final",
+        "strain_final",
+        "steps",
+    ] {
+        assert_eq!(before[key], after[key], "{key}");
+    }
+    // Archived again once finished, the test keeps its summary and drops the slim record.
+    let (ok, text) = cdlab(&["archive", seeded.to_str().unwrap(), "--to", a]);
+    assert!(ok && text.contains("1 tests archived"), "{text}");
+    assert!(archive.join(name).join("summary.json").exists());
+    assert!(!archive.join(name).join("run.mcap").exists());
+    let _ = std::fs::remove_dir_all(&base);
+}

@@ -6,12 +6,20 @@
 //! `config.toml`) and `cdlab report` reads it like a run, so a campaign can be kept in a
 //! repository, moved between machines and resumed by copying the archive into its output
 //! directory.
+//!
+//! With `--with-unfinished`, a test still running or interrupted is kept as a slim record
+//! instead: its configuration, its time series up to its last checkpoint and that
+//! checkpoint, without snapshots (a 5000-disk test's comes to a few megabytes). The sweep
+//! resumes it from there as from its full record and ends it bit for bit as an
+//! uninterrupted run; only the snapshots before the checkpoint are missing from its new
+//! record.
 
 use std::path::{Path, PathBuf};
 
 use crate::analysis::report::collect;
 use crate::error::{Error, Result};
-use crate::record::{ARCHIVED_CONFIG_FILE, CSV_FILE, read_config};
+use crate::protocol::checkpoint::decode;
+use crate::record::{ARCHIVED_CONFIG_FILE, CSV_FILE, MCAP_FILE, Recorder, read_config, read_run};
 
 /// File name of the thinned time series in an archived test.
 pub const THINNED_SERIES_FILE: &str = "series_thinned.csv";
@@ -29,6 +37,10 @@ pub struct Args {
     /// 0 keeps none.
     #[arg(long, default_value_t = 400)]
     pub series_rows: usize,
+    /// Also keep the unfinished tests that have a checkpoint, as slim records the sweep
+    /// resumes from (configuration, time series to the checkpoint, checkpoint).
+    #[arg(long)]
+    pub with_unfinished: bool,
 }
 
 /// Runs `cdlab archive`.
@@ -63,10 +75,70 @@ pub fn run(args: &Args) -> Result<()> {
         "{written} tests archived, {same} already there -> {}",
         args.to.display()
     );
+    let mut resumable = 0;
     for (dir, why) in &missing {
-        println!("  not archived: {}: {why}", dir.display());
+        let kept = if args.with_unfinished && dir.join(MCAP_FILE).exists() {
+            let name = dir.file_name().unwrap_or_default();
+            archive_unfinished(dir, &args.to.join(name))
+        } else {
+            Err(Error::Other(why.clone()))
+        };
+        match kept {
+            Ok(step) => {
+                resumable += 1;
+                println!("  unfinished, kept to resume from step {step}: {}", dir.display());
+            }
+            Err(e) => println!("  not archived: {}: {e}", dir.display()),
+        }
+    }
+    if args.with_unfinished {
+        println!("{resumable} unfinished tests kept to resume");
     }
     Ok(())
+}
+
+/// Keeps the unfinished test in `src` as a slim record in `dest` (see the module
+/// documentation) and returns the step of its checkpoint. A finished test in `dest`, or an
+/// unfinished one of other settings, is an error.
+fn archive_unfinished(src: &Path, dest: &Path) -> Result<u64> {
+    if dest.join("summary.json").exists() {
+        return Err(Error::Other(format!(
+            "{} already holds this test finished",
+            dest.display()
+        )));
+    }
+    let rec = read_run(src)?;
+    let config = rec.config()?;
+    let Some((step, bytes)) = &rec.last_checkpoint else {
+        return Err(Error::Other("no checkpoint yet, nothing to resume from".into()));
+    };
+    if dest.join(MCAP_FILE).exists() && read_config(dest)? != config {
+        return Err(Error::Other(format!(
+            "{} already holds another test: archive into another directory",
+            dest.display()
+        )));
+    }
+    let time = decode(bytes)?.scene.time;
+    // Written beside the destination and moved in place: an archive is never left with a
+    // half-written record.
+    let mut name = dest.file_name().unwrap_or_default().to_os_string();
+    name.push(".part");
+    let part = dest.with_file_name(name);
+    let _ = std::fs::remove_dir_all(&part);
+    let mut recorder = Recorder::create(&part, &config)?;
+    for row in rec.series.iter().filter(|r| r.step <= *step) {
+        recorder.series(row)?;
+    }
+    recorder.checkpoint(*step, time, bytes)?;
+    recorder.finish()?;
+    // The sweep writes the CSV again when it resumes.
+    let csv = part.join(CSV_FILE);
+    std::fs::remove_file(&csv).map_err(|e| Error::io(&csv, e))?;
+    std::fs::create_dir_all(dest).map_err(|e| Error::io(dest, e))?;
+    let to = dest.join(MCAP_FILE);
+    std::fs::rename(part.join(MCAP_FILE), &to).map_err(|e| Error::io(&to, e))?;
+    let _ = std::fs::remove_dir_all(&part);
+    Ok(*step)
 }
 
 /// Archives the finished test in `src` to `dest`; false when `dest` already holds this
@@ -114,6 +186,11 @@ fn archive_one(src: &Path, dest: &Path, series_rows: usize) -> Result<bool> {
     }
     // The summary last: a directory with one is a finished test to the sweep and the report.
     write("summary.json", &summary)?;
+    // A slim record kept while the test was unfinished is no longer needed.
+    let slim = dest.join(MCAP_FILE);
+    if slim.exists() && src.join(MCAP_FILE).exists() {
+        std::fs::remove_file(&slim).map_err(|e| Error::io(&slim, e))?;
+    }
     Ok(true)
 }
 
