@@ -264,17 +264,25 @@ fn an_archived_campaign_reports_and_resumes_without_its_records() {
 fn the_shipped_5000_disk_archive_resumes_under_the_shipped_sweep_file() {
     let assets = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
     let archive = assets.join("results/campaign5000");
-    let names: Vec<_> = std::fs::read_dir(&archive)
+    let all: Vec<_> = std::fs::read_dir(&archive)
         .unwrap()
         .flatten()
-        .filter(|e| e.path().join("summary.json").exists())
+        .filter(|e| e.path().is_dir())
         .map(|e| e.file_name())
         .collect();
+    let finished = |n: &std::ffi::OsString| archive.join(n).join("summary.json").exists();
+    let names: Vec<_> = all.iter().filter(|n| finished(n)).cloned().collect();
+    // The others are slim records of unfinished tests (`archive --with-unfinished`).
+    let unfinished = all.len() - names.len();
     assert!(!names.is_empty(), "no archived test in {}", archive.display());
+    for n in all.iter().filter(|n| !finished(n)) {
+        let rec = cdlab::record::read_run(archive.join(n)).unwrap();
+        assert!(rec.last_checkpoint.is_some() && rec.snapshots.is_empty(), "{n:?}");
+    }
     let base = std::env::temp_dir().join(format!("cdlab-shipped-archive-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&base);
     let out = base.join("out");
-    for name in &names {
+    for name in &all {
         let to = out.join(name);
         std::fs::create_dir_all(&to).unwrap();
         for f in std::fs::read_dir(archive.join(name)).unwrap().flatten() {
@@ -301,8 +309,17 @@ fn the_shipped_5000_disk_archive_resumes_under_the_shipped_sweep_file() {
         names.len(),
         "{text}"
     );
+    assert_eq!(
+        text.matches("would resume from its last checkpoint").count(),
+        unfinished,
+        "{text}"
+    );
     // The rest of the paper's 65 tests would start.
-    assert_eq!(text.matches("would start").count(), 65 - names.len(), "{text}");
+    assert_eq!(
+        text.matches("would start").count(),
+        65 - names.len() - unfinished,
+        "{text}"
+    );
     let (ok, text) = cdlab(&[
         "report",
         archive.to_str().unwrap(),
