@@ -16,7 +16,6 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::analysis::report::collect;
 use crate::error::{Error, Result};
 use crate::protocol::checkpoint::decode;
 use crate::record::{ARCHIVED_CONFIG_FILE, CSV_FILE, MCAP_FILE, Recorder, read_config, read_run};
@@ -45,18 +44,8 @@ pub struct Args {
 
 /// Runs `cdlab archive`.
 pub fn run(args: &Args) -> Result<()> {
-    for d in &args.dirs {
-        if !d.is_dir() {
-            return Err(Error::Other(format!("{}: not a directory", d.display())));
-        }
-    }
-    let (points, missing) = collect(&args.dirs);
-    if points.is_empty() {
-        return Err(Error::Other(format!(
-            "no finished test (summary.json) below {:?}",
-            args.dirs
-        )));
-    }
+    // Unfinished tests alone are worth keeping when asked for.
+    let (points, missing) = super::report::collect_dirs(&args.dirs, !args.with_unfinished)?;
     std::fs::create_dir_all(&args.to).map_err(|e| Error::io(&args.to, e))?;
     let (mut written, mut same) = (0, 0);
     for p in &points {

@@ -21,20 +21,29 @@ pub struct Args {
     pub out: Option<PathBuf>,
 }
 
-/// Runs `cdlab report`.
-pub fn run(args: &Args) -> Result<()> {
-    for d in &args.dirs {
+/// The finished tests below `dirs` and the runs that could not be read or are unfinished;
+/// an error when a directory does not exist, or when no test is finished and `need_one`.
+pub(super) fn collect_dirs(dirs: &[PathBuf], need_one: bool) -> Result<Collected> {
+    for d in dirs {
         if !d.is_dir() {
             return Err(Error::Other(format!("{}: not a directory", d.display())));
         }
     }
-    let (points, missing) = collect(&args.dirs);
-    if points.is_empty() {
+    let (points, missing) = collect(dirs);
+    if points.is_empty() && need_one {
         return Err(Error::Other(format!(
-            "no finished test (summary.json) below {:?}",
-            args.dirs
+            "no finished test (summary.json) below {dirs:?}"
         )));
     }
+    Ok((points, missing))
+}
+
+/// What [`collect_dirs`] finds: the finished tests, and each other run with the reason.
+pub(super) type Collected = (Vec<crate::analysis::report::TestPoint>, Vec<(PathBuf, String)>);
+
+/// Runs `cdlab report`.
+pub fn run(args: &Args) -> Result<()> {
+    let (points, missing) = collect_dirs(&args.dirs, true)?;
     let report = analyse(&points, missing);
     let out = args.out.clone().unwrap_or_else(|| args.dirs[0].clone());
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;

@@ -148,3 +148,22 @@ pub fn small_config(dir: &std::path::Path) -> std::path::PathBuf {
     .unwrap();
     p
 }
+
+/// Asserts that the runs in directories `a` and `b` ended with the same outcome, bit for
+/// bit: peak, final strains and step count of their `summary.json` (what a resumed run must
+/// share with the uninterrupted one on the CPU path).
+pub fn assert_same_outcome(a: &std::path::Path, b: &std::path::Path) {
+    let read = |d: &std::path::Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(d.join("summary.json")).unwrap()).unwrap()
+    };
+    let (a, b) = (read(a), read(b));
+    for key in [
+        "sigma1_peak_mpa",
+        "strain_peak",
+        "volumetric_strain_final",
+        "strain_final",
+        "steps",
+    ] {
+        assert_eq!(a[key], b[key], "{key}");
+    }
+}
