@@ -382,6 +382,24 @@ fn an_unfinished_test_is_archived_to_resume_and_ends_as_if_uninterrupted() {
         partial.series.iter().filter(|r| r.step <= step).count()
     );
     assert!(!archive.join(name).join("series.csv").exists());
+    // Another test of the same name is not archived over it.
+    let other = base.join("other").join(name);
+    let mut rec = cdlab::record::Recorder::create(&other, &cdlab::config::Config::default()).unwrap();
+    let (step_other, bytes) = partial.last_checkpoint.clone().unwrap();
+    rec.checkpoint(step_other, 0.0, &bytes).unwrap();
+    rec.finish().unwrap();
+    let (ok, text) = cdlab(&[
+        "archive",
+        base.join("other").to_str().unwrap(),
+        "--to",
+        a,
+        "--with-unfinished",
+    ]);
+    assert!(ok && text.contains("already holds another test"), "{text}");
+    assert_eq!(
+        cdlab::record::read_run(archive.join(name)).unwrap().config_json,
+        slim.config_json
+    );
 
     // A fresh output directory seeded with the slim record: the sweep resumes it.
     let seeded = base.join("seeded");

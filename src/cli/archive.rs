@@ -101,12 +101,7 @@ fn archive_unfinished(src: &Path, dest: &Path) -> Result<u64> {
     let Some((step, bytes)) = &rec.last_checkpoint else {
         return Err(Error::Other("no checkpoint yet, nothing to resume from".into()));
     };
-    if dest.join(MCAP_FILE).exists() && read_config(dest)? != config {
-        return Err(Error::Other(format!(
-            "{} already holds another test: archive into another directory",
-            dest.display()
-        )));
-    }
+    check_same_test(dest, &config)?;
     let time = decode(bytes)?.scene.time;
     // Written beside the destination and moved in place: an archive is never left with a
     // half-written record.
@@ -130,6 +125,23 @@ fn archive_unfinished(src: &Path, dest: &Path) -> Result<u64> {
     Ok(*step)
 }
 
+/// An error when `dest` holds a slim record of another test than `config`'s. Where the
+/// test was run from (`output.dir`) does not count: a campaign may move.
+fn check_same_test(dest: &Path, config: &crate::config::Config) -> Result<()> {
+    if !dest.join(MCAP_FILE).exists() {
+        return Ok(());
+    }
+    let mut kept = read_config(dest)?;
+    kept.output.dir.clone_from(&config.output.dir);
+    if &kept != config {
+        return Err(Error::Other(format!(
+            "{} already holds another test: archive into another directory",
+            dest.display()
+        )));
+    }
+    Ok(())
+}
+
 /// Archives the finished test in `src` to `dest`; false when `dest` already holds this
 /// very test (same summary). A different test already in `dest` is an error: an archive
 /// never overwrites one test with another.
@@ -148,7 +160,9 @@ fn archive_one(src: &Path, dest: &Path, series_rows: usize) -> Result<bool> {
         )));
     }
     // The configuration first: a run whose record cannot give it is not archived at all.
-    let config = read_config(src)?.to_toml_string()?;
+    let config = read_config(src)?;
+    check_same_test(dest, &config)?;
+    let config = config.to_toml_string()?;
     std::fs::create_dir_all(dest).map_err(|e| Error::io(dest, e))?;
     let write = |name: &str, bytes: &[u8]| {
         let p = dest.join(name);
