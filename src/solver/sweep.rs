@@ -305,17 +305,148 @@ unsafe fn sweep_rows<const RELAXED: bool>(chunk: &mut [Row], ctx: Ctx) -> (f64, 
     acc
 }
 
+/// [`sweep_chunk`] for a chunk of one color (rows that share no movable body and hold no
+/// [`FULL`] row). On x86_64, two rows at a time in the two lanes of SSE2 registers (part
+/// of the baseline, so no run-time check), with the same operations in the same order as
+/// [`update`]: bit for bit the same result, 12-14% less time for a 5000-disk test at 101
+/// iterations per step (README, "Benchmarks"). Elsewhere, row by row.
+///
+/// # Safety
+/// As [`update`], for every row of the chunk; no two rows share a movable body.
+pub(super) unsafe fn sweep_color_chunk(chunk: &mut [Row], ctx: Ctx) -> (f64, f64) {
+    // SAFETY: forwarded from the caller.
+    #[cfg(not(target_arch = "x86_64"))]
+    return unsafe { sweep_chunk(chunk, ctx) };
+    #[cfg(target_arch = "x86_64")]
+    unsafe {
+        if ctx.relax == 1.0 {
+            sweep_pairs::<false>(chunk, ctx)
+        } else {
+            sweep_pairs::<true>(chunk, ctx)
+        }
+    }
+}
+
+/// See [`sweep_color_chunk`].
+///
+/// # Safety
+/// As [`sweep_color_chunk`].
+#[cfg(target_arch = "x86_64")]
+unsafe fn sweep_pairs<const RELAXED: bool>(chunk: &mut [Row], ctx: Ctx) -> (f64, f64) {
+    use std::arch::x86_64::*;
+    let mut acc = (0.0, 0.0);
+    let mut pairs = chunk.chunks_exact_mut(2);
+    for pair in &mut pairs {
+        let [a, b] = pair else { unreachable!() };
+        debug_assert!(a.j != FULL && b.j != FULL);
+        // SAFETY: the caller guarantees validity; the two rows write disjoint bodies and
+        // read the shared ones (never written) only.
+        unsafe {
+            let (pia, pja) = (ctx.gv.add(a.i as usize), ctx.gv.add(a.j as usize));
+            let (pib, pjb) = (ctx.gv.add(b.i as usize), ctx.gv.add(b.j as usize));
+            let (bia, bja) = (*ctx.props.add(a.i as usize), *ctx.props.add(a.j as usize));
+            let (bib, bjb) = (*ctx.props.add(b.i as usize), *ctx.props.add(b.j as usize));
+            let (via, vja, vib, vjb) = (pia.read(), pja.read(), pib.read(), pjb.read());
+            // Lane 0 is row a, lane 1 row b (`_mm_set_pd` takes the high lane first).
+            let pair = |x: f64, y: f64| _mm_set_pd(y, x);
+            let (add, sub, mul) = (_mm_add_pd, _mm_sub_pd, _mm_mul_pd);
+            let dx = sub(pair(via.x, vib.x), pair(vja.x, vjb.x));
+            let dy = sub(pair(via.y, vib.y), pair(vja.y, vjb.y));
+            let (nx, ny) = (pair(a.nx, b.nx), pair(a.ny, b.ny));
+            let un = add(mul(dx, nx), mul(dy, ny));
+            let ut = add(
+                add(
+                    sub(mul(dx, ny), mul(dy, nx)),
+                    mul(pair(via.z, vib.z), pair(bia.lever, bib.lever)),
+                ),
+                mul(pair(vja.z, vjb.z), pair(bja.lever, bjb.lever)),
+            );
+            let (rn0, rt0) = (pair(a.rn, b.rn), pair(a.rt, b.rt));
+            // `_mm_max_pd(x, y)` is `if x > y { x } else { y }`, as `larger`; min likewise.
+            let rn = _mm_max_pd(
+                sub(
+                    rn0,
+                    mul(add(un, pair(a.bias_n, b.bias_n)), pair(a.inv_wnn, b.inv_wnn)),
+                ),
+                _mm_setzero_pd(),
+            );
+            let lim = mul(pair(a.mu, b.mu), rn);
+            let neg_lim = _mm_xor_pd(lim, _mm_set1_pd(-0.0));
+            let rt = _mm_min_pd(
+                _mm_max_pd(
+                    sub(
+                        rt0,
+                        mul(add(ut, pair(a.bias_t, b.bias_t)), pair(a.inv_wtt, b.inv_wtt)),
+                    ),
+                    neg_lim,
+                ),
+                lim,
+            );
+            let (rn, rt) = if RELAXED && ctx.relax != 1.0 {
+                let w = _mm_set1_pd(ctx.relax);
+                (add(rn0, mul(w, sub(rn, rn0))), add(rt0, mul(w, sub(rt, rt0))))
+            } else {
+                (rn, rt)
+            };
+            let (drn, drt) = (sub(rn, rn0), sub(rt, rt0));
+            let px = add(mul(drn, nx), mul(drt, ny));
+            let py = sub(mul(drn, ny), mul(drt, nx));
+            let lanes = |v: __m128d| {
+                let mut out = [0.0; 2];
+                _mm_storeu_pd(out.as_mut_ptr(), v);
+                out
+            };
+            let (px, py, drt_l) = (lanes(px), lanes(py), lanes(drt));
+            let write = |p: *mut DVec3, v: DVec3, body: BodyProps, sign: f64, l: usize, own: bool| {
+                if body.movable != 0.0 {
+                    let im = if sign < 0.0 { -body.inv_mass } else { body.inv_mass };
+                    let base = if own { v } else { p.read() };
+                    p.write(base + DVec3::new(im * px[l], im * py[l], body.k * drt_l[l]));
+                }
+            };
+            write(pia, via, bia, 1.0, 0, true);
+            write(pja, vja, bja, -1.0, 0, false);
+            write(pib, vib, bib, 1.0, 1, true);
+            write(pjb, vjb, bjb, -1.0, 1, false);
+            let (rn_l, rt_l) = (lanes(rn), lanes(rt));
+            a.rn = rn_l[0];
+            a.rt = rt_l[0];
+            b.rn = rn_l[1];
+            b.rt = rt_l[1];
+            let d = lanes(add(mul(drn, drn), mul(drt, drt)));
+            let q = lanes(add(mul(rn, rn), mul(rt, rt)));
+            acc.0 += d[0];
+            acc.1 += q[0];
+            acc.0 += d[1];
+            acc.1 += q[1];
+        }
+    }
+    for r in pairs.into_remainder() {
+        // SAFETY: forwarded from the caller.
+        let (d, q) = unsafe { update::<RELAXED>(r, ctx) };
+        acc.0 += d;
+        acc.1 += q;
+    }
+    acc
+}
+
 /// One Gauss-Seidel sweep over `rows` in order, where consecutive `ranges` are colors
 /// (a single range for plain order), on the calling thread. Returns the chunked sums
 /// (change^2, impulse^2); [`super::team`] sweeps colors on several threads with the same
-/// chunks and the same order of summation.
-fn sweep(rows: &mut [Row], ranges: &[u32], ctx: Ctx) -> (f64, f64) {
+/// chunks and the same order of summation. `colors` ranges from the first are colors
+/// proper (rows that share no movable body); the others are swept row by row.
+fn sweep(rows: &mut [Row], ranges: &[u32], colors: usize, ctx: Ctx) -> (f64, f64) {
     let mut total = (0.0, 0.0);
-    for w in ranges.windows(2) {
+    for (c, w) in ranges.windows(2).enumerate() {
         let part = &mut rows[w[0] as usize..w[1] as usize];
         for ch in part.chunks_mut(CHUNK) {
-            // SAFETY: one thread; indices checked by `solve`.
-            let (d, r) = unsafe { sweep_chunk(ch, ctx) };
+            // SAFETY: one thread; indices checked by `solve`; rows of a color share no
+            // movable body.
+            let (d, r) = if c < colors {
+                unsafe { sweep_color_chunk(ch, ctx) }
+            } else {
+                unsafe { sweep_chunk(ch, ctx) }
+            };
             total.0 += d;
             total.1 += r;
         }
@@ -470,6 +601,11 @@ pub fn solve(
         work.sorted
             .extend(work.coloring.order.iter().map(|&k| work.rows[k as usize]));
     }
+    let proper_colors = if colored {
+        work.coloring.ranges.len() - 1 - usize::from(work.coloring.serial_last)
+    } else {
+        0
+    };
     let (rows, ranges, serial_last) = if colored {
         let c = &work.coloring;
         (&mut work.sorted, &c.ranges[..], c.serial_last)
@@ -508,7 +644,7 @@ pub fn solve(
                 relax: params.relax_at(it),
                 ..ctx
             };
-            let (d2, r2) = sweep(rows, ranges, ctx);
+            let (d2, r2) = sweep(rows, ranges, proper_colors, ctx);
             if done(it, d2, r2) {
                 break;
             }
