@@ -66,7 +66,9 @@ pub fn run(args: &Args) -> Result<()> {
     );
     let mut resumable = 0;
     for (dir, why) in &missing {
-        let kept = if args.with_unfinished && dir.join(MCAP_FILE).exists() {
+        // A run with a summary that could not be read is finished, not to be resumed.
+        let unfinished = dir.join(MCAP_FILE).exists() && !dir.join("summary.json").exists();
+        let kept = if args.with_unfinished && unfinished {
             let name = dir.file_name().unwrap_or_default();
             archive_unfinished(dir, &args.to.join(name))
         } else {

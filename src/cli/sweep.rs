@@ -290,7 +290,7 @@ pub fn run(args: &Args) -> Result<()> {
                         every_s: args.log_every,
                     };
                     let outcome = if args.dry_run {
-                        check_point(&base, &p).map(|what| what.dry_run().to_string())
+                        check_point(&point_config(&base, &p), &p).map(|what| what.dry_run().to_string())
                     } else {
                         run_point(&base, &sweep.out, &p, &samples, &progress, &say)
                     };
@@ -380,9 +380,8 @@ fn point_config(base: &Config, p: &Point) -> Config {
 }
 
 /// Finds what state test `p` is in and checks that a test found in its directory (finished
-/// or to resume) has this sweep's settings.
-fn check_point(base: &Config, p: &Point) -> Result<State> {
-    let config = point_config(base, p);
+/// or to resume) has this sweep's settings (`config`, from [`point_config`]).
+fn check_point(config: &Config, p: &Point) -> Result<State> {
     // A finished test is skipped and a half-finished one resumes with its own settings, so
     // both must be this sweep's tests. A record without a checkpoint (a test killed in its
     // first minutes) has nothing to resume: the test starts again. An unreadable record is
@@ -401,7 +400,7 @@ fn check_point(base: &Config, p: &Point) -> Result<State> {
         (None, false)
     };
     if let Some(recorded) = recorded {
-        let differ = point_differences(&config, &recorded);
+        let differ = point_differences(config, &recorded);
         if !differ.is_empty() {
             return Err(Error::Other(format!(
                 "{} holds a test of other settings than this sweep's ({}): move it away or \
@@ -429,7 +428,7 @@ fn run_point(
     say: &dyn Fn(&str),
 ) -> Result<String> {
     let config = point_config(base, p);
-    let state = check_point(base, p)?;
+    let state = check_point(&config, p)?;
     let resume = state == State::Resumable;
     let how = match state {
         State::Finished => return Ok("already finished, skipped".into()),

@@ -397,17 +397,18 @@ unsafe fn sweep_pairs<const RELAXED: bool>(chunk: &mut [Row], ctx: Ctx) -> (f64,
                 out
             };
             let (px, py, drt_l) = (lanes(px), lanes(py), lanes(drt));
-            let write = |p: *mut DVec3, v: DVec3, body: BodyProps, sign: f64, l: usize, own: bool| {
+            // `im` is the inverse mass with the sign of the impulse on the body (j takes
+            // the opposite of i's). Each body is read once: no other row of the pair writes
+            // it, so `v` is what [`update`] reads back before writing j.
+            let write = |p: *mut DVec3, v: DVec3, body: BodyProps, im: f64, l: usize| {
                 if body.movable != 0.0 {
-                    let im = if sign < 0.0 { -body.inv_mass } else { body.inv_mass };
-                    let base = if own { v } else { p.read() };
-                    p.write(base + DVec3::new(im * px[l], im * py[l], body.k * drt_l[l]));
+                    p.write(v + DVec3::new(im * px[l], im * py[l], body.k * drt_l[l]));
                 }
             };
-            write(pia, via, bia, 1.0, 0, true);
-            write(pja, vja, bja, -1.0, 0, false);
-            write(pib, vib, bib, 1.0, 1, true);
-            write(pjb, vjb, bjb, -1.0, 1, false);
+            write(pia, via, bia, bia.inv_mass, 0);
+            write(pja, vja, bja, -bja.inv_mass, 0);
+            write(pib, vib, bib, bib.inv_mass, 1);
+            write(pjb, vjb, bjb, -bjb.inv_mass, 1);
             let (rn_l, rt_l) = (lanes(rn), lanes(rt));
             a.rn = rn_l[0];
             a.rt = rt_l[0];
@@ -428,6 +429,16 @@ unsafe fn sweep_pairs<const RELAXED: bool>(chunk: &mut [Row], ctx: Ctx) -> (f64,
         acc.1 += q;
     }
     acc
+}
+
+/// How many of the color `ranges` (`ranges[c]..ranges[c+1]`) from the first are colors
+/// proper, whose rows share no movable body: all but the serial group, when there is one
+/// (its rows share their force-driven wall).
+pub(super) fn proper_colors(ranges: &[u32], serial_last: bool) -> usize {
+    ranges
+        .len()
+        .saturating_sub(1)
+        .saturating_sub(usize::from(serial_last))
 }
 
 /// One Gauss-Seidel sweep over `rows` in order, where consecutive `ranges` are colors
@@ -602,7 +613,7 @@ pub fn solve(
             .extend(work.coloring.order.iter().map(|&k| work.rows[k as usize]));
     }
     let proper_colors = if colored {
-        work.coloring.ranges.len() - 1 - usize::from(work.coloring.serial_last)
+        proper_colors(&work.coloring.ranges, work.coloring.serial_last)
     } else {
         0
     };

@@ -13,7 +13,7 @@
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use super::SolverParams;
-use super::sweep::{CHUNK, Ctx, Row, sweep_chunk, sweep_color_chunk};
+use super::sweep::{CHUNK, Ctx, Row, proper_colors, sweep_chunk, sweep_color_chunk};
 
 /// A reusable barrier that spins briefly, then sleeps: the waits between colors are
 /// short (a few microseconds of work per color and thread on a 5000-disk sample), but on
@@ -134,8 +134,7 @@ pub(super) fn sweep_iterations(
     let max_iter = params.max_iter;
     let layout = Layout::new(ranges, serial_last);
     let n_colors = ranges.len().saturating_sub(1);
-    // The serial group's rows share their wall: swept row by row.
-    let proper_colors = n_colors - usize::from(serial_last && n_colors > 0);
+    let proper_colors = proper_colors(ranges, serial_last);
     // One slot per chunk: the barrier after the caller has summed an iteration keeps every
     // member from writing the next one's partials before then.
     let mut partial = vec![(0.0, 0.0); layout.chunks.len()];
