@@ -306,10 +306,12 @@ unsafe fn sweep_rows<const RELAXED: bool>(chunk: &mut [Row], ctx: Ctx) -> (f64, 
 }
 
 /// [`sweep_chunk`] for a chunk of one color (rows that share no movable body and hold no
-/// [`FULL`] row). On x86_64, two rows at a time in the two lanes of SSE2 registers (part
-/// of the baseline, so no run-time check), with the same operations in the same order as
-/// [`update`]: bit for bit the same result, 12-14% less time for a 5000-disk test at 101
-/// iterations per step (README, "Benchmarks"). Elsewhere, row by row.
+/// [`FULL`] row). On x86_64, several rows at a time in the lanes of vector registers, with
+/// the same operations in the same order as [`update`], so bit for bit the same result:
+/// four rows in AVX registers where the processor has AVX (checked at run time), then two
+/// in SSE2 registers (part of the baseline), then the last row alone. The pairs took
+/// 12-14% off a 5000-disk test at 101 iterations per step (README, "Benchmarks").
+/// Elsewhere, row by row.
 ///
 /// # Safety
 /// As [`update`], for every row of the chunk; no two rows share a movable body.
@@ -319,116 +321,255 @@ pub(super) unsafe fn sweep_color_chunk(chunk: &mut [Row], ctx: Ctx) -> (f64, f64
     return unsafe { sweep_chunk(chunk, ctx) };
     #[cfg(target_arch = "x86_64")]
     unsafe {
-        if ctx.relax == 1.0 {
-            sweep_pairs::<false>(chunk, ctx)
-        } else {
-            sweep_pairs::<true>(chunk, ctx)
-        }
+        sweep_lanes(chunk, ctx, simd::avx())
     }
 }
 
-/// See [`sweep_color_chunk`].
+/// [`sweep_color_chunk`] with the choice of four-row lanes made by the caller (`quads`
+/// only where AVX is available), so that tests can compare the widths.
 ///
 /// # Safety
-/// As [`sweep_color_chunk`].
+/// As [`sweep_color_chunk`]; `quads` only on a processor with AVX.
 #[cfg(target_arch = "x86_64")]
-unsafe fn sweep_pairs<const RELAXED: bool>(chunk: &mut [Row], ctx: Ctx) -> (f64, f64) {
-    use std::arch::x86_64::*;
+unsafe fn sweep_lanes(chunk: &mut [Row], ctx: Ctx, quads: bool) -> (f64, f64) {
     let mut acc = (0.0, 0.0);
-    let mut pairs = chunk.chunks_exact_mut(2);
-    for pair in &mut pairs {
-        let [a, b] = pair else { unreachable!() };
-        debug_assert!(a.j != FULL && b.j != FULL);
-        // SAFETY: the caller guarantees validity; the two rows write disjoint bodies and
-        // read the shared ones (never written) only.
-        unsafe {
-            let (pia, pja) = (ctx.gv.add(a.i as usize), ctx.gv.add(a.j as usize));
-            let (pib, pjb) = (ctx.gv.add(b.i as usize), ctx.gv.add(b.j as usize));
-            let (bia, bja) = (*ctx.props.add(a.i as usize), *ctx.props.add(a.j as usize));
-            let (bib, bjb) = (*ctx.props.add(b.i as usize), *ctx.props.add(b.j as usize));
-            let (via, vja, vib, vjb) = (pia.read(), pja.read(), pib.read(), pjb.read());
-            // Lane 0 is row a, lane 1 row b (`_mm_set_pd` takes the high lane first).
-            let pair = |x: f64, y: f64| _mm_set_pd(y, x);
-            let (add, sub, mul) = (_mm_add_pd, _mm_sub_pd, _mm_mul_pd);
-            let dx = sub(pair(via.x, vib.x), pair(vja.x, vjb.x));
-            let dy = sub(pair(via.y, vib.y), pair(vja.y, vjb.y));
-            let (nx, ny) = (pair(a.nx, b.nx), pair(a.ny, b.ny));
-            let un = add(mul(dx, nx), mul(dy, ny));
-            let ut = add(
-                add(
-                    sub(mul(dx, ny), mul(dy, nx)),
-                    mul(pair(via.z, vib.z), pair(bia.lever, bib.lever)),
-                ),
-                mul(pair(vja.z, vjb.z), pair(bja.lever, bjb.lever)),
-            );
-            let (rn0, rt0) = (pair(a.rn, b.rn), pair(a.rt, b.rt));
-            // `_mm_max_pd(x, y)` is `if x > y { x } else { y }`, as `larger`; min likewise.
-            let rn = _mm_max_pd(
-                sub(
-                    rn0,
-                    mul(add(un, pair(a.bias_n, b.bias_n)), pair(a.inv_wnn, b.inv_wnn)),
-                ),
-                _mm_setzero_pd(),
-            );
-            let lim = mul(pair(a.mu, b.mu), rn);
-            let neg_lim = _mm_xor_pd(lim, _mm_set1_pd(-0.0));
-            let rt = _mm_min_pd(
-                _mm_max_pd(
-                    sub(
-                        rt0,
-                        mul(add(ut, pair(a.bias_t, b.bias_t)), pair(a.inv_wtt, b.inv_wtt)),
-                    ),
-                    neg_lim,
-                ),
-                lim,
-            );
-            let (rn, rt) = if RELAXED && ctx.relax != 1.0 {
-                let w = _mm_set1_pd(ctx.relax);
-                (add(rn0, mul(w, sub(rn, rn0))), add(rt0, mul(w, sub(rt, rt0))))
-            } else {
-                (rn, rt)
-            };
-            let (drn, drt) = (sub(rn, rn0), sub(rt, rt0));
-            let px = add(mul(drn, nx), mul(drt, ny));
-            let py = sub(mul(drn, ny), mul(drt, nx));
-            let lanes = |v: __m128d| {
-                let mut out = [0.0; 2];
-                _mm_storeu_pd(out.as_mut_ptr(), v);
-                out
-            };
-            let (px, py, drt_l) = (lanes(px), lanes(py), lanes(drt));
-            // `im` is the inverse mass with the sign of the impulse on the body (j takes
-            // the opposite of i's). Each body is read once: no other row of the pair writes
-            // it, so `v` is what [`update`] reads back before writing j.
-            let write = |p: *mut DVec3, v: DVec3, body: BodyProps, im: f64, l: usize| {
-                if body.movable != 0.0 {
-                    p.write(v + DVec3::new(im * px[l], im * py[l], body.k * drt_l[l]));
-                }
-            };
-            write(pia, via, bia, bia.inv_mass, 0);
-            write(pja, vja, bja, -bja.inv_mass, 0);
-            write(pib, vib, bib, bib.inv_mass, 1);
-            write(pjb, vjb, bjb, -bjb.inv_mass, 1);
-            let (rn_l, rt_l) = (lanes(rn), lanes(rt));
-            a.rn = rn_l[0];
-            a.rt = rt_l[0];
-            b.rn = rn_l[1];
-            b.rt = rt_l[1];
-            let d = lanes(add(mul(drn, drn), mul(drt, drt)));
-            let q = lanes(add(mul(rn, rn), mul(rt, rt)));
-            acc.0 += d[0];
-            acc.1 += q[0];
-            acc.0 += d[1];
-            acc.1 += q[1];
+    let n4 = if quads { chunk.len() / 4 * 4 } else { 0 };
+    let (head, tail) = chunk.split_at_mut(n4);
+    // SAFETY: forwarded from the caller, who checked AVX for `quads`.
+    unsafe {
+        if ctx.relax == 1.0 {
+            if n4 > 0 {
+                simd::sweep_quads::<false>(head, ctx, &mut acc);
+            }
+            simd::sweep_pairs::<false>(tail, ctx, &mut acc);
+        } else {
+            if n4 > 0 {
+                simd::sweep_quads::<true>(head, ctx, &mut acc);
+            }
+            simd::sweep_pairs::<true>(tail, ctx, &mut acc);
         }
     }
-    for r in pairs.into_remainder() {
-        // SAFETY: forwarded from the caller.
-        let (d, q) = unsafe { update::<RELAXED>(r, ctx) };
-        acc.0 += d;
-        acc.1 += q;
-    }
     acc
+}
+
+/// The vector forms of [`update`] for rows of one color. Each lane repeats the scalar
+/// update's operations in its order: `_mm*_max_pd(x, y)` is `if x > y { x } else { y }`,
+/// as [`larger`] (min likewise, with the same NaN and signed-zero rules), the sign flipped
+/// by xor, and the sums added to the accumulator lane by lane in row order. No fused
+/// multiply-add: it would round differently.
+#[cfg(target_arch = "x86_64")]
+mod simd {
+    use super::{BodyProps, Ctx, FULL, Row, update};
+    use glam::DVec3;
+    use std::arch::x86_64::*;
+
+    /// Whether the processor has AVX; tests can turn the four-row lanes off with
+    /// `CDLAB_NO_AVX=1` to time or compare the narrower path.
+    pub(super) fn avx() -> bool {
+        use std::sync::OnceLock;
+        static AVX: OnceLock<bool> = OnceLock::new();
+        *AVX.get_or_init(|| {
+            is_x86_feature_detected!("avx") && std::env::var_os("CDLAB_NO_AVX").is_none_or(|v| v != "1")
+        })
+    }
+
+    /// Writes body `p` (velocity `v` as read) after an update whose impulse on it has
+    /// components (`px`, `py`) times `im`, the inverse mass signed for that body, and spin
+    /// change `k drt`; a body that cannot move is never written.
+    #[inline(always)]
+    unsafe fn write(p: *mut DVec3, v: DVec3, body: BodyProps, im: f64, px: f64, py: f64, drt: f64) {
+        if body.movable != 0.0 {
+            // SAFETY: the caller owns `p` for this color.
+            unsafe { p.write(v + DVec3::new(im * px, im * py, body.k * drt)) };
+        }
+    }
+
+    /// Four rows at a time (a multiple of four), their sums added to `acc` in row order.
+    ///
+    /// # Safety
+    /// As [`super::sweep_color_chunk`], on a processor with AVX.
+    #[target_feature(enable = "avx")]
+    pub(super) unsafe fn sweep_quads<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx, acc: &mut (f64, f64)) {
+        for quad in rows.chunks_exact_mut(4) {
+            let [a, b, c, d] = quad else { unreachable!() };
+            debug_assert!(a.j != FULL && b.j != FULL && c.j != FULL && d.j != FULL);
+            // SAFETY: the caller guarantees validity; the four rows write disjoint bodies
+            // and read the shared ones (never written) only.
+            unsafe {
+                let pi = [a.i, b.i, c.i, d.i].map(|i| ctx.gv.add(i as usize));
+                let pj = [a.j, b.j, c.j, d.j].map(|j| ctx.gv.add(j as usize));
+                let bi = [a.i, b.i, c.i, d.i].map(|i| *ctx.props.add(i as usize));
+                let bj = [a.j, b.j, c.j, d.j].map(|j| *ctx.props.add(j as usize));
+                let vi = pi.map(|p| p.read());
+                let vj = pj.map(|p| p.read());
+                // Lane 0 is row a, ..., lane 3 row d (`_mm256_set_pd` takes the high lane
+                // first).
+                macro_rules! lanes4 {
+                    ($x:expr) => {{
+                        let x = $x;
+                        _mm256_set_pd(x[3], x[2], x[1], x[0])
+                    }};
+                }
+                macro_rules! field {
+                    ($f:ident) => {
+                        _mm256_set_pd(d.$f, c.$f, b.$f, a.$f)
+                    };
+                }
+                let (nx, ny) = (field!(nx), field!(ny));
+                let dx = _mm256_sub_pd(lanes4!(vi.map(|v| v.x)), lanes4!(vj.map(|v| v.x)));
+                let dy = _mm256_sub_pd(lanes4!(vi.map(|v| v.y)), lanes4!(vj.map(|v| v.y)));
+                let un = _mm256_add_pd(_mm256_mul_pd(dx, nx), _mm256_mul_pd(dy, ny));
+                let ut = _mm256_add_pd(
+                    _mm256_add_pd(
+                        _mm256_sub_pd(_mm256_mul_pd(dx, ny), _mm256_mul_pd(dy, nx)),
+                        _mm256_mul_pd(lanes4!(vi.map(|v| v.z)), lanes4!(bi.map(|b| b.lever))),
+                    ),
+                    _mm256_mul_pd(lanes4!(vj.map(|v| v.z)), lanes4!(bj.map(|b| b.lever))),
+                );
+                let (rn0, rt0) = (field!(rn), field!(rt));
+                let rn = _mm256_max_pd(
+                    _mm256_sub_pd(
+                        rn0,
+                        _mm256_mul_pd(_mm256_add_pd(un, field!(bias_n)), field!(inv_wnn)),
+                    ),
+                    _mm256_setzero_pd(),
+                );
+                let lim = _mm256_mul_pd(field!(mu), rn);
+                let neg_lim = _mm256_xor_pd(lim, _mm256_set1_pd(-0.0));
+                let rt = _mm256_min_pd(
+                    _mm256_max_pd(
+                        _mm256_sub_pd(
+                            rt0,
+                            _mm256_mul_pd(_mm256_add_pd(ut, field!(bias_t)), field!(inv_wtt)),
+                        ),
+                        neg_lim,
+                    ),
+                    lim,
+                );
+                let (rn, rt) = if RELAXED && ctx.relax != 1.0 {
+                    let w = _mm256_set1_pd(ctx.relax);
+                    (
+                        _mm256_add_pd(rn0, _mm256_mul_pd(w, _mm256_sub_pd(rn, rn0))),
+                        _mm256_add_pd(rt0, _mm256_mul_pd(w, _mm256_sub_pd(rt, rt0))),
+                    )
+                } else {
+                    (rn, rt)
+                };
+                let (drn, drt) = (_mm256_sub_pd(rn, rn0), _mm256_sub_pd(rt, rt0));
+                let px = _mm256_add_pd(_mm256_mul_pd(drn, nx), _mm256_mul_pd(drt, ny));
+                let py = _mm256_sub_pd(_mm256_mul_pd(drn, ny), _mm256_mul_pd(drt, nx));
+                let sq = _mm256_add_pd(_mm256_mul_pd(drn, drn), _mm256_mul_pd(drt, drt));
+                let r2 = _mm256_add_pd(_mm256_mul_pd(rn, rn), _mm256_mul_pd(rt, rt));
+                let mut out = [[0.0; 4]; 7];
+                for (o, v) in out.iter_mut().zip([px, py, drt, rn, rt, sq, r2]) {
+                    _mm256_storeu_pd(o.as_mut_ptr(), v);
+                }
+                let [px, py, drt, rn, rt, sq, r2] = out;
+                for (l, r) in [a, b, c, d].into_iter().enumerate() {
+                    write(pi[l], vi[l], bi[l], bi[l].inv_mass, px[l], py[l], drt[l]);
+                    write(pj[l], vj[l], bj[l], -bj[l].inv_mass, px[l], py[l], drt[l]);
+                    r.rn = rn[l];
+                    r.rt = rt[l];
+                    acc.0 += sq[l];
+                    acc.1 += r2[l];
+                }
+            }
+        }
+    }
+
+    /// Two rows at a time, then the last one alone, their sums added to `acc` in row
+    /// order.
+    ///
+    /// # Safety
+    /// As [`super::sweep_color_chunk`].
+    pub(super) unsafe fn sweep_pairs<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx, acc: &mut (f64, f64)) {
+        let mut pairs = rows.chunks_exact_mut(2);
+        for pair in &mut pairs {
+            let [a, b] = pair else { unreachable!() };
+            debug_assert!(a.j != FULL && b.j != FULL);
+            // SAFETY: the caller guarantees validity; the two rows write disjoint bodies and
+            // read the shared ones (never written) only.
+            unsafe {
+                let (pia, pja) = (ctx.gv.add(a.i as usize), ctx.gv.add(a.j as usize));
+                let (pib, pjb) = (ctx.gv.add(b.i as usize), ctx.gv.add(b.j as usize));
+                let (bia, bja) = (*ctx.props.add(a.i as usize), *ctx.props.add(a.j as usize));
+                let (bib, bjb) = (*ctx.props.add(b.i as usize), *ctx.props.add(b.j as usize));
+                let (via, vja, vib, vjb) = (pia.read(), pja.read(), pib.read(), pjb.read());
+                // Lane 0 is row a, lane 1 row b (`_mm_set_pd` takes the high lane first).
+                let pair = |x: f64, y: f64| _mm_set_pd(y, x);
+                let (add, sub, mul) = (_mm_add_pd, _mm_sub_pd, _mm_mul_pd);
+                let dx = sub(pair(via.x, vib.x), pair(vja.x, vjb.x));
+                let dy = sub(pair(via.y, vib.y), pair(vja.y, vjb.y));
+                let (nx, ny) = (pair(a.nx, b.nx), pair(a.ny, b.ny));
+                let un = add(mul(dx, nx), mul(dy, ny));
+                let ut = add(
+                    add(
+                        sub(mul(dx, ny), mul(dy, nx)),
+                        mul(pair(via.z, vib.z), pair(bia.lever, bib.lever)),
+                    ),
+                    mul(pair(vja.z, vjb.z), pair(bja.lever, bjb.lever)),
+                );
+                let (rn0, rt0) = (pair(a.rn, b.rn), pair(a.rt, b.rt));
+                let rn = _mm_max_pd(
+                    sub(
+                        rn0,
+                        mul(add(un, pair(a.bias_n, b.bias_n)), pair(a.inv_wnn, b.inv_wnn)),
+                    ),
+                    _mm_setzero_pd(),
+                );
+                let lim = mul(pair(a.mu, b.mu), rn);
+                let neg_lim = _mm_xor_pd(lim, _mm_set1_pd(-0.0));
+                let rt = _mm_min_pd(
+                    _mm_max_pd(
+                        sub(
+                            rt0,
+                            mul(add(ut, pair(a.bias_t, b.bias_t)), pair(a.inv_wtt, b.inv_wtt)),
+                        ),
+                        neg_lim,
+                    ),
+                    lim,
+                );
+                let (rn, rt) = if RELAXED && ctx.relax != 1.0 {
+                    let w = _mm_set1_pd(ctx.relax);
+                    (add(rn0, mul(w, sub(rn, rn0))), add(rt0, mul(w, sub(rt, rt0))))
+                } else {
+                    (rn, rt)
+                };
+                let (drn, drt) = (sub(rn, rn0), sub(rt, rt0));
+                let px = add(mul(drn, nx), mul(drt, ny));
+                let py = sub(mul(drn, ny), mul(drt, nx));
+                let lanes = |v: __m128d| {
+                    let mut out = [0.0; 2];
+                    _mm_storeu_pd(out.as_mut_ptr(), v);
+                    out
+                };
+                let (px, py, drt_l) = (lanes(px), lanes(py), lanes(drt));
+                // Each body is read once: no other row of the pair writes it, so `v` is
+                // what [`update`] reads back before writing j.
+                write(pia, via, bia, bia.inv_mass, px[0], py[0], drt_l[0]);
+                write(pja, vja, bja, -bja.inv_mass, px[0], py[0], drt_l[0]);
+                write(pib, vib, bib, bib.inv_mass, px[1], py[1], drt_l[1]);
+                write(pjb, vjb, bjb, -bjb.inv_mass, px[1], py[1], drt_l[1]);
+                let (rn_l, rt_l) = (lanes(rn), lanes(rt));
+                a.rn = rn_l[0];
+                a.rt = rt_l[0];
+                b.rn = rn_l[1];
+                b.rt = rt_l[1];
+                let d = lanes(add(mul(drn, drn), mul(drt, drt)));
+                let q = lanes(add(mul(rn, rn), mul(rt, rt)));
+                acc.0 += d[0];
+                acc.1 += q[0];
+                acc.0 += d[1];
+                acc.1 += q[1];
+            }
+        }
+        for r in pairs.into_remainder() {
+            // SAFETY: forwarded from the caller.
+            let (d, q) = unsafe { update::<RELAXED>(r, ctx) };
+            acc.0 += d;
+            acc.1 += q;
+        }
+    }
 }
 
 /// How many of the color `ranges` (`ranges[c]..ranges[c+1]`) from the first are colors
@@ -714,4 +855,130 @@ fn jacobi(params: &SolverParams, contacts: &mut [Contact], gv0: &[DVec3], gv: &m
         }
     }
     stats
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small xorshift generator: the test's data need no statistical quality, only
+    /// variety and reproducibility.
+    struct Rng(u64);
+
+    impl Rng {
+        fn next(&mut self) -> f64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+        fn signed(&mut self) -> f64 {
+            2.0 * self.next() - 1.0
+        }
+    }
+
+    /// One color of `n` rows on `2n` movable disks and 3 fixed walls shared by some rows,
+    /// with impulses that are zero, inside the Coulomb interval or on its edge, and
+    /// relative velocities that open, close or slide the contacts.
+    fn color_of(n: usize, seed: u64) -> (Vec<Row>, Vec<DVec3>, Vec<BodyProps>) {
+        let mut rng = Rng(seed);
+        let bodies = 2 * n + 3;
+        let gv: Vec<DVec3> = (0..bodies)
+            .map(|_| DVec3::new(rng.signed(), rng.signed(), 3.0 * rng.signed()))
+            .collect();
+        let props: Vec<BodyProps> = (0..bodies)
+            .map(|b| BodyProps {
+                inv_mass: 0.5 + rng.next(),
+                k: 2.0 * rng.next(),
+                lever: 0.1 + rng.next(),
+                movable: if b < 2 * n { 1.0 } else { 0.0 },
+            })
+            .collect();
+        let rows = (0..n)
+            .map(|m| {
+                let a = rng.next() * std::f64::consts::TAU;
+                let mu = [0.0, 0.01, 0.3, 12.0][m % 4];
+                let rn = if m % 3 == 0 { 0.0 } else { rng.next() };
+                let rt = match m % 5 {
+                    0 => mu * rn,
+                    1 => -mu * rn,
+                    _ => mu * rn * rng.signed(),
+                };
+                Row {
+                    i: (2 * m) as u32,
+                    // Every seventh row touches a wall, shared with other rows.
+                    j: if m % 7 == 0 {
+                        (2 * n + m % 3) as u32
+                    } else {
+                        (2 * m + 1) as u32
+                    },
+                    nx: a.cos(),
+                    ny: a.sin(),
+                    inv_wnn: 0.2 + rng.next(),
+                    inv_wtt: if m % 11 == 0 { 0.0 } else { 0.3 + rng.next() },
+                    mu,
+                    bias_n: 0.5 * rng.signed(),
+                    bias_t: 0.1 * rng.signed(),
+                    rn,
+                    rt,
+                }
+            })
+            .collect();
+        (rows, gv, props)
+    }
+
+    type Sweep = fn(&mut [Row], Ctx) -> (f64, f64);
+
+    /// The sums, velocities and impulses after three sweeps of `run` over the color.
+    fn three_sweeps(n: usize, seed: u64, relax: f64, run: Sweep) -> Vec<u64> {
+        let (mut rows, mut gv, props) = color_of(n, seed);
+        let ctx = Ctx {
+            gv: gv.as_mut_ptr(),
+            props: props.as_ptr(),
+            contacts: std::ptr::null_mut(),
+            relax,
+        };
+        let mut bits = Vec::new();
+        for _ in 0..3 {
+            let (d, q) = run(&mut rows, ctx);
+            bits.extend([d.to_bits(), q.to_bits()]);
+        }
+        bits.extend(gv.iter().flat_map(|v| v.to_array()).map(f64::to_bits));
+        bits.extend(rows.iter().flat_map(|r| [r.rn.to_bits(), r.rt.to_bits()]));
+        bits
+    }
+
+    /// The vector sweeps of a color give the scalar update's result bit for bit (the CPU
+    /// path's determinism across machines rests on it: a processor without AVX sweeps in
+    /// pairs), for every remainder of four and two, relaxed or not.
+    #[test]
+    fn vector_sweeps_equal_the_scalar_update_bit_for_bit() {
+        // SAFETY (all three): one thread, the rows of `color_of` share no movable body and
+        // index bodies within `gv` and `props`.
+        let scalar: Sweep = |rows, ctx| unsafe { sweep_chunk(rows, ctx) };
+        let chosen: Sweep = |rows, ctx| unsafe { sweep_color_chunk(rows, ctx) };
+        #[cfg(target_arch = "x86_64")]
+        let pairs: Sweep = |rows, ctx| unsafe { sweep_lanes(rows, ctx, false) };
+        #[cfg(target_arch = "x86_64")]
+        if !simd::avx() {
+            eprintln!("NOTE: no AVX on this processor: four-row lanes not compared");
+        }
+        for n in [1, 2, 3, 4, 5, 6, 7, 64, 67] {
+            for relax in [1.0, 0.5] {
+                let reference = three_sweeps(n, 7 + n as u64, relax, scalar);
+                assert!(reference.iter().any(|&b| b != 0), "n {n}: the rows did nothing");
+                let same = |run: Sweep, what: &str| {
+                    let other = three_sweeps(n, 7 + n as u64, relax, run);
+                    let first = reference.iter().zip(&other).position(|(a, b)| a != b);
+                    assert_eq!(
+                        first, None,
+                        "{what}, {n} rows, relax {relax}: first differing value"
+                    );
+                };
+                same(chosen, "the color sweep");
+                #[cfg(target_arch = "x86_64")]
+                same(pairs, "the pairs");
+            }
+        }
+    }
 }
