@@ -45,6 +45,15 @@ pub enum Error {
         /// The underlying error.
         source: std::io::Error,
     },
+    /// A run stopped by a signal ([`crate::interrupt`]) after writing a checkpoint at `step`
+    /// (0 when it stopped before its test began, with nothing to resume).
+    #[error("stopped by {}{}", crate::interrupt::signal_name(*signal), if *step > 0 { format!(" at step {step}, where a checkpoint was written") } else { String::new() })]
+    Interrupted {
+        /// The signal received.
+        signal: i32,
+        /// The step of the checkpoint written, 0 when none was.
+        step: u64,
+    },
     /// Any other failure, with its message.
     #[error("{0}")]
     Other(String),

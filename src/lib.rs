@@ -20,7 +20,8 @@
 //! - [`contact`]: contact frame, cell grid and detection;
 //! - [`fc2d`]: Siconos frictional contact problems, an outside test of the local law;
 //! - [`model`]: disks, walls, material (the state a backend steps);
-//! - [`error`]: the error type.
+//! - [`error`]: the error type;
+//! - [`interrupt`]: stopping a run at a checkpoint on SIGINT or SIGTERM.
 
 pub mod analysis;
 pub mod backend;
@@ -32,6 +33,7 @@ pub mod error;
 pub mod fc2d;
 pub mod figures;
 pub mod gpu;
+pub mod interrupt;
 pub mod measure;
 pub mod model;
 pub mod protocol;

@@ -225,3 +225,67 @@ fn printing_into_a_closed_pipe_does_not_panic() {
     assert!(!text.contains("panicked"), "stderr: {text}");
     assert_ne!(out.status.code(), Some(101), "stderr: {text}");
 }
+
+/// SIGTERM (what a scheduler sends at a job's time limit) stops a run at a checkpoint with
+/// exit status 143 (128 + 15) and a closed record; `--resume` then ends the test as the
+/// uninterrupted run does, bit for bit on the CPU path.
+#[cfg(unix)]
+#[test]
+fn a_signal_stops_a_run_at_a_checkpoint_that_resumes_to_the_same_end() {
+    let base = scratch("signal");
+    let cfg = small_config(&base);
+    let full = base.join("full");
+    let (ok, text) = biaxial(&cfg, &full, &[]);
+    assert!(ok, "{text}");
+    let total_rows = std::fs::read_to_string(full.join("series.csv"))
+        .unwrap()
+        .lines()
+        .count();
+
+    let out = base.join("stopped");
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args(["biaxial", "--config", cfg.to_str().unwrap(), "--quiet", "--out"])
+        .arg(&out)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The series is written row by row: 20 rows in, the run is under way (its handler
+    // installed) and far from its end.
+    let rows = || std::fs::read_to_string(out.join("series.csv")).map_or(0, |s| s.lines().count());
+    let t0 = std::time::Instant::now();
+    while rows() < 20 {
+        assert!(t0.elapsed().as_secs() < 300, "the run wrote no rows");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    // SAFETY: kill() with a valid pid and signal number has no memory effects here.
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGTERM) }, 0);
+    let result = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(143), "{stderr}");
+    assert!(
+        stderr.contains("stopped by SIGTERM at step") && stderr.contains("--resume"),
+        "{stderr}"
+    );
+    assert!(
+        !out.join("summary.json").exists(),
+        "an unfinished run wrote a summary"
+    );
+    let rec = cdlab::record::read_run(&out).unwrap();
+    assert!(rec.truncated.is_none(), "the record was left open");
+    let (step, _) = rec.last_checkpoint.clone().expect("a checkpoint");
+    assert_eq!(
+        rec.series.last().unwrap().step,
+        step,
+        "the record ends at its checkpoint"
+    );
+    assert!(
+        rec.series.len() + 1 < total_rows,
+        "the signal came after the run's end"
+    );
+
+    let (ok, text) = cdlab(&["biaxial", "--resume", out.to_str().unwrap(), "--quiet"]);
+    assert!(ok, "{text}");
+    common::assert_same_outcome(&full, &out);
+    let _ = std::fs::remove_dir_all(&base);
+}

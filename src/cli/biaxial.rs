@@ -111,11 +111,10 @@ fn progress_of(args: &Args) -> Progress {
 
 /// Runs `cdlab biaxial`.
 pub fn run(args: &Args) -> Result<()> {
+    crate::interrupt::install();
     let (dir, summary) = if let Some(dir) = &args.resume {
-        (
-            dir.clone(),
-            run_resume(dir, args.backend.as_deref(), &progress_of(args))?,
-        )
+        let summary = run_resume(dir, args.backend.as_deref(), &progress_of(args));
+        (dir.clone(), hint_resume(summary, dir)?)
     } else {
         let mut config = configuration(args)?;
         let sample = match &args.sample {
@@ -128,10 +127,26 @@ pub fn run(args: &Args) -> Result<()> {
         };
         let dir = config.output.dir.clone();
         check_out_dir(&dir, args.force)?;
-        (dir.clone(), run_fresh(&config, &dir, sample, &progress_of(args))?)
+        let summary = run_fresh(&config, &dir, sample, &progress_of(args));
+        (dir.clone(), hint_resume(summary, &dir)?)
     };
     println!("biaxial test finished: {}\n{}", dir.display(), summary.table());
     Ok(())
+}
+
+/// Says how to continue a run that a signal stopped at a checkpoint.
+fn hint_resume<T>(outcome: Result<T>, dir: &Path) -> Result<T> {
+    if let Err(Error::Interrupted { step, .. }) = &outcome
+        && *step > 0
+    {
+        eprintln!(
+            "the run in {} ends at its checkpoint of step {step}: `cdlab biaxial --resume {}` \
+             continues it",
+            dir.display(),
+            dir.display()
+        );
+    }
+    outcome
 }
 
 /// A sample written by `cdlab prepare`.
@@ -292,6 +307,11 @@ fn finish(
     }
     let outcome = lab.run(&mut obs);
     obs.finish();
+    if let Err(e @ Error::Interrupted { .. }) = outcome {
+        // The record ends at the checkpoint just written: close it properly for the resume.
+        obs.recorder.finish()?;
+        return Err(e);
+    }
     outcome?;
     let mut summary = Summary::new(
         &obs.rows,

@@ -84,6 +84,11 @@ pub fn main() -> i32 {
     };
     match result {
         Ok(()) => 0,
+        // 128 + the signal, as a shell reports a process the signal ended.
+        Err(e @ crate::Error::Interrupted { signal, .. }) => {
+            eprintln!("{e}");
+            128 + signal
+        }
         Err(e) => {
             eprintln!("error: {e}");
             1

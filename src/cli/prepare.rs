@@ -73,6 +73,10 @@ pub fn prepare_to(
     let mut obs = Collect::default();
     while lab.state.phase == Phase::Compaction {
         lab.advance(&mut obs)?;
+        // A sweep stops on a signal; the sample is not written, so nothing resumes it.
+        if let Some(signal) = crate::interrupt::requested() {
+            return Err(Error::Interrupted { signal, step: 0 });
+        }
     }
     let end = obs
         .ends

@@ -155,6 +155,7 @@ pub fn run(args: &Args) -> Result<()> {
             out: None,
         });
     }
+    crate::interrupt::install();
     if !(args.log_every.is_finite() && args.log_every >= 0.0) {
         return Err(Error::invalid("--log-every", args.log_every, "seconds >= 0"));
     }
@@ -260,7 +261,8 @@ pub fn run(args: &Args) -> Result<()> {
     let started = Instant::now();
     let queue = Mutex::new(mine.iter().cloned().collect::<VecDeque<Point>>());
     let samples: Mutex<Vec<(u64, crate::model::Scene)>> = Mutex::new(Vec::new());
-    let done = Mutex::new((0usize, Vec::<(PathBuf, String)>::new()));
+    // Tests ended, failures, tests a signal stopped.
+    let done = Mutex::new((0usize, Vec::<(PathBuf, String)>::new(), Vec::<PathBuf>::new()));
     let total = mine.len();
     std::thread::scope(|s| {
         for _ in 0..jobs {
@@ -269,6 +271,9 @@ pub fn run(args: &Args) -> Result<()> {
                     // Taken in a statement of its own: the guard of a `while let`
                     // scrutinee lives through the loop body, which ran the tests one at a
                     // time whatever --jobs said.
+                    if crate::interrupt::requested().is_some() {
+                        break;
+                    }
                     let next = queue.lock().expect("queue").pop_front();
                     let Some(p) = next else { break };
                     let label = p
@@ -298,6 +303,16 @@ pub fn run(args: &Args) -> Result<()> {
                         m.remove(b);
                     }
                     let mut d = done.lock().expect("progress");
+                    if let Err(Error::Interrupted { step, .. }) = &outcome {
+                        let at = if *step > 0 {
+                            format!("stopped at its checkpoint of step {step}")
+                        } else {
+                            "stopped before its test began".to_string()
+                        };
+                        say(&format!("{}: {at}", p.dir.display()));
+                        d.2.push(p.dir.clone());
+                        continue;
+                    }
                     d.0 += 1;
                     if let Some(b) = &overall {
                         b.inc(1);
@@ -325,7 +340,18 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(b) = &overall {
         b.finish_and_clear();
     }
-    let failed = done.into_inner().expect("progress").1;
+    let (ended, failed, stopped) = done.into_inner().expect("progress");
+    if let Some(signal) = crate::interrupt::requested() {
+        eprintln!(
+            "sweep: stopped by {}: {ended} of {total} tests ended ({} failed), {} stopped at a \
+             checkpoint or before starting, {} not started; the same command resumes the campaign",
+            crate::interrupt::signal_name(signal),
+            failed.len(),
+            stopped.len(),
+            total - ended - stopped.len()
+        );
+        return Err(Error::Interrupted { signal, step: 0 });
+    }
     if failed.is_empty() && args.dry_run {
         eprintln!("sweep: dry run, nothing was run; {total} tests checked");
         Ok(())

@@ -83,10 +83,18 @@ impl<B: Backend> Lab<B> {
         })
     }
 
-    /// Runs every remaining phase.
+    /// Runs every remaining phase. A stop requested by a signal ([`crate::interrupt`]) ends
+    /// the run after the current window of steps with a checkpoint, as
+    /// [`Error::Interrupted`].
     pub fn run(&mut self, obs: &mut dyn Observer) -> Result<()> {
         while self.state.phase != Phase::Done {
             self.advance(obs)?;
+            if let Some(signal) = crate::interrupt::requested()
+                && self.state.phase != Phase::Done
+            {
+                let step = self.checkpoint(obs)?;
+                return Err(Error::Interrupted { signal, step });
+            }
         }
         Ok(())
     }
@@ -361,12 +369,13 @@ impl<B: Backend> Lab<B> {
         Ok(())
     }
 
-    fn checkpoint(&mut self, obs: &mut dyn Observer) -> Result<()> {
+    /// Records a checkpoint and returns its step.
+    fn checkpoint(&mut self, obs: &mut dyn Observer) -> Result<u64> {
         let scene = self.backend.scene()?;
         let warm = self.backend.contacts()?;
         let bytes = encode(&self.state, &scene, &self.reference, &warm);
         obs.checkpoint(scene.step, &bytes)?;
         self.state.since_checkpoint = 0;
-        Ok(())
+        Ok(scene.step)
     }
 }
