@@ -243,24 +243,20 @@ fn a_signal_stops_a_run_at_a_checkpoint_that_resumes_to_the_same_end() {
         .count();
 
     let out = base.join("stopped");
-    let child = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
-        .args(["biaxial", "--config", cfg.to_str().unwrap(), "--quiet", "--out"])
-        .arg(&out)
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    // The series is written row by row: 20 rows in, the run is under way (its handler
-    // installed) and far from its end.
-    let rows = || std::fs::read_to_string(out.join("series.csv")).map_or(0, |s| s.lines().count());
-    let t0 = std::time::Instant::now();
-    while rows() < 20 {
-        assert!(t0.elapsed().as_secs() < 300, "the run wrote no rows");
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    }
-    // SAFETY: kill() with a valid pid and signal number has no memory effects here.
-    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGTERM) }, 0);
-    let result = child.wait_with_output().unwrap();
+    // 20 rows in, the run is under way and far from its end.
+    let result = common::signal_after_rows(
+        &[
+            "biaxial",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--quiet",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        &out.join("series.csv"),
+        20,
+        libc::SIGTERM,
+    );
     let stderr = String::from_utf8_lossy(&result.stderr);
     assert_eq!(result.status.code(), Some(143), "{stderr}");
     assert!(

@@ -437,23 +437,14 @@ fn an_unfinished_test_is_archived_to_resume_and_ends_as_if_uninterrupted() {
 fn a_signal_stops_a_sweep_that_the_same_command_resumes() {
     let (base, sweep) = tiny_campaign("sweep-signal", "mu = [0.3]\nsigma3 = [\"1 MPa\", \"2 MPa\"]\n");
     let s = sweep.to_str().unwrap();
-    let child = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
-        .args(["sweep", s, "--jobs", "1", "--log-every", "0"])
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
     // The grid's first test (1 MPa) runs first; 20 rows into its series it is under way.
     let first = base.join("campaign/seed1_mu0.3_s1MPa");
-    let rows = || std::fs::read_to_string(first.join("series.csv")).map_or(0, |s| s.lines().count());
-    let t0 = std::time::Instant::now();
-    while rows() < 20 {
-        assert!(t0.elapsed().as_secs() < 300, "the first test wrote no rows");
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    }
-    // SAFETY: kill() with a valid pid and signal number has no memory effects here.
-    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGINT) }, 0);
-    let result = child.wait_with_output().unwrap();
+    let result = common::signal_after_rows(
+        &["sweep", s, "--jobs", "1", "--log-every", "0"],
+        &first.join("series.csv"),
+        20,
+        libc::SIGINT,
+    );
     let stderr = String::from_utf8_lossy(&result.stderr);
     assert_eq!(result.status.code(), Some(130), "{stderr}");
     assert!(

@@ -167,3 +167,34 @@ pub fn assert_same_outcome(a: &std::path::Path, b: &std::path::Path) {
         assert_eq!(a[key], b[key], "{key}");
     }
 }
+
+/// Runs `cdlab ARGS`, sends it `signal` once the CSV file `series` holds `rows` lines (the
+/// run is then under way, its signal handler installed), and returns what it printed and
+/// how it ended.
+#[cfg(unix)]
+pub fn signal_after_rows(
+    args: &[&str],
+    series: &std::path::Path,
+    rows: usize,
+    signal: i32,
+) -> std::process::Output {
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("cdlab runs");
+    let lines = || std::fs::read_to_string(series).map_or(0, |s| s.lines().count());
+    let t0 = std::time::Instant::now();
+    while lines() < rows {
+        assert!(
+            t0.elapsed().as_secs() < 300,
+            "{} holds no {rows} rows after 300 s",
+            series.display()
+        );
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    // SAFETY: kill() with a valid pid and signal number has no memory effects here.
+    assert_eq!(unsafe { libc::kill(child.id() as i32, signal) }, 0);
+    child.wait_with_output().expect("cdlab ends")
+}
