@@ -270,6 +270,9 @@ pub(super) struct Ctx {
     pub(super) contacts: *mut Contact,
     /// Gauss-Seidel relaxation of the current iteration.
     pub(super) relax: f64,
+    /// Whether the rows of the proper colors are packed four at a time ([`pack_quads`]),
+    /// to be swept in AVX registers.
+    pub(super) quads: bool,
 }
 // SAFETY: see `update`: members of a team write disjoint bodies and contacts.
 unsafe impl Send for Ctx {}
@@ -308,35 +311,24 @@ unsafe fn sweep_rows<const RELAXED: bool>(chunk: &mut [Row], ctx: Ctx) -> (f64, 
 /// [`sweep_chunk`] for a chunk of one color (rows that share no movable body and hold no
 /// [`FULL`] row). On x86_64, several rows at a time in the lanes of vector registers, with
 /// the same operations in the same order as [`update`], so bit for bit the same result:
-/// four rows in AVX registers where the processor has AVX (checked at run time), then two
-/// in SSE2 registers (part of the baseline), then the last row alone. The pairs took
-/// 12-14% off a 5000-disk test at 101 iterations per step (README, "Benchmarks").
-/// Elsewhere, row by row.
+/// when the rows are packed ([`Ctx::quads`]), four at a time in AVX registers, then two in
+/// SSE2 registers (part of the baseline), then the last row alone. Pairs took 12-14% off a
+/// 5000-disk test at 101 iterations per step, the packed quads a further 8-9% (README,
+/// "Benchmarks"). Elsewhere, row by row.
 ///
 /// # Safety
-/// As [`update`], for every row of the chunk; no two rows share a movable body.
+/// As [`update`], for every row of the chunk; no two rows share a movable body; with
+/// `ctx.quads`, the chunk starts a packed quad (it is a chunk of [`pack_quads`]'s layout)
+/// and the processor has AVX.
 pub(super) unsafe fn sweep_color_chunk(chunk: &mut [Row], ctx: Ctx) -> (f64, f64) {
     // SAFETY: forwarded from the caller.
     #[cfg(not(target_arch = "x86_64"))]
     return unsafe { sweep_chunk(chunk, ctx) };
     #[cfg(target_arch = "x86_64")]
     unsafe {
-        sweep_lanes(chunk, ctx, simd::avx())
-    }
-}
-
-/// [`sweep_color_chunk`] with the choice of four-row lanes made by the caller (`quads`
-/// only where AVX is available), so that tests can compare the widths.
-///
-/// # Safety
-/// As [`sweep_color_chunk`]; `quads` only on a processor with AVX.
-#[cfg(target_arch = "x86_64")]
-unsafe fn sweep_lanes(chunk: &mut [Row], ctx: Ctx, quads: bool) -> (f64, f64) {
-    let mut acc = (0.0, 0.0);
-    let n4 = if quads { chunk.len() / 4 * 4 } else { 0 };
-    let (head, tail) = chunk.split_at_mut(n4);
-    // SAFETY: forwarded from the caller, who checked AVX for `quads`.
-    unsafe {
+        let mut acc = (0.0, 0.0);
+        let n4 = if ctx.quads { chunk.len() / 4 * 4 } else { 0 };
+        let (head, tail) = chunk.split_at_mut(n4);
         if ctx.relax == 1.0 {
             if n4 > 0 {
                 simd::sweep_quads::<false>(head, ctx, &mut acc);
@@ -348,8 +340,102 @@ unsafe fn sweep_lanes(chunk: &mut [Row], ctx: Ctx, quads: bool) -> (f64, f64) {
             }
             simd::sweep_pairs::<true>(tail, ctx, &mut acc);
         }
+        acc
     }
-    acc
+}
+
+/// Four rows laid out field by field in the bytes of four [`Row`]s, so that the AVX sweep
+/// loads each field of the four with one instruction.
+#[derive(Clone, Copy, Default)]
+#[repr(C)]
+struct Quad {
+    i: [u32; 4],
+    j: [u32; 4],
+    nx: [f64; 4],
+    ny: [f64; 4],
+    inv_wnn: [f64; 4],
+    inv_wtt: [f64; 4],
+    mu: [f64; 4],
+    bias_n: [f64; 4],
+    bias_t: [f64; 4],
+    rn: [f64; 4],
+    rt: [f64; 4],
+}
+
+const _: () = assert!(std::mem::size_of::<Quad>() == 4 * std::mem::size_of::<Row>());
+const _: () = assert!(std::mem::align_of::<Quad>() <= std::mem::align_of::<Row>());
+const _: () = assert!(CHUNK.is_multiple_of(4), "chunks must hold whole quads");
+
+/// Whether the colored sweeps run four rows at a time: on x86_64 with AVX (checked once at
+/// run time), unless `CDLAB_NO_AVX=1` asks for the pairs (to time or compare them).
+pub(super) fn avx() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::sync::OnceLock;
+        static AVX: OnceLock<bool> = OnceLock::new();
+        *AVX.get_or_init(|| {
+            std::arch::is_x86_feature_detected!("avx")
+                && std::env::var_os("CDLAB_NO_AVX").is_none_or(|v| v != "1")
+        })
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    false
+}
+
+/// The whole quads of each of the first `colors` color ranges, counted from the color's
+/// first row: the quads of its chunks, since a chunk holds whole quads.
+fn quads_of(ranges: &[u32], colors: usize) -> impl Iterator<Item = usize> + '_ {
+    ranges.windows(2).take(colors).flat_map(|w| {
+        let (a, b) = (w[0] as usize, w[1] as usize);
+        (a..a + (b - a) / 4 * 4).step_by(4)
+    })
+}
+
+/// Packs the rows of the first `colors` color ranges four at a time ([`Quad`]) for the AVX
+/// sweeps; [`unpack_quads`] undoes it.
+pub(super) fn pack_quads(rows: &mut [Row], ranges: &[u32], colors: usize) {
+    for k in quads_of(ranges, colors) {
+        let r: [Row; 4] = rows[k..k + 4].try_into().expect("four rows");
+        let q = Quad {
+            i: r.map(|r| r.i),
+            j: r.map(|r| r.j),
+            nx: r.map(|r| r.nx),
+            ny: r.map(|r| r.ny),
+            inv_wnn: r.map(|r| r.inv_wnn),
+            inv_wtt: r.map(|r| r.inv_wtt),
+            mu: r.map(|r| r.mu),
+            bias_n: r.map(|r| r.bias_n),
+            bias_t: r.map(|r| r.bias_t),
+            rn: r.map(|r| r.rn),
+            rt: r.map(|r| r.rt),
+        };
+        // SAFETY: a Quad fills the bytes of four rows exactly and needs no more alignment
+        // (asserted above); the four rows are in bounds.
+        unsafe { rows.as_mut_ptr().add(k).cast::<Quad>().write(q) };
+    }
+}
+
+/// Undoes [`pack_quads`] with the same ranges.
+pub(super) fn unpack_quads(rows: &mut [Row], ranges: &[u32], colors: usize) {
+    for k in quads_of(ranges, colors) {
+        // SAFETY: as in `pack_quads`; these rows hold a packed quad.
+        let q = unsafe { rows.as_ptr().add(k).cast::<Quad>().read() };
+        for (l, r) in rows[k..k + 4].iter_mut().enumerate() {
+            *r = Row {
+                i: q.i[l],
+                j: q.j[l],
+                nx: q.nx[l],
+                ny: q.ny[l],
+                inv_wnn: q.inv_wnn[l],
+                inv_wtt: q.inv_wtt[l],
+                mu: q.mu[l],
+                bias_n: q.bias_n[l],
+                bias_t: q.bias_t[l],
+                rn: q.rn[l],
+                rt: q.rt[l],
+            };
+        }
+    }
 }
 
 /// The vector forms of [`update`] for rows of one color. Each lane repeats the scalar
@@ -359,19 +445,9 @@ unsafe fn sweep_lanes(chunk: &mut [Row], ctx: Ctx, quads: bool) -> (f64, f64) {
 /// multiply-add: it would round differently.
 #[cfg(target_arch = "x86_64")]
 mod simd {
-    use super::{BodyProps, Ctx, FULL, Row, update};
+    use super::{BodyProps, Ctx, FULL, Quad, Row, update};
     use glam::DVec3;
     use std::arch::x86_64::*;
-
-    /// Whether the processor has AVX; tests can turn the four-row lanes off with
-    /// `CDLAB_NO_AVX=1` to time or compare the narrower path.
-    pub(super) fn avx() -> bool {
-        use std::sync::OnceLock;
-        static AVX: OnceLock<bool> = OnceLock::new();
-        *AVX.get_or_init(|| {
-            is_x86_feature_detected!("avx") && std::env::var_os("CDLAB_NO_AVX").is_none_or(|v| v != "1")
-        })
-    }
 
     /// Writes body `p` (velocity `v` as read) after an update whose impulse on it has
     /// components (`px`, `py`) times `im`, the inverse mass signed for that body, and spin
@@ -384,26 +460,27 @@ mod simd {
         }
     }
 
-    /// Four rows at a time (a multiple of four), their sums added to `acc` in row order.
+    /// Four rows at a time, packed as [`Quad`]s (a multiple of four rows), their sums added
+    /// to `acc` in row order.
     ///
     /// # Safety
-    /// As [`super::sweep_color_chunk`], on a processor with AVX.
+    /// As [`super::sweep_color_chunk`], on a processor with AVX, on packed rows.
     #[target_feature(enable = "avx")]
     pub(super) unsafe fn sweep_quads<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx, acc: &mut (f64, f64)) {
         for quad in rows.chunks_exact_mut(4) {
-            let [a, b, c, d] = quad else { unreachable!() };
-            debug_assert!(a.j != FULL && b.j != FULL && c.j != FULL && d.j != FULL);
+            // SAFETY: the caller guarantees these rows hold a packed quad (see `Quad`).
+            let q = unsafe { &mut *quad.as_mut_ptr().cast::<Quad>() };
+            debug_assert!(q.j.iter().all(|&j| j != FULL));
             // SAFETY: the caller guarantees validity; the four rows write disjoint bodies
             // and read the shared ones (never written) only.
             unsafe {
-                let pi = [a.i, b.i, c.i, d.i].map(|i| ctx.gv.add(i as usize));
-                let pj = [a.j, b.j, c.j, d.j].map(|j| ctx.gv.add(j as usize));
-                let bi = [a.i, b.i, c.i, d.i].map(|i| *ctx.props.add(i as usize));
-                let bj = [a.j, b.j, c.j, d.j].map(|j| *ctx.props.add(j as usize));
+                let pi = q.i.map(|i| ctx.gv.add(i as usize));
+                let pj = q.j.map(|j| ctx.gv.add(j as usize));
+                let bi = q.i.map(|i| *ctx.props.add(i as usize));
+                let bj = q.j.map(|j| *ctx.props.add(j as usize));
                 let vi = pi.map(|p| p.read());
                 let vj = pj.map(|p| p.read());
-                // Lane 0 is row a, ..., lane 3 row d (`_mm256_set_pd` takes the high lane
-                // first).
+                // Lane l is row l of the quad (`_mm256_set_pd` takes the high lane first).
                 macro_rules! lanes4 {
                     ($x:expr) => {{
                         let x = $x;
@@ -412,7 +489,7 @@ mod simd {
                 }
                 macro_rules! field {
                     ($f:ident) => {
-                        _mm256_set_pd(d.$f, c.$f, b.$f, a.$f)
+                        _mm256_loadu_pd(q.$f.as_ptr())
                     };
                 }
                 let (nx, ny) = (field!(nx), field!(ny));
@@ -456,20 +533,20 @@ mod simd {
                     (rn, rt)
                 };
                 let (drn, drt) = (_mm256_sub_pd(rn, rn0), _mm256_sub_pd(rt, rt0));
+                _mm256_storeu_pd(q.rn.as_mut_ptr(), rn);
+                _mm256_storeu_pd(q.rt.as_mut_ptr(), rt);
                 let px = _mm256_add_pd(_mm256_mul_pd(drn, nx), _mm256_mul_pd(drt, ny));
                 let py = _mm256_sub_pd(_mm256_mul_pd(drn, ny), _mm256_mul_pd(drt, nx));
                 let sq = _mm256_add_pd(_mm256_mul_pd(drn, drn), _mm256_mul_pd(drt, drt));
                 let r2 = _mm256_add_pd(_mm256_mul_pd(rn, rn), _mm256_mul_pd(rt, rt));
-                let mut out = [[0.0; 4]; 7];
-                for (o, v) in out.iter_mut().zip([px, py, drt, rn, rt, sq, r2]) {
+                let mut out = [[0.0; 4]; 5];
+                for (o, v) in out.iter_mut().zip([px, py, drt, sq, r2]) {
                     _mm256_storeu_pd(o.as_mut_ptr(), v);
                 }
-                let [px, py, drt, rn, rt, sq, r2] = out;
-                for (l, r) in [a, b, c, d].into_iter().enumerate() {
+                let [px, py, drt, sq, r2] = out;
+                for l in 0..4 {
                     write(pi[l], vi[l], bi[l], bi[l].inv_mass, px[l], py[l], drt[l]);
                     write(pj[l], vj[l], bj[l], -bj[l].inv_mass, px[l], py[l], drt[l]);
-                    r.rn = rn[l];
-                    r.rt = rt[l];
                     acc.0 += sq[l];
                     acc.1 += r2[l];
                 }
@@ -764,11 +841,16 @@ pub fn solve(
     } else {
         (&mut work.rows, &whole[..], false)
     };
+    let quads = colored && avx();
+    if quads {
+        pack_quads(rows, ranges, proper_colors);
+    }
     let ctx = Ctx {
         gv: gv.as_mut_ptr(),
         props: work.props.as_ptr(),
         contacts: contacts.as_mut_ptr(),
         relax: 1.0,
+        quads,
     };
     let mut stats = SolveStats {
         colors: if colored { (ranges.len() - 1) as u32 } else { 0 },
@@ -801,6 +883,9 @@ pub fn solve(
                 break;
             }
         }
+    }
+    if quads {
+        unpack_quads(rows, ranges, proper_colors);
     }
     let order = colored.then_some(&work.coloring.order[..]);
     store(rows, order, parking.then_some(&work.active[..]), contacts);
@@ -927,21 +1012,51 @@ mod tests {
         (rows, gv, props)
     }
 
-    type Sweep = fn(&mut [Row], Ctx) -> (f64, f64);
+    /// How a color is swept: one row at a time, with the vector lanes on unpacked rows
+    /// (pairs), or on rows packed four at a time.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    enum Width {
+        Rows,
+        Pairs,
+        Quads,
+    }
 
-    /// The sums, velocities and impulses after three sweeps of `run` over the color.
-    fn three_sweeps(n: usize, seed: u64, relax: f64, run: Sweep) -> Vec<u64> {
+    /// The sums, velocities and impulses after three sweeps over the color, chunk by chunk
+    /// as [`sweep`] goes.
+    fn three_sweeps(n: usize, seed: u64, relax: f64, width: Width) -> Vec<u64> {
         let (mut rows, mut gv, props) = color_of(n, seed);
+        let ranges = [0, n as u32];
+        let quads = width == Width::Quads;
+        if quads {
+            pack_quads(&mut rows, &ranges, 1);
+        }
         let ctx = Ctx {
             gv: gv.as_mut_ptr(),
             props: props.as_ptr(),
             contacts: std::ptr::null_mut(),
             relax,
+            quads,
         };
         let mut bits = Vec::new();
         for _ in 0..3 {
-            let (d, q) = run(&mut rows, ctx);
+            let (mut d, mut q) = (0.0, 0.0);
+            for chunk in rows.chunks_mut(CHUNK) {
+                // SAFETY: one thread; the rows of `color_of` share no movable body and
+                // index bodies within `gv` and `props`; packed as `ctx.quads` says, on a
+                // processor with AVX for the quads (checked by the caller).
+                let (dc, qc) = unsafe {
+                    match width {
+                        Width::Rows => sweep_chunk(chunk, ctx),
+                        _ => sweep_color_chunk(chunk, ctx),
+                    }
+                };
+                d += dc;
+                q += qc;
+            }
             bits.extend([d.to_bits(), q.to_bits()]);
+        }
+        if quads {
+            unpack_quads(&mut rows, &ranges, 1);
         }
         bits.extend(gv.iter().flat_map(|v| v.to_array()).map(f64::to_bits));
         bits.extend(rows.iter().flat_map(|r| [r.rn.to_bits(), r.rt.to_bits()]));
@@ -950,35 +1065,40 @@ mod tests {
 
     /// The vector sweeps of a color give the scalar update's result bit for bit (the CPU
     /// path's determinism across machines rests on it: a processor without AVX sweeps in
-    /// pairs), for every remainder of four and two, relaxed or not.
+    /// pairs), for every remainder of four and two, relaxed or not; packing and unpacking
+    /// the quads gives the rows back as they were.
     #[test]
     fn vector_sweeps_equal_the_scalar_update_bit_for_bit() {
-        // SAFETY (all three): one thread, the rows of `color_of` share no movable body and
-        // index bodies within `gv` and `props`.
-        let scalar: Sweep = |rows, ctx| unsafe { sweep_chunk(rows, ctx) };
-        let chosen: Sweep = |rows, ctx| unsafe { sweep_color_chunk(rows, ctx) };
-        #[cfg(target_arch = "x86_64")]
-        let pairs: Sweep = |rows, ctx| unsafe { sweep_lanes(rows, ctx, false) };
-        #[cfg(target_arch = "x86_64")]
-        if !simd::avx() {
-            eprintln!("NOTE: no AVX on this processor: four-row lanes not compared");
+        let mut widths = vec![Width::Pairs];
+        if avx() {
+            widths.push(Width::Quads);
+        } else {
+            eprintln!("NOTE: no AVX here (or CDLAB_NO_AVX=1): packed quads not compared");
         }
-        for n in [1, 2, 3, 4, 5, 6, 7, 64, 67] {
+        for n in [1, 2, 3, 4, 5, 6, 7, 64, 67, 130] {
             for relax in [1.0, 0.5] {
-                let reference = three_sweeps(n, 7 + n as u64, relax, scalar);
-                assert!(reference.iter().any(|&b| b != 0), "n {n}: the rows did nothing");
-                let same = |run: Sweep, what: &str| {
-                    let other = three_sweeps(n, 7 + n as u64, relax, run);
+                let seed = 7 + n as u64;
+                let reference = three_sweeps(n, seed, relax, Width::Rows);
+                assert!(reference.iter().any(|&b| b != 0), "{n} rows did nothing");
+                for &w in &widths {
+                    let other = three_sweeps(n, seed, relax, w);
                     let first = reference.iter().zip(&other).position(|(a, b)| a != b);
                     assert_eq!(
                         first, None,
-                        "{what}, {n} rows, relax {relax}: first differing value"
+                        "{w:?}, {n} rows, relax {relax}: first differing value"
                     );
-                };
-                same(chosen, "the color sweep");
-                #[cfg(target_arch = "x86_64")]
-                same(pairs, "the pairs");
+                }
             }
         }
+        let (rows, _, _) = color_of(67, 1);
+        let mut packed = rows.clone();
+        pack_quads(&mut packed, &[0, 67], 1);
+        assert_ne!(
+            format!("{packed:?}"),
+            format!("{rows:?}"),
+            "packing moved nothing"
+        );
+        unpack_quads(&mut packed, &[0, 67], 1);
+        assert_eq!(format!("{packed:?}"), format!("{rows:?}"));
     }
 }
