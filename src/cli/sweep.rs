@@ -110,6 +110,15 @@ impl SweepFile {
     }
 }
 
+/// "1 test", "2 tests".
+fn tests(n: usize) -> String {
+    if n == 1 {
+        "1 test".into()
+    } else {
+        format!("{n} tests")
+    }
+}
+
 fn paper_mu() -> Vec<f64> {
     vec![0.01, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0, 1.2, 3.0, 6.0, 12.0]
 }
@@ -353,11 +362,16 @@ pub fn run(args: &Args) -> Result<()> {
         return Err(Error::Interrupted { signal, step: 0 });
     }
     if failed.is_empty() && args.dry_run {
-        eprintln!("sweep: dry run, nothing was run; {total} tests checked");
+        eprintln!("sweep: dry run, nothing was run; {} checked", tests(total));
         Ok(())
     } else if failed.is_empty() {
         eprintln!(
-            "sweep: all {total} tests of this shard finished; `cdlab report {}` analyses them",
+            "sweep: {} of this shard finished; `cdlab report {}` analyses the campaign",
+            if total == 1 {
+                "the 1 test".to_string()
+            } else {
+                format!("all {total} tests")
+            },
             sweep.out.display()
         );
         Ok(())
