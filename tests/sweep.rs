@@ -132,6 +132,11 @@ fn time_steps_by_friction_are_recorded_and_checked_on_rerun() {
         &format!("{grid}[[dt_by_friction]]\nmu_from = 0.5\ndt = \"0.25 ms\"\n"),
     );
     let s = sweep.to_str().unwrap();
+    // The test at the smaller step (more steps) comes first, ahead of the grid's order.
+    let (ok, text) = cdlab(&["sweep", s, "--jobs", "1", "--dry-run"]);
+    let at = |name: &str| text.find(&format!("{name}: would start"));
+    assert!(ok && at("seed1_mu0.5_s2MPa") < at("seed1_mu0.1_s2MPa"), "{text}");
+    assert!(at("seed1_mu0.1_s2MPa").is_some(), "{text}");
     let (ok, text) = cdlab(&["sweep", s, "--jobs", "2", "--log-every", "0"]);
     assert!(ok, "{text}");
     // In a log (stderr is a pipe here) each running test prints progress lines named by
