@@ -228,7 +228,8 @@ fn printing_into_a_closed_pipe_does_not_panic() {
 
 /// SIGTERM (what a scheduler sends at a job's time limit) stops a run at a checkpoint with
 /// exit status 143 (128 + 15) and a closed record; `--resume` then ends the test as the
-/// uninterrupted run does, bit for bit on the CPU path.
+/// uninterrupted run does, bit for bit on the CPU path. While the run goes on, no other
+/// process may resume or overwrite its directory.
 #[cfg(unix)]
 #[test]
 fn a_signal_stops_a_run_at_a_checkpoint_that_resumes_to_the_same_end() {
@@ -255,6 +256,13 @@ fn a_signal_stops_a_run_at_a_checkpoint_that_resumes_to_the_same_end() {
         ],
         &out.join("series.csv"),
         20,
+        || {
+            // A second process on the running test's directory is refused, nothing touched.
+            let (ok, text) = cdlab(&["biaxial", "--resume", out.to_str().unwrap(), "--quiet"]);
+            assert!(!ok && text.contains("in use by another cdlab process"), "{text}");
+            let (ok, text) = biaxial(&cfg, &out, &["--force"]);
+            assert!(!ok && text.contains("in use by another cdlab process"), "{text}");
+        },
         libc::SIGTERM,
     );
     let stderr = String::from_utf8_lossy(&result.stderr);

@@ -436,7 +436,7 @@ fn an_unfinished_test_is_archived_to_resume_and_ends_as_if_uninterrupted() {
 
 /// Ctrl-C (SIGINT) stops a sweep: the running test at a checkpoint, the queue left alone,
 /// exit status 130 (128 + 2) and a message that says so; the same command then resumes the
-/// stopped test and runs the rest.
+/// stopped test and runs the rest. While the test runs, a second sweep leaves it alone.
 #[cfg(unix)]
 #[test]
 fn a_signal_stops_a_sweep_that_the_same_command_resumes() {
@@ -448,6 +448,12 @@ fn a_signal_stops_a_sweep_that_the_same_command_resumes() {
         &["sweep", s, "--jobs", "1", "--log-every", "0"],
         &first.join("series.csv"),
         20,
+        || {
+            // A second sweep over the running test (shard 0 of 2 holds it alone) leaves it
+            // alone and says why.
+            let (ok, text) = cdlab(&["sweep", s, "--shard", "0/2"]);
+            assert!(!ok && text.contains("in use by another cdlab process"), "{text}");
+        },
         libc::SIGINT,
     );
     let stderr = String::from_utf8_lossy(&result.stderr);

@@ -11,7 +11,7 @@ use crate::measure::summary::Summary;
 use crate::protocol::biaxial::Lab;
 use crate::protocol::checkpoint::decode;
 use crate::protocol::{Phase, ProtocolParams, prepare};
-use crate::record::{Recorder, read_run};
+use crate::record::{Recorder, RunLock, read_run};
 
 use super::run::{Progress, Recording, open_backend};
 
@@ -84,10 +84,11 @@ pub fn configuration(args: &Args) -> Result<Config> {
 /// Refuses an output directory that already holds files, unless `force`.
 pub fn check_out_dir(dir: &Path, force: bool) -> Result<()> {
     if dir.exists() && !force {
+        // The lock file of this process (or of an ended run) is not a result.
         let busy = std::fs::read_dir(dir)
             .map_err(|e| Error::io(dir, e))?
-            .next()
-            .is_some();
+            .flatten()
+            .any(|e| e.file_name() != crate::record::LOCK_FILE);
         if busy {
             return Err(Error::Other(format!(
                 "output directory {} already holds files: pass --force to replace them, \
@@ -113,6 +114,10 @@ fn progress_of(args: &Args) -> Progress {
 pub fn run(args: &Args) -> Result<()> {
     crate::interrupt::install();
     let (dir, summary) = if let Some(dir) = &args.resume {
+        if !dir.is_dir() {
+            return Err(Error::Other(format!("{}: no such run directory", dir.display())));
+        }
+        let _lock = RunLock::acquire(dir)?;
         let summary = run_resume(dir, args.backend.as_deref(), &progress_of(args));
         (dir.clone(), hint_resume(summary, dir)?)
     } else {
@@ -126,6 +131,7 @@ pub fn run(args: &Args) -> Result<()> {
             None => None,
         };
         let dir = config.output.dir.clone();
+        let _lock = RunLock::acquire(&dir)?;
         check_out_dir(&dir, args.force)?;
         let summary = run_fresh(&config, &dir, sample, &progress_of(args));
         (dir.clone(), hint_resume(summary, &dir)?)

@@ -472,6 +472,8 @@ fn run_point(
     say: &dyn Fn(&str),
 ) -> Result<String> {
     let config = point_config(base, p);
+    // Held until the test ends, so that a second sweep on this directory leaves it alone.
+    let _lock = crate::record::RunLock::acquire(&p.dir)?;
     let state = check_point(&config, p)?;
     let resume = state == State::Resumable;
     let how = match state {

@@ -14,6 +14,7 @@
 //! or footer whose complete chunks [`read_run`] still reads (it stops at the first incomplete
 //! record and says so in [`RunRecord::truncated`]).
 
+mod lock;
 mod reader;
 mod series;
 mod snapshot;
@@ -23,6 +24,7 @@ mod writer;
 #[cfg(test)]
 mod tests;
 
+pub use lock::{LOCK_FILE, RunLock};
 pub use reader::{RunRecord, read_config, read_run};
 pub use series::{SERIES_FIELDS, SeriesRow, csv_header, series_json_schema};
 pub use snapshot::{ContactClass, ContactRecord, DiskRecord, SNAPSHOT_SCHEMA, Snapshot};

@@ -168,14 +168,15 @@ pub fn assert_same_outcome(a: &std::path::Path, b: &std::path::Path) {
     }
 }
 
-/// Runs `cdlab ARGS`, sends it `signal` once the CSV file `series` holds `rows` lines (the
-/// run is then under way, its signal handler installed), and returns what it printed and
-/// how it ended.
+/// Runs `cdlab ARGS`; once the CSV file `series` holds `rows` lines (the run is then under
+/// way, its signal handler installed) calls `meanwhile`, then sends it `signal`, and
+/// returns what it printed and how it ended.
 #[cfg(unix)]
 pub fn signal_after_rows(
     args: &[&str],
     series: &std::path::Path,
     rows: usize,
+    meanwhile: impl FnOnce(),
     signal: i32,
 ) -> std::process::Output {
     let child = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
@@ -194,6 +195,7 @@ pub fn signal_after_rows(
         );
         std::thread::sleep(std::time::Duration::from_millis(5));
     }
+    meanwhile();
     // SAFETY: kill() with a valid pid and signal number has no memory effects here.
     assert_eq!(unsafe { libc::kill(child.id() as i32, signal) }, 0);
     child.wait_with_output().expect("cdlab ends")
