@@ -356,8 +356,9 @@ pub fn run(args: &Args) -> Result<()> {
     let (ended, failed, stopped) = done.into_inner().expect("progress");
     if let Some(signal) = crate::interrupt::requested() {
         eprintln!(
-            "sweep: stopped by {}: {ended} of {total} tests ended ({} failed), {} stopped at a \
-             checkpoint or before starting, {} not started; the same command resumes the campaign",
+            "sweep: stopped by {}: {ended} of {total} tests ended or were found finished ({} \
+             failed), {} stopped at a checkpoint or before starting, {} not started; the same \
+             command resumes the campaign",
             crate::interrupt::signal_name(signal),
             failed.len(),
             stopped.len(),
