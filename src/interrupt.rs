@@ -2,7 +2,7 @@
 //! before it kills a job at its time limit).
 //!
 //! [`install`] replaces the default action of both signals by a handler that only records
-//! the signal; [`crate::protocol::Lab::run`] looks at it between windows of steps, writes a
+//! the signal; [`crate::protocol::biaxial::Lab::run`] looks at it between windows of steps, writes a
 //! checkpoint and returns [`crate::Error::Interrupted`], so the record ends at a checkpoint
 //! and `cdlab biaxial --resume` (or the same `cdlab sweep`) continues from it. The handler
 //! restores the default action, so a second signal ends the process at once.
