@@ -453,6 +453,14 @@ fn a_signal_stops_a_sweep_that_the_same_command_resumes() {
             // alone and says why.
             let (ok, text) = cdlab(&["sweep", s, "--shard", "0/2"]);
             assert!(!ok && text.contains("in use by another cdlab process"), "{text}");
+            let (ok, text) = cdlab(&["sweep", s, "--dry-run"]);
+            assert!(ok, "{text}");
+            assert!(
+                text.contains("seed1_mu0.3_s1MPa: would resume from its last checkpoint (running now in another process)")
+                    || text.contains("seed1_mu0.3_s1MPa: would restart (its record holds no checkpoint yet) (running now in another process)"),
+                "{text}"
+            );
+            assert!(text.contains("seed1_mu0.3_s2MPa: would start\n"), "{text}");
         },
         libc::SIGINT,
     );

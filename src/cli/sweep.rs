@@ -308,7 +308,15 @@ pub fn run(args: &Args) -> Result<()> {
                         every_s: args.log_every,
                     };
                     let outcome = if args.dry_run {
-                        check_point(&point_config(&base, &p), &p).map(|what| what.dry_run().to_string())
+                        check_point(&point_config(&base, &p), &p).map(|what| {
+                            let busy = crate::record::RunLock::held_elsewhere(&p.dir);
+                            let note = if busy {
+                                " (running now in another process)"
+                            } else {
+                                ""
+                            };
+                            format!("{}{note}", what.dry_run())
+                        })
                     } else {
                         run_point(&base, &sweep.out, &p, &samples, &progress, &say)
                     };

@@ -44,4 +44,13 @@ impl RunLock {
             Err(TryLockError::Error(e)) => Err(Error::io(&path, e)),
         }
     }
+
+    /// Whether another process holds `dir` now; creates nothing (a directory without a
+    /// lock file is held by no one).
+    pub fn held_elsewhere(dir: &Path) -> bool {
+        let Ok(file) = File::open(dir.join(LOCK_FILE)) else {
+            return false;
+        };
+        matches!(file.try_lock(), Err(TryLockError::WouldBlock))
+    }
 }
