@@ -239,8 +239,8 @@ pub fn run(args: &Args) -> Result<()> {
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
         .max(1);
     eprintln!(
-        "sweep: {} tests in the grid, {} in this shard, {} at a time -> {}",
-        grid.len(),
+        "sweep: {} in the grid, {} in this shard, {} at a time -> {}",
+        tests(grid.len()),
         mine.len(),
         jobs,
         sweep.out.display()
