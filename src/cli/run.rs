@@ -83,6 +83,10 @@ pub struct Recording {
     /// Wall-clock seconds and axial strain at this part's first compression row: the rate
     /// behind the plain lines' estimate of the time left.
     compression_start: Option<(f64, f64)>,
+    /// Whether warnings are shown (all but `Progress::Quiet`), and whether the overlap
+    /// warning has been given.
+    warn: bool,
+    overlap_warned: bool,
     quiet: bool,
 }
 
@@ -120,6 +124,8 @@ impl Recording {
             last_line: Instant::now(),
             lines,
             compression_start: None,
+            warn: !matches!(progress, Progress::Quiet),
+            overlap_warned: false,
             quiet: progress.quiet(),
         }
     }
@@ -140,6 +146,35 @@ impl Recording {
         }
         self.rows.push(row.clone());
         Ok(())
+    }
+
+    /// Says once, when the largest overlap first passes method.md's bound, that the run
+    /// has left it: the summary and the campaign report say so at the end, which for a
+    /// 5000-disk test at high friction can be hours later.
+    fn warn_overlap(&mut self, row: &SeriesRow) {
+        use crate::analysis::report::OVERLAP_BOUND_REL;
+        if self.overlap_warned || !(row.overlap_max_rel > OVERLAP_BOUND_REL) {
+            return;
+        }
+        self.overlap_warned = true;
+        if !self.warn {
+            return;
+        }
+        let label = self.lines.as_ref().map_or("", |(l, _)| l.as_str());
+        let line = format!(
+            "{label}warning: the largest overlap passed {:.0}% of r_min (method.md's bound): \
+             {:.2}% at step {} ({}, axial strain {:.4}); a smaller solver.dt keeps overlaps \
+             lower (README, \"Overlaps at high friction\")",
+            OVERLAP_BOUND_REL * 100.0,
+            row.overlap_max_rel * 100.0,
+            row.step,
+            row.phase,
+            row.strain_axial
+        );
+        match &self.bar {
+            Some(b) => b.println(line),
+            None => eprintln!("{line}"),
+        }
     }
 
     /// Ends the progress display.
@@ -202,6 +237,7 @@ impl Observer for Recording {
                 self.last_line = Instant::now();
             }
         }
+        self.warn_overlap(&row);
         self.rows.push(row);
         Ok(())
     }
