@@ -153,7 +153,7 @@ impl Recording {
     /// 5000-disk test at high friction can be hours later.
     fn warn_overlap(&mut self, row: &SeriesRow) {
         use crate::analysis::report::OVERLAP_BOUND_REL;
-        if self.overlap_warned || !(row.overlap_max_rel > OVERLAP_BOUND_REL) {
+        if self.overlap_warned || row.overlap_max_rel.is_nan() || row.overlap_max_rel <= OVERLAP_BOUND_REL {
             return;
         }
         self.overlap_warned = true;
