@@ -39,9 +39,14 @@ impl Backend for CpuBackend {
         // The sweeps run on the solver's team (rayon serves only Jacobi), and the team
         // engages from `parallel_min` contacts on.
         let solver = &self.engine.params.solver;
-        match solver.team_size() {
-            1 => "cpu (1 thread)".to_string(),
-            n => format!("cpu (team of {n} threads from {} contacts)", solver.parallel_min),
+        let threads = match solver.team_size() {
+            1 => "1 thread".to_string(),
+            n => format!("team of {n} threads from {} contacts", solver.parallel_min),
+        };
+        if solver.method == crate::solver::Method::ColoredGs {
+            format!("cpu ({threads}; {})", crate::solver::sweep::colored_lanes())
+        } else {
+            format!("cpu ({threads})")
         }
     }
 

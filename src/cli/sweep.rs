@@ -624,11 +624,12 @@ mod tests {
     #[test]
     fn shipped_campaign_files_parse() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
-        // (file, disks, iteration after which relaxation and the velocity test apply)
-        for (file, disks, after) in [
-            ("campaign1000.toml", 1000, 100),
-            ("campaign5000.toml", 5000, 100),
-            ("campaign5000_fast.toml", 5000, 30),
+        // (file, disks, iteration after which relaxation and the velocity test apply, time
+        // step at friction 12)
+        for (file, disks, after, dt12) in [
+            ("campaign1000.toml", 1000, 100, 1.25e-4),
+            ("campaign5000.toml", 5000, 100, 6.25e-5),
+            ("campaign5000_fast.toml", 5000, 30, 1.25e-4),
         ] {
             let text = std::fs::read_to_string(dir.join(file)).unwrap();
             let sweep: SweepFile = toml::from_str(&text).unwrap();
@@ -637,12 +638,13 @@ mod tests {
             assert_eq!(base.sample.disks, disks, "{file}");
             assert_eq!(base.solver.threads, 1, "{file}: one thread per test");
             assert_eq!(base.solver.gs_relax_after, after, "{file}");
-            // All run friction 1.2 at the base's 0.5 ms, 3 at 0.25 ms and 12 at 0.125 ms
-            // (README, "Overlaps at high friction").
+            // All run friction 1.2 at the base's 0.5 ms and 3 at 0.25 ms; 12 at 0.125 ms,
+            // or 0.0625 ms in the 5000-disk reference campaign (README, "Overlaps at high
+            // friction").
             let base_dt = base.solver.dt.si();
             assert_eq!(base_dt, 5e-4, "{file}");
             let steps = [1.2, 3.0, 12.0].map(|mu| sweep.dt(mu, base_dt));
-            assert_eq!(steps, [5e-4, 2.5e-4, 1.25e-4], "{file}");
+            assert_eq!(steps, [5e-4, 2.5e-4, dt12], "{file}");
         }
     }
 }

@@ -382,6 +382,19 @@ pub(super) fn avx() -> bool {
     false
 }
 
+/// How the colored sweeps of this process update a color: "AVX, 4 contacts at a time",
+/// "SSE2, 2 contacts at a time" or "1 contact at a time" (named in the CPU backend's
+/// description, so that timings from different processors can be read side by side).
+pub fn colored_lanes() -> &'static str {
+    if avx() {
+        "AVX, 4 contacts at a time"
+    } else if cfg!(target_arch = "x86_64") {
+        "SSE2, 2 contacts at a time"
+    } else {
+        "1 contact at a time"
+    }
+}
+
 /// The whole quads of each of the first `colors` color ranges, counted from the color's
 /// first row: the quads of its chunks, since a chunk holds whole quads.
 fn quads_of(ranges: &[u32], colors: usize) -> impl Iterator<Item = usize> + '_ {
