@@ -224,23 +224,19 @@ pub fn run(args: &Args) -> Result<()> {
             }
         }
     }
-    let mut mine: Vec<Point> = grid
-        .iter()
-        .enumerate()
-        .filter(|(k, _)| k % of == shard)
-        .map(|(_, p)| p.clone())
-        .collect();
     // Finished tests first: they are only checked and skipped, so the counts of the
     // progress lines (and of a stop) include them from the start. Then the tests with the
     // smallest time step, which take the most steps: started first, they leave the shorter
     // tests for the end, when fewer jobs remain to share the cores (longest first; the
     // sort is stable, so the grid's order holds at equal steps).
-    let finished = |p: &Point| p.dir.join("summary.json").exists();
-    mine.sort_by(|a, b| {
-        (!finished(a), a.dt)
-            .partial_cmp(&(!finished(b), b.dt))
-            .unwrap_or(std::cmp::Ordering::Equal)
-    });
+    let (mut mine, mut to_run): (Vec<Point>, Vec<Point>) = grid
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| k % of == shard)
+        .map(|(_, p)| p.clone())
+        .partition(|p| p.dir.join("summary.json").exists());
+    to_run.sort_by(|a, b| a.dt.total_cmp(&b.dt));
+    mine.append(&mut to_run);
     let jobs = args
         .jobs
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))

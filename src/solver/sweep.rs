@@ -326,22 +326,32 @@ pub(super) unsafe fn sweep_color_chunk(chunk: &mut [Row], ctx: Ctx) -> (f64, f64
     return unsafe { sweep_chunk(chunk, ctx) };
     #[cfg(target_arch = "x86_64")]
     unsafe {
-        let mut acc = (0.0, 0.0);
-        let n4 = if ctx.quads { chunk.len() / 4 * 4 } else { 0 };
-        let (head, tail) = chunk.split_at_mut(n4);
         if ctx.relax == 1.0 {
-            if n4 > 0 {
-                simd::sweep_quads::<false>(head, ctx, &mut acc);
-            }
-            simd::sweep_pairs::<false>(tail, ctx, &mut acc);
+            sweep_lanes::<false>(chunk, ctx)
         } else {
-            if n4 > 0 {
-                simd::sweep_quads::<true>(head, ctx, &mut acc);
-            }
-            simd::sweep_pairs::<true>(tail, ctx, &mut acc);
+            sweep_lanes::<true>(chunk, ctx)
         }
-        acc
     }
+}
+
+/// [`sweep_color_chunk`] for one kind of update: the packed quads, then pairs, then the
+/// last row.
+///
+/// # Safety
+/// As [`sweep_color_chunk`].
+#[cfg(target_arch = "x86_64")]
+unsafe fn sweep_lanes<const RELAXED: bool>(chunk: &mut [Row], ctx: Ctx) -> (f64, f64) {
+    let mut acc = (0.0, 0.0);
+    let n4 = if ctx.quads { chunk.len() / 4 * 4 } else { 0 };
+    let (head, tail) = chunk.split_at_mut(n4);
+    // SAFETY: forwarded from the caller, who packed the rows and checked AVX for quads.
+    unsafe {
+        if n4 > 0 {
+            simd::sweep_quads::<RELAXED>(head, ctx, &mut acc);
+        }
+        simd::sweep_pairs::<RELAXED>(tail, ctx, &mut acc);
+    }
+    acc
 }
 
 /// Four rows laid out field by field in the bytes of four [`Row`]s, so that the AVX sweep
