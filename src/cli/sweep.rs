@@ -37,8 +37,8 @@ pub struct Args {
     /// terminal (a log); on a terminal the campaign's display updates continuously.
     #[arg(long, default_value_t = 120.0)]
     pub log_every: f64,
-    /// Run nothing: say what the sweep would do with each test (skip, resume, start),
-    /// after checking the tests found in the output directory against the sweep's
+    /// Run nothing: say what the sweep would do with each test (skip, resume, start), in
+    /// the order the tests would start, after checking the tests found in the output directory against the sweep's
     /// settings (a campaign copied from an archive, say).
     #[arg(long)]
     pub dry_run: bool,
@@ -280,8 +280,12 @@ pub fn run(args: &Args) -> Result<()> {
     // Tests ended, failures, tests a signal stopped.
     let done = Mutex::new((0usize, Vec::<(PathBuf, String)>::new(), Vec::<PathBuf>::new()));
     let total = mine.len();
+    // A dry run checks the tests one by one, so that it lists them in the order a run
+    // would start them (with several workers, a slow check, such as reading a long record,
+    // would move its line after quicker ones).
+    let workers = if args.dry_run { 1 } else { jobs };
     std::thread::scope(|s| {
-        for _ in 0..jobs {
+        for _ in 0..workers {
             s.spawn(|| {
                 loop {
                     // Taken in a statement of its own: the guard of a `while let`
