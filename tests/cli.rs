@@ -326,6 +326,13 @@ fn a_run_warns_once_when_its_overlaps_pass_the_bound() {
             .matches("warning: the largest overlap passed 1% of r_min")
             .count();
         assert_eq!(warnings, usize::from(deepest > 0.01), "{name}: {deepest}: {text}");
+        // The warning says how fast the overlap grew: the steps since it was within 0.5%
+        // (a fresh run starts with no overlap, so there is such a row).
+        assert_eq!(
+            text.matches("it was within 0.5% ").count(),
+            warnings,
+            "{name}: {text}"
+        );
         assert_eq!(
             warnings,
             usize::from(name == "coarse"),

@@ -87,6 +87,9 @@ pub struct Recording {
     /// warning has been given.
     warn: bool,
     overlap_warned: bool,
+    /// Step and axial strain of the last row whose largest overlap was within half the
+    /// bound: how fast it then grew tells which remedy the warning's reader needs.
+    overlap_low: Option<(u64, f64)>,
     quiet: bool,
 }
 
@@ -126,6 +129,7 @@ impl Recording {
             compression_start: None,
             warn: !matches!(progress, Progress::Quiet),
             overlap_warned: false,
+            overlap_low: None,
             quiet: progress.quiet(),
         }
     }
@@ -153,6 +157,9 @@ impl Recording {
     /// 5000-disk test at high friction can be hours later.
     fn warn_overlap(&mut self, row: &SeriesRow) {
         use crate::analysis::report::OVERLAP_BOUND_REL;
+        if row.overlap_max_rel <= 0.5 * OVERLAP_BOUND_REL {
+            self.overlap_low = Some((row.step, row.strain_axial));
+        }
         if self.overlap_warned || row.overlap_max_rel.is_nan() || row.overlap_max_rel <= OVERLAP_BOUND_REL {
             return;
         }
@@ -161,10 +168,23 @@ impl Recording {
             return;
         }
         let label = self.lines.as_ref().map_or("", |(l, _)| l.as_str());
+        let since = match self.overlap_low {
+            Some((step, strain)) => format!(
+                "it was within {:.1}% {} steps earlier (axial strain {strain:.4})",
+                50.0 * OVERLAP_BOUND_REL,
+                row.step.saturating_sub(step)
+            ),
+            None => format!(
+                "no row since this run (or its resume) started was within {:.1}%",
+                50.0 * OVERLAP_BOUND_REL
+            ),
+        };
         let line = format!(
             "{label}warning: the largest overlap passed {:.0}% of r_min (method.md's bound): \
-             {:.2}% at step {} ({}, axial strain {:.4}); a smaller solver.dt keeps overlaps \
-             lower (README, \"Overlaps at high friction\")",
+             {:.2}% at step {} ({}, axial strain {:.4}); {since}. A contact that closes fast \
+             within a step needs a smaller solver.dt; one that sinks slowly under load over \
+             many steps (the solver's residual) needs further convergence, which a smaller \
+             step gives only in part (README, \"Overlaps at high friction\")",
             OVERLAP_BOUND_REL * 100.0,
             row.overlap_max_rel * 100.0,
             row.step,
