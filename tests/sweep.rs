@@ -63,6 +63,16 @@ fn tiny_sweep_runs_in_shards_skips_finished_tests_and_reports() {
             let third = text.find("[3/4").unwrap();
             assert!(text[second..third].contains("seed1_mu0.5_s1MPa"), "{text}");
             assert!(text[third..].contains("seed1_mu0.1_s4MPa: would start"), "{text}");
+            // The report on the campaign so far names the other shard's tests as not run.
+            let campaign = base.join("campaign");
+            let (ok, text) = cdlab(&["report", campaign.to_str().unwrap()]);
+            assert!(ok && text.contains("2 tests, 2 frictions"), "{text}");
+            for name in ["seed1_mu0.1_s4MPa", "seed1_mu0.5_s4MPa"] {
+                assert!(
+                    text.contains(&format!("{name} (not run: listed in campaign_grid.json")),
+                    "{text}"
+                );
+            }
         }
     }
     let (ok, text) = cdlab(&["sweep", s]);
@@ -73,6 +83,7 @@ fn tiny_sweep_runs_in_shards_skips_finished_tests_and_reports() {
     let campaign = base.join("campaign");
     let (ok, text) = cdlab(&["report", campaign.to_str().unwrap()]);
     assert!(ok && text.contains("4 tests, 2 frictions"), "{text}");
+    assert!(!text.contains("not run"), "{text}");
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(campaign.join("report.json")).unwrap()).unwrap();
     let rows = report["frictions"].as_array().unwrap();
@@ -213,6 +224,11 @@ fn an_archived_campaign_reports_and_resumes_without_its_records() {
             cdlab::record::read_config(campaign.join(name)).unwrap()
         );
     }
+    // The campaign's list of tests goes with the archive.
+    assert_eq!(
+        cdlab::analysis::report::read_grid(&archive).unwrap(),
+        ["seed1_mu0.3_s1MPa", "seed1_mu0.3_s4MPa"]
+    );
     // Archiving again finds the same tests in place.
     let (ok, text) = cdlab(&["archive", c, "--to", a]);
     assert!(ok && text.contains("0 tests archived, 2 already there"), "{text}");

@@ -129,13 +129,76 @@ fn wall_time_h<'a>(tests: impl IntoIterator<Item = &'a TestPoint>) -> f64 {
         / 3600.0
 }
 
-/// Finds every `summary.json` below `roots` (a run directory or a directory of runs).
+/// File, in a campaign's output directory, naming the test directories of its grid (JSON:
+/// `{"tests": [...]}`): written by `cdlab sweep`, kept by `cdlab archive`, read by
+/// `cdlab report` to name the tests that were never run (a shard that did not run, a sweep
+/// stopped before them). It names the tests of every sweep run into the directory.
+pub const GRID_FILE: &str = "campaign_grid.json";
+
+#[derive(serde::Serialize, serde::Deserialize)]
+struct GridFile {
+    tests: Vec<String>,
+}
+
+/// The test directory names listed in `dir`'s [`GRID_FILE`]; none when it has no such file.
+pub fn read_grid(dir: &Path) -> Result<Vec<String>> {
+    let path = dir.join(GRID_FILE);
+    if !path.exists() {
+        return Ok(Vec::new());
+    }
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let grid: GridFile =
+        serde_json::from_str(&text).map_err(|e| Error::Other(format!("{}: {e}", path.display())))?;
+    if let Some(bad) = grid
+        .tests
+        .iter()
+        .find(|t| Path::new(t).file_name() != Some(t.as_ref()))
+    {
+        return Err(Error::Other(format!(
+            "{}: {bad:?} is not a directory name",
+            path.display()
+        )));
+    }
+    Ok(grid.tests)
+}
+
+/// Adds `tests` to `dir`'s [`GRID_FILE`] (created if absent). The file is replaced in one
+/// rename, so that a reader never sees half of it. An unreadable file is an error rather
+/// than overwritten: it may list tests this grid does not.
+pub fn add_to_grid(dir: &Path, tests: &[String]) -> Result<()> {
+    let mut all = read_grid(dir)?;
+    all.extend(tests.iter().cloned());
+    all.sort();
+    all.dedup();
+    let path = dir.join(GRID_FILE);
+    let tmp = dir.join(format!("{GRID_FILE}.{}.tmp", std::process::id()));
+    let json = serde_json::to_string_pretty(&GridFile { tests: all }).expect("a list of names serializes");
+    std::fs::write(&tmp, json).map_err(|e| Error::io(&tmp, e))?;
+    std::fs::rename(&tmp, &path).map_err(|e| Error::io(&path, e))
+}
+
+/// Finds every `summary.json` below `roots` (a run directory or a directory of runs). The
+/// second list holds the runs that are not finished, and the tests a [`GRID_FILE`] lists
+/// that have no directory below any root, each with the reason.
 pub fn collect(roots: &[PathBuf]) -> (Vec<TestPoint>, Vec<(PathBuf, String)>) {
     let mut found = Vec::new();
     let mut missing = Vec::new();
-    let mut stack: Vec<PathBuf> = roots.to_vec();
+    // Every directory named in a grid file, where the file is, and the test directories
+    // seen, by name: a sharded campaign's tests are spread over several roots.
+    let mut listed: Vec<(PathBuf, String)> = Vec::new();
+    let mut seen = std::collections::BTreeSet::new();
+    // Walked in the roots' order (a stack: the first root on top).
+    let mut stack: Vec<PathBuf> = roots.iter().rev().cloned().collect();
     while let Some(dir) = stack.pop() {
+        match read_grid(&dir) {
+            Ok(names) => listed.extend(names.into_iter().map(|n| (dir.clone(), n))),
+            Err(e) => missing.push((dir.join(GRID_FILE), e.to_string())),
+        }
         let summary = dir.join("summary.json");
+        let test = summary.exists() || dir.join("run.mcap").exists();
+        if let (true, Some(name)) = (test, dir.file_name()) {
+            seen.insert(name.to_os_string());
+        }
         if summary.exists() {
             match read_point(&dir, &summary) {
                 Ok(p) => found.push(p),
@@ -155,6 +218,15 @@ pub fn collect(roots: &[PathBuf]) -> (Vec<TestPoint>, Vec<(PathBuf, String)>) {
                 .collect();
             subs.sort();
             stack.extend(subs.into_iter().rev());
+        }
+    }
+    let mut named = std::collections::BTreeSet::new();
+    for (dir, name) in listed {
+        if !seen.contains(std::ffi::OsStr::new(&name)) && named.insert(name.clone()) {
+            missing.push((
+                dir.join(&name),
+                format!("not run: listed in {GRID_FILE}, no record of it"),
+            ));
         }
     }
     found.sort_by(|a, b| {
@@ -544,5 +616,61 @@ mod tests {
         assert_eq!(a.mu_macro, b.mu_macro);
         assert!(b.mu_macro_se.is_nan() && b.peak_fit.intercept_se.is_nan());
         assert!(b.peak_fit_free.slope.is_nan());
+    }
+
+    /// The tests a grid file lists are looked for below every root (a sharded campaign's
+    /// tests spread over several): a listed test without a record anywhere is named once as
+    /// not run, one found in another root is not; a damaged grid file is named, not skipped.
+    #[test]
+    fn tests_listed_in_a_grid_file_but_run_nowhere_are_named_as_not_run() {
+        let base = std::env::temp_dir().join(format!("cdlab-grid-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&base);
+        let (a, b) = (base.join("shard0"), base.join("shard1"));
+        for dir in [a.join("t1"), b.join("t2")] {
+            std::fs::create_dir_all(&dir).unwrap();
+            // An unfinished run: a record, no summary.
+            std::fs::write(dir.join("run.mcap"), b"").unwrap();
+        }
+        // Both shards list the whole grid; an empty directory is not a run.
+        std::fs::create_dir_all(a.join("t4")).unwrap();
+        let grid: Vec<String> = ["t1", "t2", "t3", "t4"].map(String::from).to_vec();
+        add_to_grid(&a, &grid[..2]).unwrap();
+        add_to_grid(&a, &grid).unwrap();
+        add_to_grid(&b, &grid[2..]).unwrap();
+        assert_eq!(
+            read_grid(&a).unwrap(),
+            grid,
+            "the union, sorted, without duplicates"
+        );
+        let (found, missing) = collect(&[a.clone(), b.clone()]);
+        assert!(found.is_empty());
+        let not_run: Vec<&PathBuf> = missing
+            .iter()
+            .filter(|(_, why)| why.starts_with("not run"))
+            .map(|(d, _)| d)
+            .collect();
+        assert_eq!(not_run, [&a.join("t3"), &a.join("t4")], "{missing:?}");
+        assert_eq!(
+            missing.len(),
+            4,
+            "t1 and t2 unfinished, t3 and t4 not run: {missing:?}"
+        );
+
+        std::fs::write(b.join(GRID_FILE), "{\"tests\": [\"../t5\"]}").unwrap();
+        assert!(
+            read_grid(&b)
+                .unwrap_err()
+                .to_string()
+                .contains("not a directory name")
+        );
+        std::fs::write(b.join(GRID_FILE), "{\"tests\": [").unwrap();
+        // Not overwritten: it may list tests the new grid does not.
+        assert!(add_to_grid(&b, &grid).is_err());
+        let (_, missing) = collect(std::slice::from_ref(&b));
+        assert!(
+            missing.iter().any(|(d, _)| d == &b.join(GRID_FILE)),
+            "{missing:?}"
+        );
+        let _ = std::fs::remove_dir_all(&base);
     }
 }

@@ -16,6 +16,7 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::analysis::report::{GRID_FILE, add_to_grid, read_grid};
 use crate::error::{Error, Result};
 use crate::protocol::checkpoint::decode;
 use crate::record::{ARCHIVED_CONFIG_FILE, CSV_FILE, MCAP_FILE, Recorder, read_config, read_run};
@@ -64,8 +65,24 @@ pub fn run(args: &Args) -> Result<()> {
         "{written} tests archived, {same} already there -> {}",
         args.to.display()
     );
+    // The campaign's list of tests goes with it, so that a report on the archive names the
+    // tests not run yet; those have nothing to archive.
+    let mut not_run = 0;
+    for dir in &args.dirs {
+        let grid = read_grid(dir).and_then(|names| match names.is_empty() {
+            true => Ok(()),
+            false => add_to_grid(&args.to, &names),
+        });
+        if let Err(e) = grid {
+            println!("  campaign list not archived: {e}");
+        }
+    }
     let mut resumable = 0;
     for (dir, why) in &missing {
+        if !dir.exists() {
+            not_run += 1;
+            continue;
+        }
         // A run with a summary that could not be read is finished, not to be resumed.
         let unfinished = dir.join(MCAP_FILE).exists() && !dir.join("summary.json").exists();
         let kept = if args.with_unfinished && unfinished {
@@ -84,6 +101,9 @@ pub fn run(args: &Args) -> Result<()> {
     }
     if args.with_unfinished {
         println!("{resumable} unfinished tests kept to resume");
+    }
+    if not_run > 0 {
+        println!("{not_run} tests of the campaign's list ({GRID_FILE}) not run yet, nothing to archive");
     }
     Ok(())
 }

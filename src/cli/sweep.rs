@@ -224,6 +224,24 @@ pub fn run(args: &Args) -> Result<()> {
             }
         }
     }
+    // The whole grid, whatever the shard, so that a report on any shard's directory (or on
+    // several, merged) names the tests no shard has run yet.
+    if !args.dry_run {
+        let names: Vec<String> = grid
+            .iter()
+            .filter_map(|p| p.dir.file_name().map(|n| n.to_string_lossy().into_owned()))
+            .collect();
+        let written = std::fs::create_dir_all(&sweep.out)
+            .map_err(|e| Error::io(&sweep.out, e))
+            .and_then(|()| crate::analysis::report::add_to_grid(&sweep.out, &names));
+        if let Err(e) = written {
+            eprintln!(
+                "warning: the campaign's list of tests ({}) was not updated: {e}; the report \
+                 will not name the tests that were never run",
+                crate::analysis::report::GRID_FILE
+            );
+        }
+    }
     // Finished tests first: they are only checked and skipped, so the counts of the
     // progress lines (and of a stop) include them from the start. Then the tests with the
     // smallest time step, which take the most steps: started first, they leave the shorter
