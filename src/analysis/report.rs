@@ -135,6 +135,9 @@ fn wall_time_h<'a>(tests: impl IntoIterator<Item = &'a TestPoint>) -> f64 {
 /// stopped before them). It names the tests of every sweep run into the directory.
 pub const GRID_FILE: &str = "campaign_grid.json";
 
+/// The reason [`collect`] gives a test of a [`GRID_FILE`] that has no record.
+pub const NOT_RUN: &str = "not run: listed in campaign_grid.json, no record of it";
+
 #[derive(serde::Serialize, serde::Deserialize)]
 struct GridFile {
     tests: Vec<String>,
@@ -223,10 +226,7 @@ pub fn collect(roots: &[PathBuf]) -> (Vec<TestPoint>, Vec<(PathBuf, String)>) {
     let mut named = std::collections::BTreeSet::new();
     for (dir, name) in listed {
         if !seen.contains(std::ffi::OsStr::new(&name)) && named.insert(name.clone()) {
-            missing.push((
-                dir.join(&name),
-                format!("not run: listed in {GRID_FILE}, no record of it"),
-            ));
+            missing.push((dir.join(&name), NOT_RUN.to_string()));
         }
     }
     found.sort_by(|a, b| {
@@ -451,8 +451,26 @@ impl Report {
                  intercept error three, the saturation fit's errors four frictions)\n",
             );
         }
-        for (d, why) in &self.missing {
+        // The tests never run are many in a campaign under way: one line names them all.
+        let (not_run, other): (Vec<_>, Vec<_>) = self.missing.iter().partition(|(_, why)| why == NOT_RUN);
+        for (d, why) in other {
             s.push_str(&format!("missing: {} ({why})\n", d.display()));
+        }
+        if let Some((first, _)) = not_run.first() {
+            let names: Vec<String> = not_run
+                .iter()
+                .filter_map(|(d, _)| d.file_name().map(|n| n.to_string_lossy().into_owned()))
+                .collect();
+            s.push_str(&format!(
+                "not run: {} listed in {} and found nowhere: {}\n",
+                if names.len() == 1 {
+                    "1 test".to_string()
+                } else {
+                    format!("{} tests", names.len())
+                },
+                first.with_file_name(GRID_FILE).display(),
+                names.join(", ")
+            ));
         }
         for (d, k) in &self.suspect {
             s.push_str(&format!(
