@@ -338,6 +338,41 @@ fn a_run_warns_once_when_its_overlaps_pass_the_bound() {
             usize::from(name == "coarse"),
             "{name}: {deepest}: {text}"
         );
+        // `cdlab overlaps` finds the deep pair from the snapshots' positions: one line per
+        // snapshot (strains 0, 0.003 and 0.006, and the preparation's ends at 0), none
+        // deeper than the solver's own largest overlap of the run (the series' maximum,
+        // over every step, the snapshots' included), and at least one within a factor two
+        // of it (the deepest contact lives more than a few steps).
+        let (ok, text) = cdlab(&["overlaps", out.to_str().unwrap()]);
+        assert!(ok, "{text}");
+        let depths: Vec<f64> = text
+            .lines()
+            .filter(|l| l.starts_with("strain "))
+            .filter_map(|l| l.split("overlap").nth(1))
+            .map(|l| l.trim().split('%').next().unwrap().trim().parse::<f64>().unwrap() / 100.0)
+            .collect();
+        assert!(depths.len() >= 3, "{text}");
+        let top = depths.iter().cloned().fold(0.0, f64::max);
+        assert!(
+            top <= deepest * 1.0005 && top > 0.5 * deepest,
+            "{name}: {top} against {deepest}: {text}"
+        );
+        let (ok, at) = cdlab(&["overlaps", out.to_str().unwrap(), "--at", "0.006", "--top", "3"]);
+        assert!(ok && at.matches("  disks ").count() == 3, "{at}");
+        // Its deepest pair is the last snapshot's line.
+        let last = text.lines().rfind(|l| l.starts_with("strain ")).unwrap();
+        let pair = |l: &str| {
+            l.split(" at ")
+                .next()
+                .unwrap()
+                .split("disks")
+                .nth(1)
+                .unwrap()
+                .trim()
+                .to_string()
+        };
+        let first = at.lines().find(|l| l.starts_with("  disks ")).unwrap();
+        assert_eq!(pair(first), pair(last), "{at}\n{text}");
     }
     let _ = std::fs::remove_dir_all(&base);
 }

@@ -9,6 +9,7 @@ pub mod config;
 pub mod export;
 pub mod fc2d;
 pub mod info;
+pub mod overlaps;
 pub mod prepare;
 pub mod render;
 pub mod report;
@@ -48,6 +49,9 @@ pub enum Command {
     /// Shear bands of a recorded run: angle from the axial direction, width in mean
     /// diameters (`bands RUN [--from E --to E]`).
     Bands(bands::Args),
+    /// The deepest disk pairs of a recorded run's snapshots, with their forces and normal
+    /// velocities (`overlaps RUN [--at STRAIN]`): which contact holds an overlap warning.
+    Overlaps(overlaps::Args),
     /// Draw a run's figures: a snapshot (`--at STRAIN --field NAME -o FIG.png|svg`) or the
     /// curves against axial strain (`--curves -o DIR`).
     Render(render::Args),
@@ -73,6 +77,7 @@ pub fn main() -> i32 {
         Command::Archive(args) => archive::run(&args),
         Command::Export(args) => export::run(&args),
         Command::Bands(args) => bands::run(&args),
+        Command::Overlaps(args) => overlaps::run(&args),
         Command::Render(args) => render::run(&args),
         Command::Bench(args) => bench::run(&args),
         Command::Version => {
