@@ -172,6 +172,8 @@ fn bad_input_is_rejected_with_a_clear_message() {
         (vec!["biaxial", "--resume", "/nonexistent/run"], "nonexistent"),
         (vec!["fc2d", "/nonexistent.dat"], "nonexistent"),
         (vec!["fc2d", "/dev/null", "--tol", "0"], "--tol"),
+        (vec!["overlaps", "/nonexistent/run"], "nonexistent"),
+        (vec!["overlaps", "/nonexistent/run", "--at", "nan"], "--at"),
     ] {
         let (ok, text) = cdlab(&args);
         assert!(!ok, "{args:?} succeeded: {text}");
