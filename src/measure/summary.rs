@@ -76,8 +76,13 @@ pub struct Summary {
     /// How each phase ended.
     pub phases: Vec<PhaseEnd>,
     /// Stress-drop events: falls of sigma_1 of at least 5% of sigma3 with concurrent
-    /// contraction.
+    /// contraction, over the rows averaged per `stress_drop_bin_strain` of axial strain.
     pub stress_drops: Vec<super::derived::StressDrop>,
+    /// The increment of axial strain the rows were averaged over before the stress drops
+    /// were looked for; absent in summaries written before it existed, whose events are
+    /// falls from row to row (their number follows the time step).
+    #[serde(default)]
+    pub stress_drop_bin_strain: Option<f64>,
     /// Shear bands over the last snapshot interval (`crate::analysis::bands`); null when
     /// the run recorded fewer than two snapshots or the analysis could not run.
     #[serde(default)]
@@ -136,7 +141,8 @@ impl Summary {
             wall_time_s,
             steps_per_second: steps as f64 / wall_time_s.max(1e-9),
             phases: ends.to_vec(),
-            stress_drops: super::derived::stress_drops(rows, 0.05 * sigma3),
+            stress_drops: super::derived::stress_drops(rows, 0.05 * sigma3, super::derived::STRESS_DROP_BIN),
+            stress_drop_bin_strain: Some(super::derived::STRESS_DROP_BIN),
             shear_bands: None,
         }
     }
