@@ -165,10 +165,23 @@ pub fn read_grid(dir: &Path) -> Result<Vec<String>> {
     Ok(grid.tests)
 }
 
-/// Adds `tests` to `dir`'s [`GRID_FILE`] (created if absent). The file is replaced in one
-/// rename, so that a reader never sees half of it. An unreadable file is an error rather
-/// than overwritten: it may list tests this grid does not.
+/// "1 test", "2 tests".
+pub fn tests(n: usize) -> String {
+    if n == 1 {
+        "1 test".into()
+    } else {
+        format!("{n} tests")
+    }
+}
+
+/// Adds `tests` to `dir`'s [`GRID_FILE`] (created if absent; adding none writes nothing).
+/// The file is replaced in one rename, so that a reader never sees half of it. An
+/// unreadable file is an error rather than overwritten: it may list tests this grid does
+/// not.
 pub fn add_to_grid(dir: &Path, tests: &[String]) -> Result<()> {
+    if tests.is_empty() {
+        return Ok(());
+    }
     let mut all = read_grid(dir)?;
     all.extend(tests.iter().cloned());
     all.sort();
@@ -198,18 +211,18 @@ pub fn collect(roots: &[PathBuf]) -> (Vec<TestPoint>, Vec<(PathBuf, String)>) {
             Err(e) => missing.push((dir.join(GRID_FILE), e.to_string())),
         }
         let summary = dir.join("summary.json");
-        let test = summary.exists() || dir.join("run.mcap").exists();
-        if let (true, Some(name)) = (test, dir.file_name()) {
+        let (finished, recorded) = (summary.exists(), dir.join("run.mcap").exists());
+        if let (true, Some(name)) = (finished || recorded, dir.file_name()) {
             seen.insert(name.to_os_string());
         }
-        if summary.exists() {
+        if finished {
             match read_point(&dir, &summary) {
                 Ok(p) => found.push(p),
                 Err(e) => missing.push((dir.clone(), e.to_string())),
             }
             continue;
         }
-        if dir.join("run.mcap").exists() {
+        if recorded {
             missing.push((dir.clone(), "unfinished run (no summary.json)".into()));
             continue;
         }
@@ -463,11 +476,7 @@ impl Report {
                 .collect();
             s.push_str(&format!(
                 "not run: {} listed in {} and found nowhere: {}\n",
-                if names.len() == 1 {
-                    "1 test".to_string()
-                } else {
-                    format!("{} tests", names.len())
-                },
+                tests(names.len()),
                 first.with_file_name(GRID_FILE).display(),
                 names.join(", ")
             ));

@@ -16,7 +16,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::analysis::report::{GRID_FILE, add_to_grid, read_grid};
+use crate::analysis::report::{GRID_FILE, NOT_RUN, add_to_grid, read_grid};
 use crate::error::{Error, Result};
 use crate::protocol::checkpoint::decode;
 use crate::record::{ARCHIVED_CONFIG_FILE, CSV_FILE, MCAP_FILE, Recorder, read_config, read_run};
@@ -69,17 +69,14 @@ pub fn run(args: &Args) -> Result<()> {
     // tests not run yet; those have nothing to archive.
     let mut not_run = 0;
     for dir in &args.dirs {
-        let grid = read_grid(dir).and_then(|names| match names.is_empty() {
-            true => Ok(()),
-            false => add_to_grid(&args.to, &names),
-        });
+        let grid = read_grid(dir).and_then(|names| add_to_grid(&args.to, &names));
         if let Err(e) = grid {
             println!("  campaign list not archived: {e}");
         }
     }
     let mut resumable = 0;
     for (dir, why) in &missing {
-        if !dir.exists() {
+        if why == NOT_RUN {
             not_run += 1;
             continue;
         }

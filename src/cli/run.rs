@@ -157,7 +157,8 @@ impl Recording {
     /// 5000-disk test at high friction can be hours later.
     fn warn_overlap(&mut self, row: &SeriesRow) {
         use crate::analysis::report::OVERLAP_BOUND_REL;
-        if row.overlap_max_rel <= 0.5 * OVERLAP_BOUND_REL {
+        let half = 0.5 * OVERLAP_BOUND_REL;
+        if row.overlap_max_rel <= half {
             self.overlap_low = Some((row.step, row.strain_axial));
         }
         if self.overlap_warned || row.overlap_max_rel.is_nan() || row.overlap_max_rel <= OVERLAP_BOUND_REL {
@@ -171,12 +172,12 @@ impl Recording {
         let since = match self.overlap_low {
             Some((step, strain)) => format!(
                 "it was within {:.1}% {} steps earlier (axial strain {strain:.4})",
-                50.0 * OVERLAP_BOUND_REL,
+                100.0 * half,
                 row.step.saturating_sub(step)
             ),
             None => format!(
                 "no row since this run (or its resume) started was within {:.1}%",
-                50.0 * OVERLAP_BOUND_REL
+                100.0 * half
             ),
         };
         let line = format!(

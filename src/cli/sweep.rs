@@ -13,6 +13,7 @@ use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
 use serde::Deserialize;
 
+use crate::analysis::report::tests;
 use crate::config::units::{Dimension, parse_quantity};
 use crate::config::{Config, Duration, Pressure};
 use crate::error::{Error, Result};
@@ -38,8 +39,8 @@ pub struct Args {
     #[arg(long, default_value_t = 120.0)]
     pub log_every: f64,
     /// Run nothing: say what the sweep would do with each test (skip, resume, start), in
-    /// the order the tests would start, after checking the tests found in the output directory against the sweep's
-    /// settings (a campaign copied from an archive, say).
+    /// the order the tests would start, after checking the tests found in the output
+    /// directory against the sweep's settings (a campaign copied from an archive, say).
     #[arg(long)]
     pub dry_run: bool,
 }
@@ -107,15 +108,6 @@ impl SweepFile {
             }
         }
         Ok(())
-    }
-}
-
-/// "1 test", "2 tests".
-fn tests(n: usize) -> String {
-    if n == 1 {
-        "1 test".into()
-    } else {
-        format!("{n} tests")
     }
 }
 

@@ -138,36 +138,27 @@ pub const STRESS_DROP_BIN: f64 = 1e-4;
 /// decreases at every one, whose total fall is at least `min_drop` (Pa), and over which the
 /// volumetric strain decreases (contraction).
 pub fn stress_drops(rows: &[SeriesRow], min_drop: f64, bin: f64) -> Vec<StressDrop> {
-    // (strain, sigma_1, volumetric strain) per bin.
-    let mut points: Vec<(f64, f64, f64)> = Vec::new();
-    let mut sum = (0.0, 0.0, 0.0, 0usize);
-    let mut current = None;
-    let comp = rows
+    let comp: Vec<&SeriesRow> = rows
         .iter()
-        .filter(|r| r.phase == "compression" && r.strain_axial.is_finite());
-    for (k, r) in comp.enumerate() {
-        let key = if bin > 0.0 {
-            (r.strain_axial / bin).floor()
-        } else {
-            k as f64
-        };
-        if current.is_some_and(|c| c != key) && sum.3 > 0 {
-            let n = sum.3 as f64;
-            points.push((sum.0 / n, sum.1 / n, sum.2 / n));
-            sum = (0.0, 0.0, 0.0, 0);
-        }
-        current = Some(key);
-        sum = (
-            sum.0 + r.strain_axial,
-            sum.1 + r.sigma1_pa,
-            sum.2 + r.volumetric_strain,
-            sum.3 + 1,
-        );
-    }
-    if sum.3 > 0 {
-        let n = sum.3 as f64;
-        points.push((sum.0 / n, sum.1 / n, sum.2 / n));
-    }
+        .filter(|r| r.phase == "compression" && r.strain_axial.is_finite())
+        .collect();
+    let same_bin = |a: &&SeriesRow, b: &&SeriesRow| {
+        bin > 0.0 && (a.strain_axial / bin).floor() == (b.strain_axial / bin).floor()
+    };
+    // (strain, sigma_1, volumetric strain) per bin.
+    let points: Vec<(f64, f64, f64)> = comp
+        .chunk_by(same_bin)
+        .map(|c| {
+            let n = c.len() as f64;
+            // A fold from +0.0: f64's `sum` starts at -0.0, which a bin of zero strains keeps.
+            let mean = |f: fn(&SeriesRow) -> f64| c.iter().fold(0.0, |a, r| a + f(r)) / n;
+            (
+                mean(|r| r.strain_axial),
+                mean(|r| r.sigma1_pa),
+                mean(|r| r.volumetric_strain),
+            )
+        })
+        .collect();
     let mut events = Vec::new();
     let mut k = 0;
     while k + 1 < points.len() {
