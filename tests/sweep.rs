@@ -293,6 +293,71 @@ fn an_archived_campaign_reports_and_resumes_without_its_records() {
     let _ = std::fs::remove_dir_all(&base);
 }
 
+/// `cdlab summarize` writes a finished test's summary again from its record. On the summary
+/// the run itself wrote it changes nothing: the run's end and the command compute the same
+/// summary from the same rows, phase ends and snapshots. On a summary in an older form
+/// (stress drops from row to row, no bin) it restores the current one byte for byte. The
+/// archive of the old summary then takes the new one and says so; an archived test (no
+/// record) is named as not summarized.
+#[test]
+fn summaries_are_written_again_from_records_and_the_archive_follows() {
+    let (base, sweep) = tiny_campaign("summarize", "mu = [0.3]\nsigma3 = [\"1 MPa\"]\n");
+    let (ok, text) = cdlab(&["sweep", sweep.to_str().unwrap()]);
+    assert!(ok, "{text}");
+    let campaign = base.join("campaign");
+    let c = campaign.to_str().unwrap();
+    let summary = campaign.join("seed1_mu0.3_s1MPa/summary.json");
+    let current = std::fs::read_to_string(&summary).unwrap();
+    let (ok, text) = cdlab(&["summarize", c]);
+    assert!(
+        ok && text.contains("0 summaries rewritten, 1 unchanged, 0 not summarized"),
+        "{text}"
+    );
+    assert_eq!(std::fs::read_to_string(&summary).unwrap(), current);
+
+    // The older form: events by rows, one of them made up, no bin.
+    let mut old: serde_json::Value = serde_json::from_str(&current).unwrap();
+    let o = old.as_object_mut().unwrap();
+    assert!(o.remove("stress_drop_bin_strain").is_some(), "{current}");
+    o.insert(
+        "stress_drops".into(),
+        serde_json::json!([{"strain_start": 0.001, "strain_end": 0.0011, "drop_pa": 6e4, "volumetric_change": -1e-5}]),
+    );
+    std::fs::write(&summary, serde_json::to_string_pretty(&old).unwrap()).unwrap();
+    let archive = base.join("archive");
+    let a = archive.to_str().unwrap();
+    let (ok, text) = cdlab(&["archive", c, "--to", a]);
+    assert!(ok && text.contains("1 tests archived"), "{text}");
+
+    let (ok, text) = cdlab(&["summarize", c, "--dry-run"]);
+    assert!(
+        ok && text.contains("would change: stress_drop_bin_strain, stress_drops"),
+        "{text}"
+    );
+    assert!(text.contains("1 summaries would be rewritten"), "{text}");
+    assert_ne!(std::fs::read_to_string(&summary).unwrap(), current);
+    let (ok, text) = cdlab(&["summarize", c]);
+    assert!(
+        ok && text.contains("rewritten: stress_drop_bin_strain, stress_drops"),
+        "{text}"
+    );
+    assert_eq!(std::fs::read_to_string(&summary).unwrap(), current);
+
+    let (ok, text) = cdlab(&["archive", c, "--to", a]);
+    assert!(
+        ok && text.contains("0 tests archived, 1 already there (1 with their summaries updated)"),
+        "{text}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(archive.join("seed1_mu0.3_s1MPa/summary.json")).unwrap(),
+        current
+    );
+    // An archive holds no records to summarize from.
+    let (ok, text) = cdlab(&["summarize", a]);
+    assert!(!ok && text.contains("no record (run.mcap)"), "{text}");
+    let _ = std::fs::remove_dir_all(&base);
+}
+
 /// The 5000-disk campaign kept in `assets/results/campaign5000/` (README, "Measured
 /// results") is what `assets/campaign5000.toml` asks for: copied into an output directory,
 /// every archived test is checked against the sweep file's settings and would be skipped, so

@@ -48,21 +48,31 @@ pub fn run(args: &Args) -> Result<()> {
     // Unfinished tests alone are worth keeping when asked for.
     let (points, missing) = super::report::collect_dirs(&args.dirs, !args.with_unfinished)?;
     std::fs::create_dir_all(&args.to).map_err(|e| Error::io(&args.to, e))?;
-    let (mut written, mut same) = (0, 0);
+    let (mut written, mut updated, mut same) = (0, 0, 0);
     for p in &points {
         let name = p
             .dir
             .file_name()
             .ok_or_else(|| Error::Other(format!("{}: a run directory needs a name", p.dir.display())))?;
         let dest = args.to.join(name);
-        if archive_one(&p.dir, &dest, args.series_rows)? {
-            written += 1;
-        } else {
-            same += 1;
+        match archive_one(&p.dir, &dest, args.series_rows)? {
+            Archived::Written => written += 1,
+            Archived::Updated => {
+                (same, updated) = (same + 1, updated + 1);
+                println!(
+                    "  summary updated (written again by cdlab summarize): {}",
+                    dest.display()
+                );
+            }
+            Archived::Same => same += 1,
         }
     }
+    let updated = match updated {
+        0 => String::new(),
+        n => format!(" ({n} with their summaries updated)"),
+    };
     println!(
-        "{written} tests archived, {same} already there -> {}",
+        "{written} tests archived, {same} already there{updated} -> {}",
         args.to.display()
     );
     // The campaign's list of tests goes with it, so that a report on the archive names the
@@ -120,7 +130,12 @@ fn archive_unfinished(src: &Path, dest: &Path) -> Result<u64> {
     let Some((step, bytes)) = &rec.last_checkpoint else {
         return Err(Error::Other("no checkpoint yet, nothing to resume from".into()));
     };
-    check_same_test(dest, &config)?;
+    if !same_test(dest, &config)? {
+        return Err(Error::Other(format!(
+            "{} already holds another test: archive into another directory",
+            dest.display()
+        )));
+    }
     let time = decode(bytes)?.scene.time;
     // Written beside the destination and moved in place: an archive is never left with a
     // half-written record.
@@ -144,43 +159,63 @@ fn archive_unfinished(src: &Path, dest: &Path) -> Result<u64> {
     Ok(*step)
 }
 
-/// An error when `dest` holds a slim record of another test than `config`'s. Where the
-/// test was run from (`output.dir`) does not count: a campaign may move.
-fn check_same_test(dest: &Path, config: &crate::config::Config) -> Result<()> {
-    if !dest.join(MCAP_FILE).exists() {
-        return Ok(());
+/// False when `dest` holds another test than `config`'s (a slim record or an archived
+/// test); true when it holds this one or nothing. Where the test was run from
+/// (`output.dir`) does not count: a campaign may move.
+fn same_test(dest: &Path, config: &crate::config::Config) -> Result<bool> {
+    if !dest.join(MCAP_FILE).exists() && !dest.join(ARCHIVED_CONFIG_FILE).exists() {
+        return Ok(true);
     }
     let mut kept = read_config(dest)?;
     kept.output.dir.clone_from(&config.output.dir);
-    if &kept != config {
+    Ok(&kept == config)
+}
+
+/// What archiving one finished test did.
+enum Archived {
+    /// Newly archived.
+    Written,
+    /// Already there with another summary (written again by `cdlab summarize`): the
+    /// summary replaced.
+    Updated,
+    /// Already there with this very summary.
+    Same,
+}
+
+/// Archives the finished test in `src` to `dest`. A different test already in `dest` is an
+/// error: an archive never overwrites one test with another.
+fn archive_one(src: &Path, dest: &Path, series_rows: usize) -> Result<Archived> {
+    let read = |p: &Path| std::fs::read(p).map_err(|e| Error::io(p, e));
+    let summary = read(&src.join("summary.json"))?;
+    let kept = dest.join("summary.json");
+    // The configuration first: a run whose record cannot give it is not archived at all.
+    let config = read_config(src)?;
+    if kept.exists() {
+        if read(&kept)? == summary {
+            return Ok(Archived::Same);
+        }
+        // The same test with another summary: one written again by `cdlab summarize`.
+        if !same_test(dest, &config)? {
+            return Err(Error::Other(format!(
+                "{} already holds another test than {}: archive into another directory",
+                dest.display(),
+                src.display()
+            )));
+        }
+        let write = |name: &str| {
+            let (from, to) = (src.join(name), dest.join(name));
+            std::fs::write(&to, read(&from)?).map_err(|e| Error::io(&to, e))
+        };
+        write("summary.txt")?;
+        write("summary.json")?;
+        return Ok(Archived::Updated);
+    }
+    if !same_test(dest, &config)? {
         return Err(Error::Other(format!(
             "{} already holds another test: archive into another directory",
             dest.display()
         )));
     }
-    Ok(())
-}
-
-/// Archives the finished test in `src` to `dest`; false when `dest` already holds this
-/// very test (same summary). A different test already in `dest` is an error: an archive
-/// never overwrites one test with another.
-fn archive_one(src: &Path, dest: &Path, series_rows: usize) -> Result<bool> {
-    let read = |p: &Path| std::fs::read(p).map_err(|e| Error::io(p, e));
-    let summary = read(&src.join("summary.json"))?;
-    let kept = dest.join("summary.json");
-    if kept.exists() {
-        if read(&kept)? == summary {
-            return Ok(false);
-        }
-        return Err(Error::Other(format!(
-            "{} already holds another test than {}: archive into another directory",
-            dest.display(),
-            src.display()
-        )));
-    }
-    // The configuration first: a run whose record cannot give it is not archived at all.
-    let config = read_config(src)?;
-    check_same_test(dest, &config)?;
     let config = config.to_toml_string()?;
     std::fs::create_dir_all(dest).map_err(|e| Error::io(dest, e))?;
     let write = |name: &str, bytes: &[u8]| {
@@ -213,7 +248,7 @@ fn archive_one(src: &Path, dest: &Path, series_rows: usize) -> Result<bool> {
     if slim.exists() && src.join(MCAP_FILE).exists() {
         std::fs::remove_file(&slim).map_err(|e| Error::io(&slim, e))?;
     }
-    Ok(true)
+    Ok(Archived::Written)
 }
 
 /// The header and at most about `rows` data rows of a CSV text: every k-th row from the

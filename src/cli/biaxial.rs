@@ -319,21 +319,48 @@ fn finish(
         return Err(e);
     }
     outcome?;
-    let mut summary = Summary::new(
+    let wall_s = obs.wall_s();
+    obs.recorder.finish()?;
+    // From the record just closed: the snapshots are not kept in memory during the run.
+    let summary = summary_of(
+        config,
         &obs.rows,
         &obs.ends,
+        crate::backend::Backend::name(&lab.backend),
+        wall_s,
+        &read_run(dir),
+        quiet,
+    );
+    write_summary(dir, &summary)?;
+    Ok(summary)
+}
+
+/// The summary of a finished test from its rows and phase ends, with the shear bands of
+/// its record's snapshots: the same at the end of a run and in `cdlab summarize`.
+pub(super) fn summary_of(
+    config: &Config,
+    rows: &[crate::measure::SeriesRow],
+    ends: &[crate::protocol::PhaseEnd],
+    backend: String,
+    wall_s: f64,
+    record: &Result<crate::record::RunRecord>,
+    quiet: bool,
+) -> Summary {
+    let mut summary = Summary::new(
+        rows,
+        ends,
         config.test.sigma3.si(),
         config.test.mu,
         config.sample.disks,
-        crate::backend::Backend::name(&lab.backend),
-        obs.wall_s(),
+        backend,
+        wall_s,
     );
     summary.dt_s = Some(config.solver.dt.si());
-    obs.recorder.finish()?;
-    // From the record just closed: the snapshots are not kept in memory during the run.
-    summary.shear_bands = match read_run(dir)
-        .and_then(|rec| crate::analysis::bands::analyse_run(&rec, None, None, &Default::default()))
-    {
+    let bands = match record {
+        Ok(rec) => crate::analysis::bands::analyse_run(rec, None, None, &Default::default()),
+        Err(e) => Err(Error::Other(e.to_string())),
+    };
+    summary.shear_bands = match bands {
         Ok(b) => Some(b),
         Err(e) => {
             if !quiet {
@@ -342,8 +369,7 @@ fn finish(
             None
         }
     };
-    write_summary(dir, &summary)?;
-    Ok(summary)
+    summary
 }
 
 /// Writes `summary.json` and `summary.txt` into `dir`.

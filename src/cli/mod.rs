@@ -14,6 +14,7 @@ pub mod prepare;
 pub mod render;
 pub mod report;
 pub mod run;
+pub mod summarize;
 pub mod sweep;
 
 use clap::{Parser, Subcommand};
@@ -52,6 +53,9 @@ pub enum Command {
     /// The deepest disk pairs of a recorded run's snapshots, with their forces and normal
     /// velocities (`overlaps RUN [--at STRAIN]`): which contact holds an overlap warning.
     Overlaps(overlaps::Args),
+    /// Write finished tests' summaries again from their records, as this version computes
+    /// them (`summarize DIR... [--dry-run]`): tests finished by an older version.
+    Summarize(summarize::Args),
     /// Draw a run's figures: a snapshot (`--at STRAIN --field NAME -o FIG.png|svg`) or the
     /// curves against axial strain (`--curves -o DIR`).
     Render(render::Args),
@@ -78,6 +82,7 @@ pub fn main() -> i32 {
         Command::Export(args) => export::run(&args),
         Command::Bands(args) => bands::run(&args),
         Command::Overlaps(args) => overlaps::run(&args),
+        Command::Summarize(args) => summarize::run(&args),
         Command::Render(args) => render::run(&args),
         Command::Bench(args) => bench::run(&args),
         Command::Version => {
