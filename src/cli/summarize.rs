@@ -53,6 +53,7 @@ pub fn run(args: &Args) -> Result<()> {
     }
     for (dir, why) in &missing {
         if why != NOT_RUN {
+            failed += 1;
             println!("{}: not summarized: {why}", dir.display());
         }
     }
