@@ -184,13 +184,62 @@ pub fn add_to_grid(dir: &Path, tests: &[String]) -> Result<()> {
     }
     let mut all = read_grid(dir)?;
     all.extend(tests.iter().cloned());
-    all.sort();
+    all.sort_by(|a, b| natural_order(a, b));
     all.dedup();
     let path = dir.join(GRID_FILE);
     let tmp = dir.join(format!("{GRID_FILE}.{}.tmp", std::process::id()));
     let json = serde_json::to_string_pretty(&GridFile { tests: all }).expect("a list of names serializes");
     std::fs::write(&tmp, json).map_err(|e| Error::io(&tmp, e))?;
     std::fs::rename(&tmp, &path).map_err(|e| Error::io(&path, e))
+}
+
+/// Orders test names as a reader expects the grid: the numbers in them compared as numbers
+/// (`mu0.5` < `mu1.2` < `mu3` < `mu12`, `s0.5MPa` < `s8MPa`), the text between as text.
+/// Equal names alone compare equal.
+pub fn natural_order(a: &str, b: &str) -> std::cmp::Ordering {
+    /// The name as alternating runs of text and decimal numbers (digits, at most one point
+    /// followed by a digit).
+    fn runs(s: &str) -> Vec<(bool, &str)> {
+        let bytes = s.as_bytes();
+        let mut out = Vec::new();
+        let mut i = 0;
+        while i < bytes.len() {
+            let start = i;
+            let numeric = bytes[i].is_ascii_digit();
+            if numeric {
+                while i < bytes.len() && bytes[i].is_ascii_digit() {
+                    i += 1;
+                }
+                if i + 1 < bytes.len() && bytes[i] == b'.' && bytes[i + 1].is_ascii_digit() {
+                    i += 1;
+                    while i < bytes.len() && bytes[i].is_ascii_digit() {
+                        i += 1;
+                    }
+                }
+            } else {
+                while i < bytes.len() && !bytes[i].is_ascii_digit() {
+                    i += 1;
+                }
+            }
+            out.push((numeric, &s[start..i]));
+        }
+        out
+    }
+    let (ra, rb) = (runs(a), runs(b));
+    for ((na, ta), (nb, tb)) in ra.iter().zip(&rb) {
+        let o = match (na, nb) {
+            (true, true) => {
+                let (x, y): (f64, f64) = (ta.parse().unwrap_or(0.0), tb.parse().unwrap_or(0.0));
+                x.total_cmp(&y)
+            }
+            _ => ta.cmp(tb),
+        };
+        if o.is_ne() {
+            return o;
+        }
+    }
+    // Same numbers written differently ("1.0" and "1") or one name a prefix of the other.
+    ra.len().cmp(&rb.len()).then_with(|| a.cmp(b))
 }
 
 /// Finds every `summary.json` below `roots` (a run directory or a directory of runs). The
@@ -237,6 +286,8 @@ pub fn collect(roots: &[PathBuf]) -> (Vec<TestPoint>, Vec<(PathBuf, String)>) {
         }
     }
     let mut named = std::collections::BTreeSet::new();
+    // Grid files written before they were kept in natural order were sorted as text.
+    listed.sort_by(|(_, a), (_, b)| natural_order(a, b));
     for (dir, name) in listed {
         if !seen.contains(std::ffi::OsStr::new(&name)) && named.insert(name.clone()) {
             missing.push((dir.join(&name), NOT_RUN.to_string()));
@@ -504,6 +555,38 @@ impl Report {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The campaign's names in the order of their frictions and pressures, which text order
+    /// breaks (`mu1.2` < `mu12` < `mu1_` < `mu3` as text).
+    #[test]
+    fn test_names_sort_by_their_numbers() {
+        let mut names = [
+            "seed1_mu3_s0.5MPa",
+            "seed1_mu12_s8MPa",
+            "seed1_mu1_s8MPa",
+            "seed1_mu1.2_s0.5MPa",
+            "seed1_mu1_s0.5MPa",
+            "seed1_mu0.5_s8MPa",
+            "seed1_mu0.5_s1MPa",
+            "seed2_mu0.5_s1MPa",
+        ];
+        names.sort_by(|a, b| natural_order(a, b));
+        assert_eq!(
+            names,
+            [
+                "seed1_mu0.5_s1MPa",
+                "seed1_mu0.5_s8MPa",
+                "seed1_mu1_s0.5MPa",
+                "seed1_mu1_s8MPa",
+                "seed1_mu1.2_s0.5MPa",
+                "seed1_mu3_s0.5MPa",
+                "seed1_mu12_s8MPa",
+                "seed2_mu0.5_s1MPa",
+            ]
+        );
+        assert!(natural_order("t1", "t1").is_eq());
+        assert!(natural_order("mu1", "mu1.0").is_lt() && natural_order("a", "a1").is_lt());
+    }
 
     /// A friction tested at one pressure only: q/p = 0.5.
     fn one_pressure_point() -> TestPoint {
