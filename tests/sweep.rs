@@ -92,6 +92,16 @@ fn tiny_sweep_runs_in_shards_skips_finished_tests_and_reports() {
         assert_eq!(r["tests"], 2);
         assert!(r["mu_macro"].as_f64().unwrap() > 0.0, "{r}");
     }
+    // The per-test table: a header and one row per test, whose peak is the summary's.
+    let csv = std::fs::read_to_string(campaign.join("tests.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 5, "{csv}");
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(campaign.join("seed1_mu0.5_s4MPa/summary.json")).unwrap(),
+    )
+    .unwrap();
+    let line = csv.lines().find(|l| l.contains("seed1_mu0.5_s4MPa")).unwrap();
+    let peak: f64 = line.split(',').nth(3).unwrap().parse().unwrap();
+    assert_eq!(peak, summary["sigma1_peak_mpa"].as_f64().unwrap(), "{line}");
     // An empty grid and a bad shard are rejected.
     std::fs::write(&sweep, "out = \"x\"\nmu = []\n").unwrap();
     let (ok, text) = cdlab(&["sweep", s]);

@@ -38,6 +38,35 @@ pub struct TestPoint {
     /// The summary's wall-clock time (s), over all the parts of a resumed test.
     #[serde(default)]
     pub wall_time_s: Option<f64>,
+    /// Axial strain at the peak.
+    #[serde(default)]
+    pub strain_peak: Option<f64>,
+    /// Volumetric strain at the end (positive = dilation).
+    #[serde(default)]
+    pub volumetric_strain_final: Option<f64>,
+    /// The shear bands of the summary's last snapshot interval, each as (angle from the
+    /// axial direction in degrees, width in mean diameters); empty when none was found,
+    /// absent when the summary holds no band analysis.
+    #[serde(default)]
+    pub bands: Option<Vec<[f64; 2]>>,
+    /// Number of stress-drop events; absent in summaries that list them from row to row
+    /// (written before the strain bins: `cdlab summarize` writes them again).
+    #[serde(default)]
+    pub stress_drops: Option<usize>,
+    /// The largest stress drop (MPa); absent as `stress_drops`, or without events.
+    #[serde(default)]
+    pub stress_drop_max_mpa: Option<f64>,
+}
+
+impl TestPoint {
+    /// The band angle from the axial direction that Coulomb's theory gives at the residual,
+    /// `45 deg - phi/2` with `sin(phi) = (s1 - s3) / (s1 + s3)` (degrees): the reference
+    /// the measured band angles are read against.
+    pub fn coulomb_band_angle_deg(&self) -> Option<f64> {
+        let s1 = self.sigma1_residual_mpa?;
+        let phi = ((s1 - self.sigma3_mpa) / (s1 + self.sigma3_mpa)).asin();
+        Some(45.0 - phi.to_degrees() / 2.0)
+    }
 }
 
 /// The analysis of one contact friction.
@@ -103,6 +132,9 @@ pub struct Report {
     /// test-hours, whatever the tests ran on and however many ran at once.
     #[serde(default)]
     pub wall_time_h: f64,
+    /// Every test analysed, in increasing friction then confining stress (`tests.csv`).
+    #[serde(default)]
+    pub tests: Vec<TestPoint>,
 }
 
 /// `tan(asin(s))` and its standard error from that of `s`.
@@ -308,6 +340,8 @@ fn read_point(dir: &Path, path: &Path) -> Result<TestPoint> {
     let v: serde_json::Value =
         serde_json::from_str(&text).map_err(|e| Error::Other(format!("{}: {e}", path.display())))?;
     let num = |k: &str| v.get(k).and_then(serde_json::Value::as_f64);
+    // Events counted from row to row follow the time step: not comparable, left out.
+    let binned = num("stress_drop_bin_strain").and_then(|_| v.get("stress_drops")?.as_array());
     match (num("mu"), num("sigma3_mpa"), num("sigma1_peak_mpa")) {
         (Some(mu), Some(s3), Some(s1)) if mu >= 0.0 && s3 > 0.0 && s1.is_finite() => Ok(TestPoint {
             dir: dir.to_path_buf(),
@@ -320,6 +354,26 @@ fn read_point(dir: &Path, path: &Path) -> Result<TestPoint> {
             // Summaries written before the time step was in them: the record has it.
             dt_s: num("dt_s").or_else(|| crate::record::read_config(dir).ok().map(|c| c.solver.dt.si())),
             wall_time_s: num("wall_time_s"),
+            strain_peak: num("strain_peak"),
+            volumetric_strain_final: num("volumetric_strain_final"),
+            bands: v.get("shear_bands").and_then(|b| b.get("bands")).and_then(|b| {
+                b.as_array()?
+                    .iter()
+                    .map(|band| {
+                        Some([
+                            band.get("angle_deg")?.as_f64()?,
+                            band.get("width_diameters")?.as_f64()?,
+                        ])
+                    })
+                    .collect()
+            }),
+            stress_drops: binned.map(|d| d.len()),
+            stress_drop_max_mpa: binned.and_then(|d| {
+                d.iter()
+                    .filter_map(|e| e.get("drop_pa")?.as_f64())
+                    .reduce(f64::max)
+                    .map(|p| p / 1e6)
+            }),
         }),
         _ => Err(Error::Other(format!(
             "{}: not a cdlab test summary (needs mu, sigma3_mpa, sigma1_peak_mpa)",
@@ -412,6 +466,7 @@ pub fn analyse(points: &[TestPoint], missing: Vec<(PathBuf, String)>) -> Report 
         missing,
         suspect,
         overlapping,
+        tests: points.to_vec(),
     }
 }
 
@@ -435,6 +490,51 @@ impl Report {
                 Self::dt_text(r),
                 r.wall_time_h
             ));
+        }
+        s
+    }
+
+    /// Every test as CSV (header with units): strengths, dilatancy, shear bands (the band
+    /// rising towards +x, then the one towards -x, beside Coulomb's angle at the residual),
+    /// stress drops, overlap, kinetic ratio, time step and wall time. An empty cell is a
+    /// figure the summary does not hold.
+    pub fn tests_csv(&self) -> String {
+        let mut s = String::from(
+            "dir,mu,sigma3_mpa,sigma1_peak_mpa,strain_peak,sigma1_residual_mpa,volumetric_strain_final,\
+             band_pos_angle_deg,band_pos_width_diameters,band_neg_angle_deg,band_neg_width_diameters,\
+             coulomb_band_angle_deg,stress_drops,stress_drop_max_mpa,overlap_max_rel,kinetic_ratio_max,dt_ms,wall_time_h\n",
+        );
+        let opt = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
+        for t in &self.tests {
+            let side = |positive: bool| {
+                t.bands
+                    .as_ref()
+                    .and_then(|b| b.iter().find(|[a, _]| (*a > 0.0) == positive))
+                    .map_or([None, None], |[a, w]| [Some(*a), Some(*w)])
+            };
+            let ([pa, pw], [na, nw]) = (side(true), side(false));
+            let cells = [
+                format!("\"{}\"", t.dir.display().to_string().replace('"', "\"\"")),
+                t.mu.to_string(),
+                t.sigma3_mpa.to_string(),
+                t.sigma1_peak_mpa.to_string(),
+                opt(t.strain_peak),
+                opt(t.sigma1_residual_mpa),
+                opt(t.volumetric_strain_final),
+                opt(pa),
+                opt(pw),
+                opt(na),
+                opt(nw),
+                opt(t.coulomb_band_angle_deg()),
+                t.stress_drops.map_or(String::new(), |n| n.to_string()),
+                opt(t.stress_drop_max_mpa),
+                opt(t.overlap_max_rel),
+                opt(t.kinetic_ratio_max),
+                opt(t.dt_s.map(|d| d * 1e3)),
+                opt(t.wall_time_s.map(|w| w / 3600.0)),
+            ];
+            s.push_str(&cells.join(","));
+            s.push('\n');
         }
         s
     }
@@ -555,6 +655,57 @@ impl Report {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A summary's bands, stress drops and dilatancy reach the per-test table: the band
+    /// rising towards +x in the `band_pos` columns whatever its place in the list, Coulomb's
+    /// angle at the residual beside them (s1 = 3 s3: sin(phi) = 1/2, phi = 30 deg, so
+    /// 45 - 15 = 30 deg), the events counted and the largest in MPa. Events listed from row
+    /// to row (no bin in the summary) are left out rather than counted.
+    #[test]
+    fn the_per_test_table_holds_bands_and_stress_drops() {
+        let base = std::env::temp_dir().join(format!("cdlab-tests-csv-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&base);
+        let summary = |dir: &str, bin: bool| {
+            let d = base.join(dir);
+            std::fs::create_dir_all(&d).unwrap();
+            let mut v = serde_json::json!({
+                "mu": 0.3, "sigma3_mpa": 1.0, "sigma1_peak_mpa": 3.5, "sigma1_residual_mpa": 3.0,
+                "strain_peak": 0.012, "volumetric_strain_final": 0.02,
+                "stress_drops": [{"drop_pa": 2e5}, {"drop_pa": 7e5}],
+                "shear_bands": {"bands": [
+                    {"angle_deg": -38.0, "width_diameters": 6.5},
+                    {"angle_deg": 41.0, "width_diameters": 9.0}
+                ]}
+            });
+            if bin {
+                v["stress_drop_bin_strain"] = serde_json::json!(1e-4);
+            }
+            std::fs::write(d.join("summary.json"), v.to_string()).unwrap();
+        };
+        summary("binned", true);
+        summary("by_rows", false);
+        let (points, missing) = collect(std::slice::from_ref(&base));
+        assert!(missing.is_empty(), "{missing:?}");
+        let report = analyse(&points, missing);
+        let csv = report.tests_csv();
+        let rows: Vec<Vec<&str>> = csv.lines().map(|l| l.split(',').collect()).collect();
+        let col = |name: &str| rows[0].iter().position(|h| *h == name).unwrap();
+        assert_eq!(rows.len(), 3, "{csv}");
+        let binned = rows.iter().find(|r| r[0].contains("binned")).unwrap();
+        let by_rows = rows.iter().find(|r| r[0].contains("by_rows")).unwrap();
+        assert_eq!(binned[col("band_pos_angle_deg")], "41");
+        assert_eq!(binned[col("band_pos_width_diameters")], "9");
+        assert_eq!(binned[col("band_neg_angle_deg")], "-38");
+        let coulomb: f64 = binned[col("coulomb_band_angle_deg")].parse().unwrap();
+        assert!((coulomb - 30.0).abs() < 1e-9, "{coulomb}");
+        assert_eq!(binned[col("stress_drops")], "2");
+        assert_eq!(binned[col("stress_drop_max_mpa")], "0.7");
+        assert_eq!(binned[col("volumetric_strain_final")], "0.02");
+        assert_eq!(by_rows[col("stress_drops")], "");
+        assert_eq!(by_rows[col("stress_drop_max_mpa")], "");
+        assert_eq!(by_rows[col("band_neg_width_diameters")], "6.5");
+        let _ = std::fs::remove_dir_all(&base);
+    }
 
     /// The campaign's names in the order of their frictions and pressures, which text order
     /// breaks (`mu1.2` < `mu12` < `mu1_` < `mu3` as text).

@@ -52,6 +52,8 @@ pub fn run(args: &Args) -> Result<()> {
     std::fs::write(&p, json).map_err(|e| Error::io(&p, e))?;
     let p = out.join("report.csv");
     std::fs::write(&p, report.csv()).map_err(|e| Error::io(&p, e))?;
+    let p = out.join("tests.csv");
+    std::fs::write(&p, report.tests_csv()).map_err(|e| Error::io(&p, e))?;
     // The tables are the report; a figure that cannot be drawn (every friction 0 has no
     // place on a log axis) is said, not fatal.
     let figures = [
@@ -64,7 +66,7 @@ pub fn run(args: &Args) -> Result<()> {
         }
     }
     println!(
-        "{} tests, {} frictions -> {} (report.json, report.csv, envelope.png/svg, mu_macro.png/svg)\n{}",
+        "{} tests, {} frictions -> {} (report.json, report.csv, tests.csv, envelope.png/svg, mu_macro.png/svg)\n{}",
         points.len(),
         report.frictions.len(),
         out.display(),
