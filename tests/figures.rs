@@ -11,8 +11,8 @@ use cdlab::figures::colormap::{DIVERGING, SEQUENTIAL};
 use cdlab::figures::envelope::friction_color;
 use cdlab::figures::network::{ARROW, DISK_BACKGROUND, ROLLING, SLIDING};
 use cdlab::figures::{
-    ContactsFigure, EnvelopeFigure, Field, Figure, Format, LINE_COLORS, MuMacroFigure, SnapshotFigure,
-    StressStrainFigure, render_png, render_svg, save,
+    ContactsFigure, EnvelopeFigure, Field, Figure, Format, LINE_COLORS, MuMacroFigure, ShearField,
+    SnapshotFigure, StressStrainFigure, render_png, render_svg, save,
 };
 use cdlab::record::{ContactRecord, DiskRecord, SeriesRow, Snapshot};
 use common::cdlab;
@@ -304,6 +304,7 @@ fn displacement_disks_take_the_map_colors_to_scale() {
         reference: None,
         field: Field::Displacement,
         plot_height: 600,
+        shear: None,
     };
     let (png, frame) = render_png(&fig).unwrap();
     let img = Img::decode(&png);
@@ -356,6 +357,7 @@ fn rotation_is_diverging_and_counts_from_the_reference() {
         reference: Some(&reference),
         field: Field::Rotation,
         plot_height: 600,
+        shear: None,
     };
     let (png, frame) = render_png(&fig).unwrap();
     let img = Img::decode(&png);
@@ -383,6 +385,85 @@ fn rotation_is_diverging_and_counts_from_the_reference() {
     );
 }
 
+/// The shear field: disks colored by their local shear strain (disk k at k, the range set
+/// by the largest; a disk without a value in the background fill), each band's axis drawn
+/// across the sample in black, and a figure asked for without the field is an error.
+#[test]
+fn shear_disks_take_their_strain_and_bands_their_axes() {
+    let (snap, _) = grid();
+    let mut values: Vec<Option<f64>> = (0..NX * NY).map(|k| Some(k as f64)).collect();
+    values[7] = None;
+    // A band at +30 deg from the vertical through disk 9's centre (2, 4).
+    let band = cdlab::analysis::bands::Band {
+        angle_deg: 30.0,
+        width_diameters: 2.0,
+        contrast: 0.8,
+        significance: 5.0,
+        peak_shear: 0.2,
+        background_shear: 0.01,
+        centre_x_m: 2.0,
+        centre_y_m: 4.0,
+    };
+    let shear = ShearField {
+        values,
+        strain_from: 0.04,
+        bands: vec![band],
+    };
+    let fig = SnapshotFigure {
+        snap: &snap,
+        reference: None,
+        field: Field::Shear,
+        plot_height: 600,
+        shear: Some(&shear),
+    };
+    let (png, frame) = render_png(&fig).unwrap();
+    let img = Img::decode(&png);
+    let at = |x: f64, y: f64| {
+        let (px, py) = frame.to_pixel(x, y);
+        img.at(px, py)
+    };
+    assert_eq!(at(centre(0).0, centre(0).1), SEQUENTIAL.at(0.0), "disk 0");
+    assert_eq!(at(centre(23).0, centre(23).1), SEQUENTIAL.at(1.0), "disk 23");
+    assert_eq!(
+        at(centre(7).0, centre(7).1),
+        DISK_BACKGROUND,
+        "disk 7 has no value"
+    );
+    // Along the axis, 4 m either side of the centre: (2 +- 2, 4 +- 3.46), the line's black
+    // (within a pixel of the exact point).
+    let (s, c) = (30f64.to_radians().sin(), 30f64.to_radians().cos());
+    for t in [-4.0, 4.0] {
+        let (px, py) = frame.to_pixel(2.0 + t * s, 4.0 + t * c);
+        let hit =
+            (-1..=1).any(|d| (-1..=1).any(|e| img.at(px + d as f64, py + e as f64) == RGBColor(0, 0, 0)));
+        assert!(hit, "band axis at ({px}, {py})");
+    }
+    // Off the axis (disk 20's centre, (0, 10): 4.1 m from it), no line.
+    assert_eq!(
+        at(centre(20).0, centre(20).1),
+        SEQUENTIAL.at(20.0 / 23.0),
+        "disk 20"
+    );
+    let e = render_png(&SnapshotFigure { shear: None, ..fig }).unwrap_err();
+    assert!(e.to_string().contains("local strain"), "{e}");
+}
+
+/// The segment of a line inside a box, from the closed forms: a vertical line through the
+/// box spans its height, a 45-degree line through a corner region is cut at the sides, and a
+/// line beside the box misses it.
+#[test]
+fn band_axes_are_clipped_to_the_box() {
+    use cdlab::figures::snapshot::clip_line;
+    let bx = (0.0, 4.0, 0.0, 10.0);
+    let (p, q) = clip_line((1.0, 5.0), (0.0, 1.0), bx).unwrap();
+    assert_eq!((p, q), ((1.0, 0.0), (1.0, 10.0)));
+    let d = std::f64::consts::FRAC_1_SQRT_2;
+    let (p, q) = clip_line((2.0, 5.0), (d, d), bx).unwrap();
+    assert!((p.0 - 0.0).abs() < 1e-12 && (p.1 - 3.0).abs() < 1e-12, "{p:?}");
+    assert!((q.0 - 4.0).abs() < 1e-12 && (q.1 - 7.0).abs() < 1e-12, "{q:?}");
+    assert!(clip_line((6.0, 5.0), (0.0, 1.0), bx).is_none());
+}
+
 #[test]
 fn velocity_arrows_start_at_the_moving_disks() {
     let (snap, _) = grid();
@@ -391,6 +472,7 @@ fn velocity_arrows_start_at_the_moving_disks() {
         reference: None,
         field: Field::Velocity,
         plot_height: 600,
+        shear: None,
     };
     let (png, frame) = render_png(&fig).unwrap();
     let img = Img::decode(&png);
@@ -422,6 +504,7 @@ fn force_bars_are_classed_and_as_wide_as_their_force() {
         reference: None,
         field: Field::Forces,
         plot_height: 600,
+        shear: None,
     };
     let (png, frame) = render_png(&fig).unwrap();
     let img = Img::decode(&png);
@@ -480,6 +563,7 @@ fn bad_requests_are_errors() {
         reference: None,
         field: Field::Forces,
         plot_height: 300,
+        shear: None,
     };
     let bad = Path::new("/nonexistent-cdlab-dir/fig.png");
     let e = save(&fig, bad).unwrap_err().to_string();
@@ -639,7 +723,9 @@ fn render_command_draws_the_nearest_snapshot_and_the_curves() {
     let run = dir.join("run");
     synthetic_run(&run, true);
     let run_s = run.to_str().unwrap();
-    for field in ["displacement", "rotation", "velocity", "forces"] {
+    // The two snapshots nearest 0.09 hold the same positions: the shear field is zero
+    // everywhere, without a band, and still drawn.
+    for field in ["displacement", "rotation", "velocity", "forces", "shear"] {
         for ext in ["png", "svg"] {
             let out = dir.join(format!("{field}.{ext}"));
             let (ok, text) = cdlab(&[
@@ -678,6 +764,10 @@ fn render_command_draws_the_nearest_snapshot_and_the_curves() {
             "one of displacement",
         ),
         (vec!["--at", "0.05", "-o", "x.jpg"], ".png or .svg"),
+        (
+            vec!["--at", "0", "--field", "shear", "-o", fig],
+            "needs a snapshot before",
+        ),
         (
             vec!["--at", "0.05", "-o", "/nonexistent-cdlab-dir/x.png"],
             "/nonexistent-cdlab-dir/x.png",

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
-use crate::figures::{self, ContactsFigure, Field, Format, SnapshotFigure, StressStrainFigure};
+use crate::figures::{self, ContactsFigure, Field, Format, ShearField, SnapshotFigure, StressStrainFigure};
 use crate::record::{RunRecord, Snapshot, read_run};
 
 /// Options of `cdlab render`.
@@ -15,7 +15,8 @@ pub struct Args {
     /// Draw the snapshot nearest this axial strain (a fraction, e.g. 0.09).
     #[arg(long, conflicts_with = "curves", required_unless_present = "curves")]
     pub at: Option<f64>,
-    /// With --at: displacement, rotation, velocity or forces.
+    /// With --at: displacement, rotation, velocity, forces, or shear (the local shear strain
+    /// since the snapshot before, with the shear bands found in it).
     #[arg(long, default_value = "displacement")]
     pub field: String,
     /// Draw the curves against axial strain (stress_strain and contacts, PNG and SVG) into
@@ -80,11 +81,16 @@ fn snapshot(args: &Args, at: f64) -> Result<()> {
     // Rotations count from the snapshot nearest the start of the compression recorded
     // before the one drawn (the record keeps total rotations since the deposition).
     let reference = rotation_reference(&rec.snapshots, k);
+    let shear = match field {
+        Field::Shear => Some(shear_field(&rec.snapshots, k)?),
+        _ => None,
+    };
     let fig = SnapshotFigure {
         snap,
         reference,
         field,
         plot_height: args.height,
+        shear: shear.as_ref(),
     };
     figures::save(&fig, &args.out)?;
     println!(
@@ -97,6 +103,28 @@ fn snapshot(args: &Args, at: f64) -> Result<()> {
         args.out.display()
     );
     Ok(())
+}
+
+/// The local shear strain of snapshot `k` since the one before, and the bands in it: what
+/// the summary's band analysis computes for the run's last two snapshots.
+fn shear_field(snaps: &[Snapshot], k: usize) -> Result<ShearField> {
+    use crate::analysis::bands::{BandOptions, analyse_pair, local_strain};
+    let Some(prev) = k.checked_sub(1).map(|j| &snaps[j]) else {
+        return Err(Error::Other(
+            "the shear field needs a snapshot before the one drawn: ask for a larger --at".into(),
+        ));
+    };
+    let opts = BandOptions::default();
+    let values = local_strain(prev, &snaps[k], &opts.strain)?
+        .into_iter()
+        .map(|s| s.map(|s| s.shear))
+        .collect();
+    let bands = analyse_pair(prev, &snaps[k], &opts)?.bands;
+    Ok(ShearField {
+        values,
+        strain_from: prev.strain,
+        bands,
+    })
 }
 
 /// A title naming the run's friction, confining stress and size.

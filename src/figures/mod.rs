@@ -28,7 +28,7 @@ use crate::error::{Error, Result};
 
 pub use curves::{ContactsFigure, StressStrainFigure};
 pub use envelope::{EnvelopeFigure, MuMacroFigure};
-pub use snapshot::{Field, Frame, SnapshotFigure};
+pub use snapshot::{Field, Frame, ShearField, SnapshotFigure};
 
 /// The two output formats.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

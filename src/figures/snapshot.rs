@@ -26,15 +26,19 @@ pub enum Field {
     Velocity,
     /// The force network: bars between the centres of contacting bodies.
     Forces,
+    /// Disks colored by their local shear strain since the snapshot before, with the
+    /// axes of the shear bands found in that field.
+    Shear,
 }
 
 impl Field {
     /// Every field, in the order of the documentation.
-    pub const ALL: [Field; 4] = [
+    pub const ALL: [Field; 5] = [
         Field::Displacement,
         Field::Rotation,
         Field::Velocity,
         Field::Forces,
+        Field::Shear,
     ];
 
     /// The name used on the command line and in file names.
@@ -44,6 +48,7 @@ impl Field {
             Field::Rotation => "rotation",
             Field::Velocity => "velocity",
             Field::Forces => "forces",
+            Field::Shear => "shear",
         }
     }
 }
@@ -51,10 +56,13 @@ impl Field {
 impl FromStr for Field {
     type Err = Error;
     fn from_str(s: &str) -> Result<Field> {
-        Field::ALL
-            .into_iter()
-            .find(|f| f.name() == s)
-            .ok_or_else(|| Error::invalid("--field", s, "one of displacement, rotation, velocity, forces"))
+        Field::ALL.into_iter().find(|f| f.name() == s).ok_or_else(|| {
+            Error::invalid(
+                "--field",
+                s,
+                "one of displacement, rotation, velocity, forces, shear",
+            )
+        })
     }
 }
 
@@ -78,6 +86,18 @@ impl Frame {
     }
 }
 
+/// What [`Field::Shear`] draws, computed from the snapshot and the one before it
+/// (`crate::analysis::bands`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShearField {
+    /// Each disk's local shear strain over the interval (none where the fit was refused).
+    pub values: Vec<Option<f64>>,
+    /// Axial strain of the interval's first snapshot.
+    pub strain_from: f64,
+    /// The bands found in the field.
+    pub bands: Vec<crate::analysis::bands::Band>,
+}
+
 /// A snapshot figure: the sample at one instant with one [`Field`].
 #[derive(Clone, Debug)]
 pub struct SnapshotFigure<'a> {
@@ -90,6 +110,8 @@ pub struct SnapshotFigure<'a> {
     pub field: Field,
     /// Height of the plot area in pixels; the width follows from the sample's aspect.
     pub plot_height: u32,
+    /// The local shear strain and bands, which [`Field::Shear`] needs.
+    pub shear: Option<&'a ShearField>,
 }
 
 // Layout in pixels. Fixed sizes make the plot area, and so the equal aspect, exact.
@@ -197,6 +219,16 @@ impl Figure for SnapshotFigure<'_> {
             (Field::Rotation, None) => "rotation since the start of the run".to_string(),
             (Field::Velocity, _) => "velocity field".to_string(),
             (Field::Forces, _) => "force network".to_string(),
+            (Field::Shear, _) => match self.shear {
+                Some(sh) => format!("local shear strain since axial strain {:.5}", sh.strain_from),
+                None => {
+                    return Err(Error::Other(
+                        "the shear field needs the local strain of an interval (cdlab render computes it \
+                         from the snapshot before)"
+                            .into(),
+                    ));
+                }
+            },
         };
         // Two lines: a tall sample leaves a narrow figure.
         let lines = [
@@ -260,9 +292,80 @@ impl Figure for SnapshotFigure<'_> {
                 let key = network::draw_forces(&mut chart, snap)?;
                 network::draw_key(&panel, &key)?;
             }
+            Field::Shear => {
+                let sh = self.shear.expect("checked with the title");
+                let known: Vec<f64> = sh.values.iter().flatten().copied().collect();
+                // As for rotations: a few rattlers' fits would otherwise set the range.
+                let scale = Scale::new(SEQUENTIAL, 0.0, abs_quantile(&known, 0.99));
+                draw_disks(&mut chart, snap, frame.sx, |k| {
+                    match sh.values.get(k).copied().flatten() {
+                        Some(v) => scale.color(v),
+                        None => network::DISK_BACKGROUND,
+                    }
+                })?;
+                draw_bands(&mut chart, &sh.bands, (x0, x1, y0, y1))?;
+                draw_colorbar(&panel, &scale, "local shear strain (-)")?;
+            }
         }
         Ok(frame)
     }
+}
+
+/// Each band's axis across the plot (a line through its centre at its angle from the axial
+/// direction, clipped to the data range), labelled with its angle and width.
+fn draw_bands<DB: DrawingBackend>(
+    chart: &mut Chart<'_, DB>,
+    bands: &[crate::analysis::bands::Band],
+    (x0, x1, y0, y1): (f64, f64, f64, f64),
+) -> Result<()> {
+    for b in bands {
+        let a = b.angle_deg.to_radians();
+        // Positive angles rise towards +x: the direction from the vertical.
+        let dir = (a.sin(), a.cos());
+        let Some((p, q)) = clip_line((b.centre_x_m, b.centre_y_m), dir, (x0, x1, y0, y1)) else {
+            continue;
+        };
+        chart
+            .draw_series(std::iter::once(PathElement::new(
+                vec![p, q],
+                BLACK.stroke_width(2),
+            )))
+            .map_err(draw_err)?;
+        // The label at the upper end, where the line leaves the sample.
+        let top = if p.1 > q.1 { p } else { q };
+        let label = format!("{:+.0}°, {:.1} d", b.angle_deg, b.width_diameters);
+        let style = TICK.into_text_style(chart.plotting_area()).color(&BLACK);
+        let at = (top.0.clamp(x0, x0 + 0.75 * (x1 - x0)), top.1 - 0.03 * (y1 - y0));
+        chart
+            .draw_series(std::iter::once(Text::new(label, at, style)))
+            .map_err(draw_err)?;
+    }
+    Ok(())
+}
+
+/// The segment of the line through `c` along `dir` inside the box (x0, x1, y0, y1), or
+/// none when the line misses it.
+pub fn clip_line(
+    c: (f64, f64),
+    dir: (f64, f64),
+    (x0, x1, y0, y1): (f64, f64, f64, f64),
+) -> Option<((f64, f64), (f64, f64))> {
+    let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+    for (p, d, a, b) in [(c.0, dir.0, x0, x1), (c.1, dir.1, y0, y1)] {
+        if d.abs() < 1e-12 {
+            if p < a || p > b {
+                return None;
+            }
+            continue;
+        }
+        let (t0, t1) = ((a - p) / d, (b - p) / d);
+        lo = lo.max(t0.min(t1));
+        hi = hi.min(t0.max(t1));
+    }
+    (lo < hi).then(|| {
+        let at = |t: f64| (c.0 + t * dir.0, c.1 + t * dir.1);
+        (at(lo), at(hi))
+    })
 }
 
 /// The pixel frame of a chart whose data range is (x0, x1, y0, y1).
