@@ -60,7 +60,8 @@ pub fn run(args: &Args) -> Result<()> {
             Archived::Updated => {
                 (same, updated) = (same + 1, updated + 1);
                 println!(
-                    "  summary updated (written again by cdlab summarize): {}",
+                    "  summary updated (the run's differs from the archived one, e.g. written again by \
+                     cdlab summarize): {}",
                     dest.display()
                 );
             }
@@ -130,12 +131,7 @@ fn archive_unfinished(src: &Path, dest: &Path) -> Result<u64> {
     let Some((step, bytes)) = &rec.last_checkpoint else {
         return Err(Error::Other("no checkpoint yet, nothing to resume from".into()));
     };
-    if !same_test(dest, &config)? {
-        return Err(Error::Other(format!(
-            "{} already holds another test: archive into another directory",
-            dest.display()
-        )));
-    }
+    check_same_test(dest, &config)?;
     let time = decode(bytes)?.scene.time;
     // Written beside the destination and moved in place: an archive is never left with a
     // half-written record.
@@ -171,12 +167,23 @@ fn same_test(dest: &Path, config: &crate::config::Config) -> Result<bool> {
     Ok(&kept == config)
 }
 
+/// An error when `dest` holds another test than `config`'s ([`same_test`]).
+fn check_same_test(dest: &Path, config: &crate::config::Config) -> Result<()> {
+    if same_test(dest, config)? {
+        return Ok(());
+    }
+    Err(Error::Other(format!(
+        "{} already holds another test: archive into another directory",
+        dest.display()
+    )))
+}
+
 /// What archiving one finished test did.
 enum Archived {
     /// Newly archived.
     Written,
-    /// Already there with another summary (written again by `cdlab summarize`): the
-    /// summary replaced.
+    /// Already there with another summary (written again by `cdlab summarize`, or the
+    /// test run again with the same configuration): the summary replaced.
     Updated,
     /// Already there with this very summary.
     Same,
@@ -210,12 +217,7 @@ fn archive_one(src: &Path, dest: &Path, series_rows: usize) -> Result<Archived> 
         write("summary.json")?;
         return Ok(Archived::Updated);
     }
-    if !same_test(dest, &config)? {
-        return Err(Error::Other(format!(
-            "{} already holds another test: archive into another directory",
-            dest.display()
-        )));
-    }
+    check_same_test(dest, &config)?;
     let config = config.to_toml_string()?;
     std::fs::create_dir_all(dest).map_err(|e| Error::io(dest, e))?;
     let write = |name: &str, bytes: &[u8]| {
