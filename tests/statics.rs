@@ -142,3 +142,46 @@ fn frictionless_pyramid_in_a_box_matches_the_hand_calculation() {
         "bottom disks press each other with {got} N/m, expected 0"
     );
 }
+
+/// A column of disks on the floor under gravity whose two lowest disks overlap by 1% of
+/// their radius (the others touch), after one step of two Gauss-Seidel iterations. Without
+/// local updates the iterations stop with that contact still closing (the contacts above,
+/// solved after it, push disk 1 down). With `deep_gap` below its overlap that contact alone
+/// is updated again and leaves the step satisfying its law exactly: the normal relative
+/// velocity `U_n^+` of a loaded contact is 0 (method.md's Signorini law; theta 0.5 from
+/// rest). The contacts that are not deep are not touched: disk 2 keeps the velocity the
+/// iterations left.
+#[test]
+fn a_deep_loaded_contact_leaves_the_step_satisfying_its_law() {
+    let (n, r) = (5usize, 1.0);
+    for method in [Method::Gs, Method::ColoredGs] {
+        let run = |deep_gap: f64| {
+            let mut s = scene(0.3);
+            s.gravity = DVec2::new(0.0, -G);
+            s.walls.push(floor());
+            for k in 0..n {
+                let y = r + 2.0 * r * k as f64 - if k == 0 { 0.0 } else { 0.01 * r };
+                s.disks.push(DVec2::new(0.0, y), r, RHO).unwrap();
+            }
+            let mut p = tight(method);
+            p.solver.max_iter = 2;
+            p.solver.deep_gap = deep_gap;
+            p.solver.deep_sweeps = 3;
+            let mut e = cdlab::engine::CpuEngine::new(p).unwrap();
+            e.step(&mut s).unwrap();
+            let v = &s.disks.vel;
+            (v[1].y - v[0].y, v[2].y)
+        };
+        let (off, above_off) = run(0.0);
+        assert!(
+            off < -1e-4,
+            "{method:?}: without local updates the contact should still close; it opens at {off} m/s"
+        );
+        let (on, above_on) = run(0.005 * r);
+        assert!(
+            on.abs() < 1e-12,
+            "{method:?}: the deep contact leaves at {on} m/s, expected 0"
+        );
+        assert_eq!(above_on, above_off, "{method:?}");
+    }
+}

@@ -185,8 +185,9 @@ impl Recording {
              {:.2}% at step {} ({}, axial strain {:.4}); {since}. A contact that closes fast \
              within a step needs a smaller solver.dt; one that sinks slowly under load over \
              many steps (the solver's residual) needs further convergence, which a smaller \
-             step gives only in part (`cdlab overlaps RUN` names the pair from the snapshots; \
-             README, \"Overlaps at high friction\")",
+             step gives only in part and solver.deep_overlap (say 0.005) gives to the deep \
+             contacts alone (`cdlab overlaps RUN` names the pair from the snapshots; README, \
+             \"Overlaps at high friction\")",
             OVERLAP_BOUND_REL * 100.0,
             row.overlap_max_rel * 100.0,
             row.step,

@@ -108,6 +108,11 @@ pub struct Solver {
     /// Open contacts whose gap would stay above this fraction of `sample.r_min` at the end
     /// of the step are left out of the sweeps; 0 sweeps every candidate.
     pub open_skip_gap: f64,
+    /// Overlap, as a fraction of `sample.r_min`, beyond which a loaded contact gets
+    /// `deep_sweeps` more local updates after each solve; 0 turns them off.
+    pub deep_overlap: f64,
+    /// Local updates of each contact beyond `deep_overlap` after a solve.
+    pub deep_sweeps: u32,
 }
 
 impl Default for Solver {
@@ -128,6 +133,8 @@ impl Default for Solver {
             gs_relax_after: crate::solver::default_gs_relax_after(),
             velocity_tol: crate::solver::default_velocity_tol_rel(),
             open_skip_gap: crate::solver::default_open_skip_gap(),
+            deep_overlap: 0.0,
+            deep_sweeps: 5,
         }
     }
 }

@@ -78,6 +78,18 @@ fn each_bad_value_is_rejected_naming_its_field() {
         ("[solver]\nalert_distance = -0.1", "solver.alert_distance"),
         ("[solver]\ncheck_every = 0", "solver.check_every"),
         ("[solver]\noverlap_limit = 0", "solver.overlap_limit"),
+        ("[solver]\ndeep_overlap = -0.001", "solver.deep_overlap"),
+        ("[solver]\ndeep_overlap = nan", "solver.deep_overlap"),
+        // At the run's hard stop (overlap_limit 0.05 by default) it would never act.
+        ("[solver]\ndeep_overlap = 0.05", "solver.deep_overlap"),
+        (
+            "[solver]\ndeep_overlap = 0.005\ndeep_sweeps = 0",
+            "solver.deep_sweeps",
+        ),
+        (
+            "[solver]\nmethod = \"jacobi\"\ndeep_overlap = 0.005",
+            "solver.deep_overlap",
+        ),
         ("[compaction]\nsigma_c = \"-1 MPa\"", "compaction.sigma_c"),
         ("[compaction]\nfriction = -0.1", "compaction.friction"),
         ("[test]\nmu = -0.3", "test.mu"),

@@ -75,6 +75,20 @@ impl Config {
         check_half_open("solver.gs_relax", v.gs_relax, 0.0, 1.0)?;
         check_non_negative("solver.velocity_tol", v.velocity_tol)?;
         check_non_negative("solver.open_skip_gap", v.open_skip_gap)?;
+        check_non_negative("solver.deep_overlap", v.deep_overlap)?;
+        if v.deep_overlap > 0.0 {
+            check_at_least("solver.deep_sweeps", v.deep_sweeps.into(), 1, "a local update")?;
+            if v.deep_overlap >= v.overlap_limit {
+                return Err(Error::invalid(
+                    "solver.deep_overlap",
+                    v.deep_overlap,
+                    &format!(
+                        "must be below solver.overlap_limit = {} (the run stops there)",
+                        v.overlap_limit
+                    ),
+                ));
+            }
+        }
         check_range("solver.alert_distance", v.alert_distance, 0.0, 1.0)?;
         check_at_least("solver.check_every", v.check_every.into(), 1, "a check interval")?;
         check_positive("solver.overlap_limit", v.overlap_limit)?;
@@ -109,6 +123,8 @@ impl Config {
         }
         check_at_least("output.series_every", o.series_every, 1, "a number of steps")?;
         check_non_negative("output.snapshot_every", o.snapshot_every)?;
+        // What only the solver's own parameters can tell (e.g. deep_overlap with Jacobi).
+        self.protocol().step.solver.validate()?;
         Ok(())
     }
 }

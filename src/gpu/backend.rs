@@ -80,6 +80,13 @@ impl GpuBackend {
     /// A backend on an already opened device.
     pub fn with_device(gpu: GpuDevice, scene: Scene, params: StepParams) -> Result<Self> {
         params.validate()?;
+        if params.solver.deep_gap > 0.0 {
+            return Err(crate::Error::invalid(
+                "solver.deep_overlap",
+                params.solver.deep_gap,
+                "the GPU path has no local updates of deep contacts: 0 there, or backend = \"cpu\"",
+            ));
+        }
         scene.validate()?;
         let pipes = Pipelines::new(&gpu)?;
         let cap = Capacity::initial(scene.disks.len(), scene.walls.len());

@@ -156,6 +156,8 @@ impl ProtocolParams {
                     gs_relax_after: crate::solver::default_gs_relax_after(),
                     velocity_tol: crate::solver::default_velocity_tol_rel() * r_min / dt,
                     open_skip: crate::solver::default_open_skip_gap() * r_min / dt,
+                    deep_gap: 0.0,
+                    deep_sweeps: 0,
                 },
             },
             mu: 0.3,

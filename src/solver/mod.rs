@@ -86,6 +86,18 @@ pub struct SolverParams {
     /// candidate, as in records written before this field.
     #[serde(default)]
     pub open_skip: f64,
+    /// Overlap (m) beyond which a contact that carries a normal impulse at the end of the
+    /// Gauss-Seidel iterations gets `deep_sweeps` more local updates (unrelaxed, in
+    /// contact order), so that it leaves the step satisfying its own law: a loaded contact
+    /// the stopping tests leave closing by a small residual velocity would otherwise
+    /// deepen by it step after step (README, "Which contact, and why"). Its neighbours
+    /// take the change. 0 turns it off, as in records written before it; Gauss-Seidel
+    /// only, CPU path only.
+    #[serde(default)]
+    pub deep_gap: f64,
+    /// See `deep_gap`.
+    #[serde(default)]
+    pub deep_sweeps: u32,
 }
 
 fn unrelaxed() -> f64 {
@@ -137,6 +149,8 @@ impl Default for SolverParams {
             gs_relax_after: default_gs_relax_after(),
             velocity_tol: 0.0,
             open_skip: 0.0,
+            deep_gap: 0.0,
+            deep_sweeps: 0,
         }
     }
 }
@@ -196,6 +210,20 @@ impl SolverParams {
                 "solver.open_skip_gap",
                 self.open_skip,
                 "must be finite and >= 0",
+            ));
+        }
+        if !(self.deep_gap >= 0.0 && self.deep_gap.is_finite()) {
+            return Err(Error::invalid(
+                "solver.deep_overlap",
+                self.deep_gap,
+                "must be finite and >= 0",
+            ));
+        }
+        if self.deep_gap > 0.0 && self.method == Method::Jacobi {
+            return Err(Error::invalid(
+                "solver.deep_overlap",
+                self.deep_gap,
+                "applies to Gauss-Seidel only: 0 with method = \"jacobi\"",
             ));
         }
         Ok(())

@@ -911,6 +911,29 @@ pub fn solve(
         unpack_quads(rows, ranges, proper_colors);
     }
     let order = colored.then_some(&work.coloring.order[..]);
+    if params.deep_gap > 0.0 && params.deep_sweeps > 0 {
+        let active = parking.then_some(&work.active[..]);
+        let deep: Vec<usize> = (0..rows.len())
+            .filter(|&m| {
+                let r = &rows[m];
+                if r.j == FULL {
+                    return false;
+                }
+                let k = order.map_or(m, |o| o[m] as usize);
+                let c = &contacts[active.map_or(k, |a| a[k] as usize)];
+                c.gap < -params.deep_gap && r.rn > 0.0
+            })
+            .collect();
+        let ctx = Ctx { relax: 1.0, ..ctx };
+        for _ in 0..params.deep_sweeps {
+            for &m in &deep {
+                // SAFETY: no other sweep runs; the row's bodies are in range (checked in rows()).
+                unsafe {
+                    update::<false>(&mut rows[m], ctx);
+                }
+            }
+        }
+    }
     store(rows, order, parking.then_some(&work.active[..]), contacts);
     if parking && work.parked.iter().any(|r| opening(r, gv) < 0.0) {
         // A parked contact would close: solve again with every contact, from the

@@ -29,6 +29,8 @@ pub fn tight(method: Method) -> StepParams {
             gs_relax_after: cdlab::solver::default_gs_relax_after(),
             velocity_tol: 0.0,
             open_skip: 0.0,
+            deep_gap: 0.0,
+            deep_sweeps: 0,
         },
     }
 }
