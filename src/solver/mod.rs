@@ -91,8 +91,9 @@ pub struct SolverParams {
     /// contact order), so that it leaves the step satisfying its own law: a loaded contact
     /// the stopping tests leave closing by a small residual velocity would otherwise
     /// deepen by it step after step (README, "Which contact, and why"). Its neighbours
-    /// take the change. 0 turns it off, as in records written before it; Gauss-Seidel
-    /// only, CPU path only.
+    /// take the change. Contacts with a force-driven wall (solved with the full 2x2 law)
+    /// are left out. 0 turns it off, as in records written before it; Gauss-Seidel only,
+    /// CPU path only.
     #[serde(default)]
     pub deep_gap: f64,
     /// See `deep_gap`.
