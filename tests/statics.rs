@@ -168,16 +168,19 @@ fn a_deep_loaded_contact_leaves_the_step_satisfying_its_law() {
             p.solver.deep_gap = deep_gap;
             p.solver.deep_sweeps = 3;
             let mut e = cdlab::engine::CpuEngine::new(p).unwrap();
-            e.step(&mut s).unwrap();
+            let stats = e.step(&mut s).unwrap();
             let v = &s.disks.vel;
-            (v[1].y - v[0].y, v[2].y)
+            (v[1].y - v[0].y, v[2].y, stats.solve.deep)
         };
-        let (off, above_off) = run(0.0);
+        let (off, above_off, none) = run(0.0);
+        assert_eq!(none, 0, "{method:?}");
         assert!(
             off < -1e-4,
             "{method:?}: without local updates the contact should still close; it opens at {off} m/s"
         );
-        let (on, above_on) = run(0.005 * r);
+        let (on, above_on, deep) = run(0.005 * r);
+        // One contact is deep: disks 0-1 (the floor contact and the others touch).
+        assert_eq!(deep, 1, "{method:?}");
         assert!(
             on.abs() < 1e-12,
             "{method:?}: the deep contact leaves at {on} m/s, expected 0"

@@ -115,6 +115,8 @@ pub struct Reductions {
     pub capped_steps: u32,
     /// Mean number of colors per step (0 unless colored).
     pub colors_mean: f64,
+    /// Contacts given local updates after the iterations, summed over the steps.
+    pub deep_sum: u64,
 }
 
 /// Sums over the steps of one run.
@@ -141,6 +143,7 @@ impl Accumulator {
         r.iterations_sum += stats.solve.iterations as u64;
         r.iterations_max = r.iterations_max.max(stats.solve.iterations);
         r.capped_steps += !stats.solve.converged as u32;
+        r.deep_sum += stats.solve.deep as u64;
         self.colors += stats.solve.colors as u64;
         for (a, b) in self.impulse.iter_mut().zip(wall_impulse) {
             *a += b;

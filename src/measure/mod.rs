@@ -77,6 +77,7 @@ impl Gauge {
             overlap_max_rel: red.overlap_max / self.r_min,
             iterations: red.iterations_sum as f64 / red.steps.max(1) as f64,
             iterations_max: red.iterations_max as u64,
+            deep_contacts: red.deep_sum as f64 / red.steps.max(1) as f64,
             kinetic_energy_j: red.kinetic_energy,
             inertial_number: inertial,
             height_m: h,

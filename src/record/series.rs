@@ -73,6 +73,10 @@ pub struct SeriesRow {
     /// Filled by the recording, not the protocol; NaN in records written before it.
     #[serde(default = "nan", deserialize_with = "f64_or_nan")]
     pub wall_s: f64,
+    /// Mean number of contacts per step given local updates after the solver's iterations
+    /// (`solver.deep_overlap`); 0 without them, and in records written before them.
+    #[serde(default, deserialize_with = "f64_or_nan")]
+    pub deep_contacts: f64,
 }
 
 fn nan() -> f64 {
@@ -132,6 +136,11 @@ pub const SERIES_FIELDS: &[(&str, &str, &str)] = &[
         "wall_s",
         "number",
         "wall-clock time since the run started, over its resumed parts (s)",
+    ),
+    (
+        "deep_contacts",
+        "number",
+        "mean contacts per step given local updates (solver.deep_overlap)",
     ),
 ];
 
@@ -194,7 +203,7 @@ impl SeriesRow {
             self.phase.clone()
         };
         format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             self.time_s,
             self.step,
             phase,
@@ -218,6 +227,7 @@ impl SeriesRow {
             self.height_m,
             self.width_m,
             self.wall_s,
+            self.deep_contacts,
         )
     }
 }

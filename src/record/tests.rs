@@ -49,6 +49,7 @@ fn row(k: u64) -> SeriesRow {
         height_m: 97.0 - x * 1e-3,
         width_m: 39.0 + x * 1e-4,
         wall_s: 0.37 * x,
+        deep_contacts: (k % 3) as f64 * 0.5,
     }
 }
 

@@ -256,4 +256,6 @@ pub struct SolveStats {
     /// True when a left-out contact would have closed, so the step was solved again with
     /// every contact.
     pub unparked: bool,
+    /// Contacts given local updates after the iterations ([`SolverParams::deep_gap`]).
+    pub deep: u32,
 }

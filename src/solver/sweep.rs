@@ -924,6 +924,7 @@ pub fn solve(
                 c.gap < -params.deep_gap && r.rn > 0.0
             })
             .collect();
+        stats.deep = deep.len() as u32;
         let ctx = Ctx { relax: 1.0, ..ctx };
         for _ in 0..params.deep_sweeps {
             for &m in &deep {
