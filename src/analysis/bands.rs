@@ -144,7 +144,17 @@ fn band(c: &Candidate, d_mean: f64, null: f64) -> Band {
 
 /// The shear bands between snapshots `a` and `b` (same disks, `a` first).
 pub fn analyse_pair(a: &Snapshot, b: &Snapshot, opts: &BandOptions) -> Result<ShearBands> {
-    let local = local_strain(a, b, &opts.strain)?;
+    analyse_strain(a, b, &local_strain(a, b, &opts.strain)?, opts)
+}
+
+/// The shear bands of `local`, the local strain of each disk between snapshots `a` and `b`
+/// ([`local_strain`]), for a caller that needs that field too.
+pub fn analyse_strain(
+    a: &Snapshot,
+    b: &Snapshot,
+    local: &[Option<LocalStrain>],
+    opts: &BandOptions,
+) -> Result<ShearBands> {
     let d_mean = mean_diameter(&a.disks)
         .ok_or_else(|| Error::Other("no disk with a finite positive radius in the snapshot".into()))?;
     let points: Vec<(glam::DVec2, f64)> = local

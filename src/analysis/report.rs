@@ -64,8 +64,7 @@ impl TestPoint {
     /// the measured band angles are read against.
     pub fn coulomb_band_angle_deg(&self) -> Option<f64> {
         let s1 = self.sigma1_residual_mpa?;
-        let phi = ((s1 - self.sigma3_mpa) / (s1 + self.sigma3_mpa)).asin();
-        Some(45.0 - phi.to_degrees() / 2.0)
+        Some(45.0 - crate::measure::derived::friction_angle_deg(s1, self.sigma3_mpa) / 2.0)
     }
 }
 

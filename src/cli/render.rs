@@ -108,18 +108,16 @@ fn snapshot(args: &Args, at: f64) -> Result<()> {
 /// The local shear strain of snapshot `k` since the one before, and the bands in it: what
 /// the summary's band analysis computes for the run's last two snapshots.
 fn shear_field(snaps: &[Snapshot], k: usize) -> Result<ShearField> {
-    use crate::analysis::bands::{BandOptions, analyse_pair, local_strain};
+    use crate::analysis::bands::{BandOptions, analyse_strain, local_strain};
     let Some(prev) = k.checked_sub(1).map(|j| &snaps[j]) else {
         return Err(Error::Other(
             "the shear field needs a snapshot before the one drawn: ask for a larger --at".into(),
         ));
     };
     let opts = BandOptions::default();
-    let values = local_strain(prev, &snaps[k], &opts.strain)?
-        .into_iter()
-        .map(|s| s.map(|s| s.shear))
-        .collect();
-    let bands = analyse_pair(prev, &snaps[k], &opts)?.bands;
+    let local = local_strain(prev, &snaps[k], &opts.strain)?;
+    let bands = analyse_strain(prev, &snaps[k], &local, &opts)?.bands;
+    let values = local.iter().map(|s| s.map(|s| s.shear)).collect();
     Ok(ShearField {
         values,
         strain_from: prev.strain,

@@ -127,12 +127,17 @@ fn rows(contacts: &[Contact], n_bodies: usize, rows: &mut Vec<Row>, props: &mut 
 fn store(rows: &[Row], order: Option<&[u32]>, active: Option<&[u32]>, contacts: &mut [Contact]) {
     for (m, r) in rows.iter().enumerate() {
         if r.j != FULL {
-            let k = order.map_or(m, |o| o[m] as usize);
-            let c = &mut contacts[active.map_or(k, |a| a[k] as usize)];
+            let c = &mut contacts[contact_of(m, order, active)];
             c.rn = r.rn;
             c.rt = r.rt;
         }
     }
+}
+
+/// The contact of swept row `m` (see [`store`]).
+fn contact_of(m: usize, order: Option<&[u32]>, active: Option<&[u32]>) -> usize {
+    let k = order.map_or(m, |o| o[m] as usize);
+    active.map_or(k, |a| a[k] as usize)
 }
 
 /// `U_n + bias_n` of a row at the velocities `gv`: the local law gives the row a normal
@@ -911,17 +916,12 @@ pub fn solve(
         unpack_quads(rows, ranges, proper_colors);
     }
     let order = colored.then_some(&work.coloring.order[..]);
+    let active = parking.then_some(&work.active[..]);
     if params.deep_gap > 0.0 && params.deep_sweeps > 0 {
-        let active = parking.then_some(&work.active[..]);
         let deep: Vec<usize> = (0..rows.len())
             .filter(|&m| {
                 let r = &rows[m];
-                if r.j == FULL {
-                    return false;
-                }
-                let k = order.map_or(m, |o| o[m] as usize);
-                let c = &contacts[active.map_or(k, |a| a[k] as usize)];
-                c.gap < -params.deep_gap && r.rn > 0.0
+                r.j != FULL && r.rn > 0.0 && contacts[contact_of(m, order, active)].gap < -params.deep_gap
             })
             .collect();
         stats.deep = deep.len() as u32;
@@ -935,7 +935,7 @@ pub fn solve(
             }
         }
     }
-    store(rows, order, parking.then_some(&work.active[..]), contacts);
+    store(rows, order, active, contacts);
     if parking && work.parked.iter().any(|r| opening(r, gv) < 0.0) {
         // A parked contact would close: solve again with every contact, from the
         // impulses and velocities reached, so that none is missed.
