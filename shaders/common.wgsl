@@ -22,6 +22,7 @@ const ST_OVERLAP: u32 = 4u;       // largest overlap, f32 bits (positive floats 
 const ST_ROUNDS: u32 = 5u;        // coloring rounds
 const ST_CELLS_NEED: u32 = 6u;    // grid cells wanted
 const ST_LEFT: u32 = 7u;          // contacts left uncolored after the recorded rounds
+const ST_DEEP: u32 = 11u;         // contacts marked for local updates (solve.wgsl, deep_mark)
 const ST_WORDS: u32 = 16u;        // status words; color offsets follow them
 
 struct Sim {
@@ -38,6 +39,7 @@ struct Sim {
     e_n: f32, e_t: f32, sigma3: f32, relax: f32,
     strip_sum_r0: f32, strip_sum_r1: f32, gap_tol: f32, gs_relax: f32,
     o_color: u32, o_left: u32, max_rounds: u32, o_inc_tmp: u32,
+    f_deep: u32, deep_gap: f32, _s0: u32, _s1: u32,
 }
 
 // Per-dispatch arguments (a region to scan, a color to sweep), bound at a dynamic offset.
@@ -64,7 +66,7 @@ struct Contact {
     ax: f32, ay: f32, ki: f32, kj: f32,
     wnn: f32, wtt: f32, wnt: f32, mu: f32,
     un0: f32, ut0: f32, bias_n: f32, bias_t: f32,
-    rn: f32, rt: f32, _p0: f32, _p1: f32,
+    rn: f32, rt: f32, deep: u32, _p1: f32,
 }
 
 @group(0) @binding(0) var<uniform> sim: Sim;

@@ -24,21 +24,15 @@ fn gather(@builtin(global_invocation_id) gid: vec3<u32>) {
     set_vel(3u, b, v);
 }
 
-// One color of a Gauss-Seidel sweep: the color index is args.a; sim.gs_relax is the
-// iteration's relaxation (CPU twin: SolverParams::relax_at).
-@compute @workgroup_size(64)
-fn sweep_color(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let start = ld(sim.o_color_count + args.a);
-    let end = ld(sim.o_color_count + args.a + 1u);
-    if start + gid.x >= end { return; }
-    let k = ld(sim.o_order + start + gid.x);
-    var c = contacts[k];
+// Gauss-Seidel update of contact k, relaxed by `relax`: returns the change of its impulses.
+fn gs_update(k: u32, relax: f32) -> vec2<f32> {
+    let c = contacts[k];
     let vi = vel_at(3u, c.i);
     let vj = vel_at(3u, c.j);
     // Relaxed towards the local solution; both lie in the Coulomb cone, so the mix does.
     let old = vec2<f32>(c.rn, c.rt);
     let local = local_update(c, vi, vj);
-    let r = select(old + sim.gs_relax * (local - old), local, sim.gs_relax == 1.0);
+    let r = select(old + relax * (local - old), local, relax == 1.0);
     let drn = r.x - c.rn;
     let drt = r.y - c.rt;
     if drn != 0.0 || drt != 0.0 {
@@ -47,8 +41,56 @@ fn sweep_color(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     contacts[k].rn = r.x;
     contacts[k].rt = r.y;
-    floats[sim.f_d2 + k] = drn * drn + drt * drt;
-    floats[sim.f_r2 + k] = dot(r, r);
+    return vec2<f32>(drn, drt);
+}
+
+// The contact at position gid of color args.a in the sweep order, or UNSET past its end.
+fn color_member(gid: u32) -> u32 {
+    let start = ld(sim.o_color_count + args.a);
+    let end = ld(sim.o_color_count + args.a + 1u);
+    if start + gid >= end { return UNSET; }
+    return ld(sim.o_order + start + gid);
+}
+
+// One color of a Gauss-Seidel sweep: the color index is args.a; sim.gs_relax is the
+// iteration's relaxation (CPU twin: SolverParams::relax_at).
+@compute @workgroup_size(64)
+fn sweep_color(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = color_member(gid.x);
+    if k == UNSET { return; }
+    let d = gs_update(k, sim.gs_relax);
+    floats[sim.f_d2 + k] = dot(d, d);
+    let c = contacts[k];
+    floats[sim.f_r2 + k] = c.rn * c.rn + c.rt * c.rt;
+}
+
+// Local updates of deep contacts (CPU twin: the end of solver::sweep::solve), part 1: after
+// the iterations, mark each loaded contact overlapping by more than sim.deep_gap, and count
+// them. Contacts with a full 2x2 block (glued walls) are left out, as on the CPU.
+@compute @workgroup_size(64)
+fn deep_mark(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if k >= n_contacts() { return; }
+    let c = contacts[k];
+    let deep = c.rn > 0.0 && c.gap < -sim.deep_gap && c.wnt == 0.0 && c.ma == 0.0;
+    contacts[k].deep = u32(deep);
+    if deep { atomicAdd(&ints[sim.o_status + ST_DEEP], 1u); }
+}
+
+// Part 2: one color's marked contacts updated once more, unrelaxed (the selection does not
+// change during the updates, as on the CPU).
+@compute @workgroup_size(64)
+fn deep_color(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = color_member(gid.x);
+    if k == UNSET || contacts[k].deep == 0u { return; }
+    _ = gs_update(k, 1.0);
+}
+
+// Part 3: the step's count added to the sum since the last reduction (u32 bits; one thread).
+@compute @workgroup_size(1)
+fn deep_tally() {
+    let sum = bitcast<u32>(floats[sim.f_deep]) + ld(sim.o_status + ST_DEEP);
+    floats[sim.f_deep] = bitcast<f32>(sum);
 }
 
 // Jacobi, part 1: every contact from the same velocities, relaxed by sim.relax.

@@ -80,23 +80,3 @@ fn gpu_errors_come_back_as_cdlab_errors_naming_the_adapter() {
     })
     .expect("a 256-byte buffer is valid");
 }
-
-/// Local updates of deep contacts (`solver.deep_overlap`) exist on the CPU path only: the GPU
-/// backend refuses them by name rather than run without them.
-#[test]
-fn local_updates_of_deep_contacts_are_refused_on_the_gpu() {
-    let Some(gpu) = device_or_skip("deep contacts on the GPU") else {
-        return;
-    };
-    let mut config = cdlab::config::Config::default();
-    config.solver.deep_overlap = 0.005;
-    let params = config.protocol().step;
-    assert!(params.solver.deep_gap > 0.0);
-    let e = cdlab::gpu::backend::GpuBackend::with_device(gpu, cdlab::model::Scene::default(), params)
-        .err()
-        .expect("the GPU backend must refuse deep_overlap");
-    assert!(
-        e.to_string().contains("solver.deep_overlap") && e.to_string().contains("cpu"),
-        "{e}"
-    );
-}

@@ -80,13 +80,6 @@ impl GpuBackend {
     /// A backend on an already opened device.
     pub fn with_device(gpu: GpuDevice, scene: Scene, params: StepParams) -> Result<Self> {
         params.validate()?;
-        if params.solver.deep_gap > 0.0 {
-            return Err(crate::Error::invalid(
-                "solver.deep_overlap",
-                params.solver.deep_gap,
-                "the GPU path has no local updates of deep contacts: 0 there, or backend = \"cpu\"",
-            ));
-        }
         scene.validate()?;
         let pipes = Pipelines::new(&gpu)?;
         let cap = Capacity::initial(scene.disks.len(), scene.walls.len());
@@ -156,6 +149,7 @@ impl GpuBackend {
         sim.e_n = s.material.e_n as f32;
         sim.e_t = s.material.e_t as f32;
         sim.gap_tol = zero_gap_tolerance(s) as f32;
+        sim.deep_gap = p.solver.deep_gap as f32;
         // The solver loop sets the relaxation of each batch of iterations.
         sim.gs_relax = 1.0;
         let strips = !l.strip.is_empty() && l.sigma3 != 0.0;

@@ -79,7 +79,9 @@ pub struct GpuContact {
     pub bias_t: f32,
     pub rn: f32,
     pub rt: f32,
-    pub pad: [f32; 2],
+    /// 1 while the contact is given local updates after the iterations (WGSL `deep_mark`).
+    pub deep: u32,
+    pub pad: f32,
 }
 
 /// The uniform parameters of the kernels (WGSL `Sim`): sizes, region offsets, physics.
@@ -140,6 +142,11 @@ pub struct SimParams {
     pub o_left: u32,
     pub max_rounds: u32,
     pub o_inc_tmp: u32,
+    /// Contacts given local updates, summed over the steps since the last reduction (u32 bits).
+    pub f_deep: u32,
+    /// Overlap beyond which a loaded contact gets local updates (m; 0: none).
+    pub deep_gap: f32,
+    pub pad: [u32; 2],
 }
 
 /// Status words read back after detection and coloring (indices into the status region).
@@ -156,6 +163,8 @@ pub mod status {
     pub const ROUNDS: usize = 5;
     /// Contacts left uncolored after the recorded coloring rounds.
     pub const LEFT: usize = 7;
+    /// Contacts marked for local updates this step.
+    pub const DEEP: usize = 11;
     /// Indirect dispatch size of per-contact kernels (3 words).
     pub const ARGS: usize = 8;
     /// Words before the color offsets.
@@ -246,6 +255,7 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
     p.f_red = take(&mut f, 16);
     p.f_grid = take(&mut f, 8);
     p.f_conv = take(&mut f, 4);
+    p.f_deep = take(&mut f, 1);
     let floats_keep = f;
     p.f_d2 = take(&mut f, cap.contacts);
     p.f_r2 = take(&mut f, cap.contacts);

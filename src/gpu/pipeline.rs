@@ -42,6 +42,9 @@ const ENTRY_POINTS: &[(&str, &[&str])] = &[
             "conv_reduce",
             "save_iterate",
             "velocity_change",
+            "deep_mark",
+            "deep_color",
+            "deep_tally",
         ],
     ),
     ("integrate.wgsl", &["integrate"]),
@@ -171,4 +174,4 @@ fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
 
 /// Size check of the uniform parameters against the WGSL struct (a layout mismatch would
 /// silently scramble every kernel).
-const _: () = assert!(size_of::<SimParams>() == 208);
+const _: () = assert!(size_of::<SimParams>() == 224);

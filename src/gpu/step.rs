@@ -100,6 +100,9 @@ impl GpuBackend {
                 .queue
                 .write_buffer(&self.bufs.floats, 4 * self.sim.f_wall as u64, &zeros);
         }
+        self.gpu
+            .queue
+            .write_buffer(&self.bufs.floats, 4 * self.sim.f_deep as u64, &[0u8; 4]);
         let mut red = Reductions::default();
         let mut colors = 0u64;
         for _ in 0..steps {
@@ -245,6 +248,18 @@ impl GpuBackend {
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         {
             let mut r = Rec::new(&mut enc, self);
+            let p = self.params.solver;
+            if p.deep_gap > 0.0 && p.deep_sweeps > 0 && n > 0 {
+                // Local updates of deep contacts: one dispatch per color and update, as
+                // the iterations (the selection is made once, before them).
+                r.go_contacts("deep_mark");
+                for _ in 0..p.deep_sweeps {
+                    for (c, w) in self.color_offsets.windows(2).enumerate() {
+                        r.go("deep_color", 4 + c as u32, groups(w[1] - w[0]));
+                    }
+                }
+                r.go("deep_tally", 0, 1);
+            }
             r.go("integrate", 0, groups(nb));
             r.go("wall_impulse", 0, self.sim.n_walls);
             r.go("save_prev", 0, groups(n.max(nd + 1)));
@@ -405,6 +420,7 @@ impl GpuBackend {
         let n_ov = f[r + 6] as f64;
         red.overlap_mean = if n_ov > 0.0 { f[r + 7] as f64 / n_ov } else { 0.0 };
         red.overlap_max = f[r + 8] as f64;
+        red.deep_sum = f[self.sim.f_deep as usize].to_bits() as u64;
         red.kinetic_energy = f[r + 9] as f64;
         red.translational_energy = f[r + 14] as f64;
         red.connected_energy = f[r + 15] as f64;

@@ -92,8 +92,8 @@ pub struct SolverParams {
     /// the stopping tests leave closing by a small residual velocity would otherwise
     /// deepen by it step after step (README, "Which contact, and why"). Its neighbours
     /// take the change. Contacts with a force-driven wall (solved with the full 2x2 law)
-    /// are left out. 0 turns it off, as in records written before it; Gauss-Seidel only,
-    /// CPU path only.
+    /// are left out. 0 turns it off, as in records written before it; Gauss-Seidel only (on
+    /// the GPU, in color order: WGSL `deep_color`).
     #[serde(default)]
     pub deep_gap: f64,
     /// See `deep_gap`.
