@@ -246,16 +246,7 @@ fn gpu_glued_disk_on_a_force_driven_wall_matches_the_hand_calculation() {
 #[test]
 fn gpu_deep_loaded_contact_leaves_the_step_satisfying_its_law() {
     let (n, r) = (5usize, 1.0);
-    let column = || {
-        let mut s = scene(0.3);
-        s.gravity = DVec2::new(0.0, -G);
-        s.walls.push(floor());
-        for k in 0..n {
-            let y = r + 2.0 * r * k as f64 - if k == 0 { 0.0 } else { 0.01 * r };
-            s.disks.push(DVec2::new(0.0, y), r, RHO).unwrap();
-        }
-        s
-    };
+    let column = || sunk_column(n, r, G);
     let params = |deep_gap: f64| {
         let mut p = gpu_params(Method::ColoredGs);
         p.solver.max_iter = 2;

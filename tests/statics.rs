@@ -156,13 +156,7 @@ fn a_deep_loaded_contact_leaves_the_step_satisfying_its_law() {
     let (n, r) = (5usize, 1.0);
     for method in [Method::Gs, Method::ColoredGs] {
         let run = |deep_gap: f64| {
-            let mut s = scene(0.3);
-            s.gravity = DVec2::new(0.0, -G);
-            s.walls.push(floor());
-            for k in 0..n {
-                let y = r + 2.0 * r * k as f64 - if k == 0 { 0.0 } else { 0.01 * r };
-                s.disks.push(DVec2::new(0.0, y), r, RHO).unwrap();
-            }
+            let mut s = sunk_column(n, r, G);
             let mut p = tight(method);
             p.solver.max_iter = 2;
             p.solver.deep_gap = deep_gap;

@@ -58,6 +58,19 @@ pub fn floor() -> Wall {
     Wall::fixed(DVec2::ZERO, DVec2::Y)
 }
 
+/// A column of `n` disks of radius `r` on the floor under gravity `g` (m/s^2), the two
+/// lowest overlapping by 1% of `r`, the others touching (the deep-contact tests).
+pub fn sunk_column(n: usize, r: f64, g: f64) -> Scene {
+    let mut s = scene(0.3);
+    s.gravity = DVec2::new(0.0, -g);
+    s.walls.push(floor());
+    for k in 0..n {
+        let y = r + 2.0 * r * k as f64 - if k == 0 { 0.0 } else { 0.01 * r };
+        s.disks.push(DVec2::new(0.0, y), r, RHO).unwrap();
+    }
+    s
+}
+
 /// A small deterministic generator (SplitMix64) so tests need no external crate.
 pub struct Rng(pub u64);
 
