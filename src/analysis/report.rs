@@ -56,6 +56,10 @@ pub struct TestPoint {
     /// The largest stress drop (MPa); absent as `stress_drops`, or without events.
     #[serde(default)]
     pub stress_drop_max_mpa: Option<f64>,
+    /// The overlap beyond which the test gave loaded contacts local updates
+    /// (`solver.deep_overlap`, relative to r_min); absent when it gave none.
+    #[serde(default)]
+    pub deep_overlap_rel: Option<f64>,
 }
 
 impl TestPoint {
@@ -367,6 +371,10 @@ fn read_point(dir: &Path, path: &Path) -> Result<TestPoint> {
                     .collect()
             }),
             stress_drops: binned.map(|d| d.len()),
+            deep_overlap_rel: v
+                .get("deep_contacts")
+                .and_then(|d| d.get("overlap_rel"))
+                .and_then(serde_json::Value::as_f64),
             stress_drop_max_mpa: binned.and_then(|d| {
                 d.iter()
                     .filter_map(|e| e.get("drop_pa")?.as_f64())
@@ -495,13 +503,14 @@ impl Report {
 
     /// Every test as CSV (header with units): strengths, dilatancy, shear bands (the band
     /// rising towards +x, then the one towards -x, beside Coulomb's angle at the residual),
-    /// stress drops, overlap, kinetic ratio, time step and wall time. An empty cell is a
-    /// figure the summary does not hold.
+    /// stress drops, overlap, kinetic ratio, time step, wall time and the threshold of local
+    /// updates of deep contacts. An empty cell is a figure the summary does not hold (or,
+    /// for the threshold, a test without local updates).
     pub fn tests_csv(&self) -> String {
         let mut s = String::from(
             "dir,mu,sigma3_mpa,sigma1_peak_mpa,strain_peak,sigma1_residual_mpa,volumetric_strain_final,\
              band_pos_angle_deg,band_pos_width_diameters,band_neg_angle_deg,band_neg_width_diameters,\
-             coulomb_band_angle_deg,stress_drops,stress_drop_max_mpa,overlap_max_rel,kinetic_ratio_max,dt_ms,wall_time_h\n",
+             coulomb_band_angle_deg,stress_drops,stress_drop_max_mpa,overlap_max_rel,kinetic_ratio_max,dt_ms,wall_time_h,deep_overlap_rel\n",
         );
         let opt = |x: Option<f64>| x.map_or(String::new(), |v| v.to_string());
         for t in &self.tests {
@@ -531,6 +540,7 @@ impl Report {
                 opt(t.kinetic_ratio_max),
                 opt(t.dt_s.map(|d| d * 1e3)),
                 opt(t.wall_time_s.map(|w| w / 3600.0)),
+                opt(t.deep_overlap_rel),
             ];
             s.push_str(&cells.join(","));
             s.push('\n');
@@ -659,7 +669,8 @@ mod tests {
     /// rising towards +x in the `band_pos` columns whatever its place in the list, Coulomb's
     /// angle at the residual beside them (s1 = 3 s3: sin(phi) = 1/2, phi = 30 deg, so
     /// 45 - 15 = 30 deg), the events counted and the largest in MPa. Events listed from row
-    /// to row (no bin in the summary) are left out rather than counted.
+    /// to row (no bin in the summary) are left out rather than counted. The threshold of
+    /// local updates of deep contacts is there for the test that used them only.
     #[test]
     fn the_per_test_table_holds_bands_and_stress_drops() {
         let base = std::env::temp_dir().join(format!("cdlab-tests-csv-{}", std::process::id()));
@@ -678,6 +689,8 @@ mod tests {
             });
             if bin {
                 v["stress_drop_bin_strain"] = serde_json::json!(1e-4);
+                v["deep_contacts"] =
+                    serde_json::json!({"overlap_rel": 0.005, "sweeps": 5, "per_step_compression": 2.2});
             }
             std::fs::write(d.join("summary.json"), v.to_string()).unwrap();
         };
@@ -703,6 +716,8 @@ mod tests {
         assert_eq!(by_rows[col("stress_drops")], "");
         assert_eq!(by_rows[col("stress_drop_max_mpa")], "");
         assert_eq!(by_rows[col("band_neg_width_diameters")], "6.5");
+        assert_eq!(binned[col("deep_overlap_rel")], "0.005");
+        assert_eq!(by_rows[col("deep_overlap_rel")], "");
         let _ = std::fs::remove_dir_all(&base);
     }
 

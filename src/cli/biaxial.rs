@@ -356,6 +356,11 @@ pub(super) fn summary_of(
         wall_s,
     );
     summary.dt_s = Some(config.solver.dt.si());
+    summary.deep_contacts = crate::measure::summary::DeepContacts::of_run(
+        config.solver.deep_overlap,
+        config.solver.deep_sweeps,
+        rows,
+    );
     let bands = match record {
         Ok(rec) => crate::analysis::bands::analyse_run(rec, None, None, &Default::default()),
         Err(e) => Err(Error::Other(e.to_string())),

@@ -21,6 +21,10 @@ pub struct Summary {
     /// built without a configuration.
     #[serde(default)]
     pub dt_s: Option<f64>,
+    /// Local updates of deep contacts (`solver.deep_overlap`), when the run used them:
+    /// absent otherwise, and in summaries written before them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub deep_contacts: Option<DeepContacts>,
     /// Peak of sigma_1 averaged over a 0.002 strain window (MPa).
     pub sigma1_peak_mpa: f64,
     /// Axial strain at the peak.
@@ -89,6 +93,36 @@ pub struct Summary {
     pub shear_bands: Option<crate::analysis::bands::ShearBands>,
 }
 
+/// How a run used local updates of deep contacts (`solver.deep_overlap`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct DeepContacts {
+    /// The overlap beyond which a loaded contact was updated, relative to r_min.
+    pub overlap_rel: f64,
+    /// Local updates per such contact and step.
+    pub sweeps: u32,
+    /// Contacts updated per step, mean over the compression.
+    pub per_step_compression: f64,
+}
+
+impl DeepContacts {
+    /// The record of a run with threshold `overlap_rel` (0: none) and `sweeps` updates.
+    pub fn of_run(overlap_rel: f64, sweeps: u32, rows: &[SeriesRow]) -> Option<Self> {
+        if overlap_rel <= 0.0 || sweeps == 0 {
+            return None;
+        }
+        let comp: Vec<f64> = rows
+            .iter()
+            .filter(|r| r.phase == "compression")
+            .map(|r| r.deep_contacts)
+            .collect();
+        Some(DeepContacts {
+            overlap_rel,
+            sweeps,
+            per_step_compression: comp.iter().sum::<f64>() / comp.len().max(1) as f64,
+        })
+    }
+}
+
 /// The kinetic ratio below which a compression counts as quasi-static in the summary:
 /// measured, healthy tests stay below it (9e-5 for the 5000-disk DWL test, 6e-4 at friction
 /// 0.1 and 1 MPa), while tests that were losing their confinement at low friction reached
@@ -118,6 +152,7 @@ impl Summary {
             mu,
             sigma3_mpa: sigma3 / 1e6,
             dt_s: None,
+            deep_contacts: None,
             sigma1_peak_mpa: st.sigma1_peak_pa / 1e6,
             strain_peak: st.strain_peak,
             sigma1_residual_mpa: finite(st.sigma1_residual_pa / 1e6),
@@ -166,6 +201,17 @@ impl Summary {
         line("confining stress sigma3", format!("{:.3} MPa", self.sigma3_mpa));
         if let Some(dt) = self.dt_s {
             line("time step", format!("{} ms", dt * 1e3));
+        }
+        if let Some(d) = &self.deep_contacts {
+            line(
+                "local updates of deep contacts",
+                format!(
+                    "beyond {:.3}% of r_min, {} per step; {:.2} contacts per step (compression)",
+                    100.0 * d.overlap_rel,
+                    d.sweeps,
+                    d.per_step_compression
+                ),
+            );
         }
         line(
             "peak sigma1 (0.002 window)",
@@ -274,5 +320,38 @@ mod tests {
         let wild = Summary::new(&[row(1e6), row(2.5e7)], &[], 1e6, 0.3, 10, "cpu".into(), 1.0);
         assert!((wild.kinetic_ratio_max - 5e-3).abs() < 1e-15);
         assert!(wild.table().contains("not quasi-static"), "{}", wild.table());
+    }
+
+    /// The record of local updates: absent without them (threshold or sweeps 0), so that
+    /// the summaries of runs without them keep their keys; the mean per step is over the
+    /// compression rows only (3 and 5 contacts: 4), not the confinement's 100.
+    #[test]
+    fn deep_contacts_are_recorded_only_when_used() {
+        let mut rows = vec![row(1e6), row(1e6), row(1e6)];
+        rows[0].phase = "confinement".into();
+        for (r, d) in rows.iter_mut().zip([100.0, 3.0, 5.0]) {
+            r.deep_contacts = d;
+        }
+        assert_eq!(DeepContacts::of_run(0.0, 5, &rows), None);
+        assert_eq!(DeepContacts::of_run(0.005, 0, &rows), None);
+        let d = DeepContacts::of_run(0.005, 5, &rows).expect("used");
+        assert_eq!((d.overlap_rel, d.sweeps, d.per_step_compression), (0.005, 5, 4.0));
+        let mut s = Summary::new(&rows, &[], 1e6, 0.3, 10, "cpu".into(), 1.0);
+        let json = serde_json::to_string(&s).unwrap();
+        assert!(!json.contains("deep_contacts"), "{json}");
+        s.deep_contacts = Some(d);
+        let json = serde_json::to_string(&s).unwrap();
+        assert!(
+            json.contains("\"deep_contacts\":{\"overlap_rel\":0.005"),
+            "{json}"
+        );
+        assert!(
+            s.table()
+                .contains("beyond 0.500% of r_min, 5 per step; 4.00 contacts per step"),
+            "{}",
+            s.table()
+        );
+        let back: Summary = serde_json::from_str(&json).unwrap();
+        assert_eq!(back, s);
     }
 }
