@@ -24,8 +24,9 @@ fn gather(@builtin(global_invocation_id) gid: vec3<u32>) {
     set_vel(3u, b, v);
 }
 
-// Gauss-Seidel update of contact k, relaxed by `relax`: returns the change of its impulses.
-fn gs_update(k: u32, relax: f32) -> vec2<f32> {
+// Gauss-Seidel update of contact k, relaxed by `relax`: returns the change of its impulses
+// (x, y) and the new impulses (z, w), so that the sweep's sums need no second load.
+fn gs_update(k: u32, relax: f32) -> vec4<f32> {
     let c = contacts[k];
     let vi = vel_at(3u, c.i);
     let vj = vel_at(3u, c.j);
@@ -41,7 +42,7 @@ fn gs_update(k: u32, relax: f32) -> vec2<f32> {
     }
     contacts[k].rn = r.x;
     contacts[k].rt = r.y;
-    return vec2<f32>(drn, drt);
+    return vec4<f32>(drn, drt, r.x, r.y);
 }
 
 // The contact at position gid of color args.a in the sweep order, or UNSET past its end.
@@ -58,10 +59,9 @@ fn color_member(gid: u32) -> u32 {
 fn sweep_color(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = color_member(gid.x);
     if k == UNSET { return; }
-    let d = gs_update(k, sim.gs_relax);
-    floats[sim.f_d2 + k] = dot(d, d);
-    let c = contacts[k];
-    floats[sim.f_r2 + k] = c.rn * c.rn + c.rt * c.rt;
+    let u = gs_update(k, sim.gs_relax);
+    floats[sim.f_d2 + k] = u.x * u.x + u.y * u.y;
+    floats[sim.f_r2 + k] = dot(u.zw, u.zw);
 }
 
 // Local updates of deep contacts (CPU twin: the end of solver::sweep::solve), part 1: after

@@ -249,7 +249,7 @@ impl GpuBackend {
         {
             let mut r = Rec::new(&mut enc, self);
             let p = self.params.solver;
-            if p.deep_gap > 0.0 && p.deep_sweeps > 0 && n > 0 {
+            if p.deep_updates() && n > 0 {
                 // Local updates of deep contacts: one dispatch per color and update, as
                 // the iterations (the selection is made once, before them).
                 r.go_contacts("deep_mark");

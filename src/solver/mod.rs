@@ -163,6 +163,12 @@ pub fn default_parallel_min() -> usize {
 }
 
 impl SolverParams {
+    /// Whether the steps give deep contacts local updates ([`SolverParams::deep_gap`]),
+    /// on either backend.
+    pub fn deep_updates(&self) -> bool {
+        self.deep_gap > 0.0 && self.deep_sweeps > 0
+    }
+
     /// The Gauss-Seidel relaxation of iteration `it` (1-based) of a step.
     pub fn relax_at(&self, it: u32) -> f64 {
         if it > self.gs_relax_after {

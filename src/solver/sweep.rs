@@ -917,7 +917,7 @@ pub fn solve(
     }
     let order = colored.then_some(&work.coloring.order[..]);
     let active = parking.then_some(&work.active[..]);
-    if params.deep_gap > 0.0 && params.deep_sweeps > 0 {
+    if params.deep_updates() {
         let deep: Vec<usize> = (0..rows.len())
             .filter(|&m| {
                 let r = &rows[m];
