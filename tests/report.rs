@@ -62,6 +62,57 @@ fn report_recovers_the_macroscopic_friction_and_its_saturation() {
     let _ = std::fs::remove_dir_all(&base);
 }
 
+/// The 5000-disk campaign's report shipped beside its archive
+/// (`assets/results/campaign5000_report.json`, README "Measured results") is what `cdlab
+/// report` makes of that archive now: a stale copy, or an archive changed without its
+/// report, fails here. Its fits are the README's: plateaus 0.491 at the peak and 0.291 at
+/// the residual.
+#[test]
+fn shipped_5000_disk_report_is_the_report_of_the_shipped_archive() {
+    let results = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/results");
+    let shipped: cdlab::analysis::report::Report =
+        serde_json::from_str(&std::fs::read_to_string(results.join("campaign5000_report.json")).unwrap())
+            .unwrap();
+    let (points, missing) = cdlab::analysis::report::collect(&[results.join("campaign5000")]);
+    let now = cdlab::analysis::report::analyse(&points, missing);
+    // The paper's grid, whole: 13 frictions of 5 pressures, nothing missing.
+    assert_eq!(shipped.tests.len(), 65);
+    assert!(shipped.frictions.len() == 13 && shipped.frictions.iter().all(|r| r.tests == 5));
+    assert!(
+        shipped.missing.is_empty() && now.missing.is_empty(),
+        "{:?}",
+        now.missing
+    );
+    assert_eq!(now.frictions.len(), shipped.frictions.len());
+    for (n, s) in now.frictions.iter().zip(&shipped.frictions) {
+        assert_eq!(n.mu, s.mu);
+        assert_eq!(n.tests, s.tests, "friction {}", s.mu);
+        for (x, y) in [
+            (n.mu_macro, s.mu_macro),
+            (n.mu_macro_res, s.mu_macro_res),
+            (n.wall_time_h, s.wall_time_h),
+        ] {
+            assert!(
+                (x - y).abs() <= 1e-12 * y.abs().max(1.0),
+                "friction {}: {x} vs {y}",
+                s.mu
+            );
+        }
+    }
+    let (fit, fit_res) = (now.mu_macro_fit.unwrap(), now.mu_macro_res_fit.unwrap());
+    let shipped_fit = shipped.mu_macro_fit.unwrap();
+    assert!((fit.a - shipped_fit.a).abs() < 1e-9 && (fit.c - shipped_fit.c).abs() < 1e-6);
+    // README: mu_macro = 0.491 - 0.367 exp(-6.0 mu), mu_macro_res = 0.291 - 0.217 exp(-9.7 mu).
+    assert!(
+        (fit.a - 0.491).abs() < 5e-4 && (fit.b - 0.367).abs() < 5e-4,
+        "{fit:?}"
+    );
+    assert!(
+        (fit_res.a - 0.291).abs() < 5e-4 && (fit_res.c - 9.7).abs() < 0.05,
+        "{fit_res:?}"
+    );
+}
+
 /// The 1000-disk campaign's report shipped in `assets/results/` (README, "Measured
 /// results") reads back as a report of the current format, with the paper's 13 frictions
 /// of 5 pressures each and both saturation fits.
