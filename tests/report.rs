@@ -113,6 +113,36 @@ fn shipped_5000_disk_report_is_the_report_of_the_shipped_archive() {
     );
 }
 
+/// The README's 5000-disk table (contact friction, mu_macro, mu_macro_res with their
+/// standard errors) prints the shipped report's values to three decimals, row for row.
+#[test]
+fn readme_5000_disk_table_is_the_shipped_report() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let shipped: cdlab::analysis::report::Report = serde_json::from_str(
+        &std::fs::read_to_string(root.join("assets/results/campaign5000_report.json")).unwrap(),
+    )
+    .unwrap();
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    let head = "| contact friction | mu_macro, 5000 disks | mu_macro_res, 5000 disks |";
+    let start = readme.find(head).expect("the README's 5000-disk table");
+    let rows: Vec<Vec<&str>> = readme[start..]
+        .lines()
+        .skip(2)
+        .take_while(|l| l.starts_with('|'))
+        .map(|l| l.split('|').map(str::trim).collect())
+        .collect();
+    assert_eq!(rows.len(), shipped.frictions.len());
+    for (cells, f) in rows.iter().zip(&shipped.frictions) {
+        let mu: f64 = cells[1].split_whitespace().next().unwrap().parse().unwrap();
+        assert_eq!(mu, f.mu);
+        assert_eq!(cells[2], format!("{:.3} ± {:.3}", f.mu_macro, f.mu_macro_se));
+        assert_eq!(
+            cells[3],
+            format!("{:.3} ± {:.3}", f.mu_macro_res, f.mu_macro_res_se)
+        );
+    }
+}
+
 /// The 1000-disk campaign's report shipped in `assets/results/` (README, "Measured
 /// results") reads back as a report of the current format, with the paper's 13 frictions
 /// of 5 pressures each and both saturation fits.
