@@ -94,7 +94,9 @@ fn shipped_5000_disk_report_is_the_report_of_the_shipped_archive() {
         ] {
             assert!(
                 (x - y).abs() <= 1e-12 * y.abs().max(1.0),
-                "friction {}: {x} vs {y}",
+                "friction {}: {x} from the archive, {y} shipped; regenerate with `cdlab report \
+                 assets/results/campaign5000 --out DIR` and copy its report.json, report.csv \
+                 and tests.csv to assets/results/campaign5000_*",
                 s.mu
             );
         }
