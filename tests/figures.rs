@@ -784,6 +784,49 @@ fn render_command_draws_the_nearest_snapshot_and_the_curves() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A test of the shipped 5000-disk archive (configuration, summary and thinned series, no
+/// record) draws its curves from the thinned series, over the whole compression to the
+/// summary's final strain; snapshot figures say the record is missing and why.
+#[test]
+fn archived_test_draws_its_curves_and_explains_the_rest() {
+    let run = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/results/campaign5000/seed1_mu0.3_s8MPa");
+    let rows = cdlab::record::read_series(&run).unwrap();
+    let thinned = std::fs::read_to_string(run.join("series_thinned.csv")).unwrap();
+    assert_eq!(rows.len(), thinned.lines().count() - 1);
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
+    let last = rows.iter().rev().find(|r| r.phase == "compression").unwrap();
+    // The thinned series keeps the last row: the summary's final strain (0.10).
+    assert_eq!(last.strain_axial, summary["strain_final"].as_f64().unwrap());
+    let dir = scratch("archived-curves");
+    let (ok, text) = cdlab(&[
+        "render",
+        run.to_str().unwrap(),
+        "--curves",
+        "-o",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let img = Img::decode(&std::fs::read(dir.join("stress_strain.png")).unwrap());
+    for c in [LINE_COLORS[0], LINE_COLORS[1]] {
+        assert!(img.count(c) > 500, "curve color {c:?}: {} pixels", img.count(c));
+    }
+    let fig = dir.join("x.png");
+    let (ok, text) = cdlab(&[
+        "render",
+        run.to_str().unwrap(),
+        "--at",
+        "0.09",
+        "-o",
+        fig.to_str().unwrap(),
+    ]);
+    assert!(
+        !ok && text.contains("archived test") && text.contains("--curves"),
+        "{text}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn report_command_writes_its_figures() {
     let dir = scratch("report");

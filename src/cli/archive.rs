@@ -19,10 +19,9 @@ use std::path::{Path, PathBuf};
 use crate::analysis::report::{GRID_FILE, NOT_RUN, add_to_grid, read_grid};
 use crate::error::{Error, Result};
 use crate::protocol::checkpoint::decode;
-use crate::record::{ARCHIVED_CONFIG_FILE, CSV_FILE, MCAP_FILE, Recorder, read_config, read_run};
-
-/// File name of the thinned time series in an archived test.
-pub const THINNED_SERIES_FILE: &str = "series_thinned.csv";
+use crate::record::{
+    ARCHIVED_CONFIG_FILE, CSV_FILE, MCAP_FILE, Recorder, THINNED_SERIES_FILE, read_config, read_run,
+};
 
 /// Options of `cdlab archive`.
 #[derive(clap::Args, Debug)]

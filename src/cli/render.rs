@@ -3,9 +3,10 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::config::Config;
 use crate::error::{Error, Result};
 use crate::figures::{self, ContactsFigure, Field, Format, ShearField, SnapshotFigure, StressStrainFigure};
-use crate::record::{RunRecord, Snapshot, read_run};
+use crate::record::{Snapshot, read_config, read_run, read_series};
 
 /// Options of `cdlab render`.
 #[derive(clap::Args, Debug)]
@@ -126,8 +127,8 @@ fn shear_field(snaps: &[Snapshot], k: usize) -> Result<ShearField> {
 }
 
 /// A title naming the run's friction, confining stress and size.
-fn run_title(rec: &RunRecord, run: &Path) -> String {
-    match rec.config() {
+fn run_title(config: Result<Config>, run: &Path) -> String {
+    match config {
         Ok(c) => format!(
             "μ = {}, σ₃ = {} MPa, {} disks",
             c.test.mu,
@@ -139,26 +140,20 @@ fn run_title(rec: &RunRecord, run: &Path) -> String {
 }
 
 fn curves(args: &Args) -> Result<()> {
-    let rec = read_run(&args.run)?;
+    // An archived test draws from its thinned series: the curves need no snapshot.
+    let series = read_series(&args.run)?;
     std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
-    let title = run_title(&rec, &args.run);
+    let title = run_title(read_config(&args.run), &args.run);
     let written = [
         figures::save_both(
             &StressStrainFigure {
-                rows: &rec.series,
+                rows: &series,
                 title: title.clone(),
             },
             &args.out,
             "stress_strain",
         )?,
-        figures::save_both(
-            &ContactsFigure {
-                rows: &rec.series,
-                title,
-            },
-            &args.out,
-            "contacts",
-        )?,
+        figures::save_both(&ContactsFigure { rows: &series, title }, &args.out, "contacts")?,
     ];
     for p in written.iter().flatten() {
         println!("{}", p.display());

@@ -25,14 +25,18 @@ mod writer;
 mod tests;
 
 pub use lock::{LOCK_FILE, RunLock};
-pub use reader::{RunRecord, read_config, read_run};
-pub use series::{SERIES_FIELDS, SeriesRow, csv_header, series_json_schema};
+pub use reader::{RunRecord, read_config, read_run, read_series};
+pub use series::{SERIES_FIELDS, SeriesRow, csv_header, parse_csv, series_json_schema};
 pub use snapshot::{ContactClass, ContactRecord, DiskRecord, SNAPSHOT_SCHEMA, Snapshot};
 pub use writer::Recorder;
 
 /// The configuration of a test kept by `cdlab archive` in place of its record
 /// ([`read_config`] reads it when the directory holds no record).
 pub const ARCHIVED_CONFIG_FILE: &str = "config.toml";
+
+/// The time series of a test kept by `cdlab archive`, thinned to a few hundred rows
+/// ([`read_series`] reads it when the directory holds no record).
+pub const THINNED_SERIES_FILE: &str = "series_thinned.csv";
 
 /// File name of the MCAP record inside a run directory.
 pub const MCAP_FILE: &str = "run.mcap";

@@ -60,6 +60,25 @@ fn mcap_path(path: &Path) -> PathBuf {
     }
 }
 
+/// A directory that `cdlab archive` wrote: no record, the archived configuration.
+fn is_archived(dir: &Path) -> bool {
+    dir.is_dir() && !dir.join(MCAP_FILE).exists() && dir.join(ARCHIVED_CONFIG_FILE).exists()
+}
+
+/// Reads the time series of a run (`path` as for [`read_run`]) from its record, or of an
+/// archived test from its thinned series ([`THINNED_SERIES_FILE`]: a few hundred rows
+/// spread over the run, enough to draw its curves).
+pub fn read_series(path: impl AsRef<Path>) -> Result<Vec<SeriesRow>> {
+    let dir = path.as_ref();
+    if !is_archived(dir) {
+        return Ok(read_run(dir)?.series);
+    }
+    let file = dir.join(THINNED_SERIES_FILE);
+    let text = std::fs::read_to_string(&file).map_err(|e| Error::io(&file, e))?;
+    super::series::parse_csv(&text)
+        .map_err(|e| Error::io(&file, std::io::Error::new(std::io::ErrorKind::InvalidData, e)))
+}
+
 /// Reads only the configuration of a run (`path` as for [`read_run`]). The recorder writes
 /// it first and its chunks are small, so the file's first megabyte normally holds it: a sweep
 /// checks every finished test of a campaign this way without reading whole records. A head
@@ -70,9 +89,8 @@ fn mcap_path(path: &Path) -> PathBuf {
 pub fn read_config(path: impl AsRef<Path>) -> Result<Config> {
     use std::io::Read;
     let dir = path.as_ref();
-    let archived = dir.join(ARCHIVED_CONFIG_FILE);
-    if dir.is_dir() && !dir.join(MCAP_FILE).exists() && archived.exists() {
-        return Config::load(&archived);
+    if is_archived(dir) {
+        return Config::load(dir.join(ARCHIVED_CONFIG_FILE));
     }
     let path = mcap_path(dir);
     let mut head = Vec::new();
@@ -104,8 +122,20 @@ pub fn read_config(path: impl AsRef<Path>) -> Result<Config> {
 /// A file cut short is read up to its last complete chunk. A file that is not MCAP, or an
 /// MCAP file that is not a cdlab run (no `/config` message of schema `cdlab.Config`), or a
 /// complete message that does not decode, is an error naming the file.
+///
+/// A directory written by `cdlab archive` (configuration, summary and thinned series, no
+/// record) is an error that says so: snapshots and checkpoints went with the record.
 pub fn read_run(path: impl AsRef<Path>) -> Result<RunRecord> {
     let path = path.as_ref();
+    if is_archived(path) {
+        return Err(Error::Other(format!(
+            "{} is an archived test (`cdlab archive`: its configuration, summary and time \
+             series thinned to {THINNED_SERIES_FILE}, without the record {MCAP_FILE}); this \
+             needs the full record, which only the run's own directory holds (`cdlab render \
+             DIR --curves` draws from the thinned series)",
+            path.display()
+        )));
+    }
     let path = mcap_path(path);
     let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
     let bad = |msg: String| Error::io(&path, std::io::Error::new(std::io::ErrorKind::InvalidData, msg));

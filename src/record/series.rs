@@ -179,6 +179,86 @@ pub fn csv_header() -> String {
     names.join(",")
 }
 
+/// Rows from the text of a series CSV (`series.csv`, or an archive's `series_thinned.csv`),
+/// columns found by the header's names: a file written before `wall_s` or `deep_contacts`
+/// existed reads with their defaults, as its MCAP does. `NaN` and infinities (how
+/// [`SeriesRow::csv_line`] writes non-finite values) read as NaN. An unknown column, a
+/// missing one that has no default, or a value that does not parse is an error naming its
+/// line.
+pub fn parse_csv(text: &str) -> std::result::Result<Vec<SeriesRow>, String> {
+    let mut lines = text.lines().enumerate();
+    let header: Vec<&str> = match lines.next() {
+        Some((_, h)) => h.split(',').map(str::trim).collect(),
+        None => return Err("empty file: no header".into()),
+    };
+    let kinds: Vec<&str> = header
+        .iter()
+        .map(|name| {
+            SERIES_FIELDS
+                .iter()
+                .find(|f| f.0 == *name)
+                .map(|f| f.1)
+                .ok_or_else(|| format!("unknown column `{name}` in the header"))
+        })
+        .collect::<std::result::Result<_, _>>()?;
+    let mut rows = Vec::new();
+    for (k, line) in lines {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let cells = split_csv_line(line);
+        if cells.len() != header.len() {
+            return Err(format!(
+                "line {}: {} values for {} columns",
+                k + 1,
+                cells.len(),
+                header.len()
+            ));
+        }
+        let mut obj = serde_json::Map::new();
+        for ((name, kind), cell) in header.iter().zip(&kinds).zip(cells) {
+            let bad = |e: &dyn std::fmt::Display| format!("line {}, column {name}: `{cell}`: {e}", k + 1);
+            let value = match *kind {
+                "string" => serde_json::Value::from(cell),
+                "integer" => serde_json::Value::from(cell.parse::<u64>().map_err(|e| bad(&e))?),
+                _ => {
+                    let v = cell.parse::<f64>().map_err(|e| bad(&e))?;
+                    // serde_json has no NaN: null is what the MCAP holds for it.
+                    serde_json::Number::from_f64(v).map_or(serde_json::Value::Null, serde_json::Value::Number)
+                }
+            };
+            obj.insert(name.to_string(), value);
+        }
+        rows.push(
+            serde_json::from_value(serde_json::Value::Object(obj))
+                .map_err(|e| format!("line {}: {e}", k + 1))?,
+        );
+    }
+    Ok(rows)
+}
+
+/// The cells of one CSV line; a cell in double quotes may hold commas and doubled quotes
+/// (how [`SeriesRow::csv_line`] writes a phase name that needs it).
+fn split_csv_line(line: &str) -> Vec<String> {
+    let mut cells = Vec::new();
+    let mut cell = String::new();
+    let mut quoted = false;
+    let mut chars = line.chars().peekable();
+    while let Some(c) = chars.next() {
+        match (c, quoted) {
+            ('"', true) if chars.peek() == Some(&'"') => {
+                cell.push('"');
+                chars.next();
+            }
+            ('"', _) => quoted = !quoted,
+            (',', false) => cells.push(std::mem::take(&mut cell)),
+            _ => cell.push(c),
+        }
+    }
+    cells.push(cell);
+    cells
+}
+
 impl SeriesRow {
     /// Kinetic energy over the confining stress times the sample's area,
     /// `K / (sigma3 h w)`: the compression's measure of how far from quasi-static the test

@@ -375,3 +375,78 @@ fn rows_without_wall_time_read_back_as_nan() {
     assert!(back.wall_s.is_nan());
     assert_eq!(back.sigma1_pa, row(3).sigma1_pa);
 }
+
+/// The CSV reads back to the rows written, bit for bit (Rust's shortest round-trip floats),
+/// non-finite values as NaN, a quoted phase with its comma and quote.
+#[test]
+fn series_csv_reads_back_the_rows_written() {
+    let mut rows: Vec<SeriesRow> = (0..60).map(row).collect();
+    rows[3].inertial_number = f64::NAN;
+    rows[4].kinetic_energy_j = f64::NEG_INFINITY;
+    rows[5].phase = "odd, \"quoted\" phase".into();
+    let text: String = std::iter::once(csv_header())
+        .chain(rows.iter().map(SeriesRow::csv_line))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let back = parse_csv(&text).unwrap();
+    assert_eq!(back.len(), rows.len());
+    assert!(back[3].inertial_number.is_nan() && back[4].kinetic_energy_j.is_nan());
+    assert_eq!(back[5].phase, rows[5].phase);
+    for (k, (a, b)) in rows
+        .iter()
+        .zip(&back)
+        .enumerate()
+        .filter(|(k, _)| !(3..=4).contains(k))
+    {
+        assert_eq!(a, b, "row {k}");
+    }
+}
+
+/// A CSV written before the `wall_s` and `deep_contacts` columns (35 of the 5000-disk
+/// archive's tests) reads with their defaults, NaN and 0; a column cdlab never wrote, a
+/// short line or a value that is not a number is an error naming the column or line.
+#[test]
+fn series_csv_of_older_and_bad_files() {
+    let old_header = csv_header().replace(",wall_s,deep_contacts", "");
+    let line = row(7).csv_line();
+    let old_line = line.rsplitn(3, ',').nth(2).unwrap();
+    let back = parse_csv(&format!("{old_header}\n{old_line}\n")).unwrap();
+    assert!(back[0].wall_s.is_nan() && back[0].deep_contacts == 0.0);
+    assert_eq!(back[0].sigma1_pa, row(7).sigma1_pa);
+    let e = parse_csv(&format!("{},sigma2_pa\n{line},1\n", csv_header())).unwrap_err();
+    assert!(e.contains("sigma2_pa"), "{e}");
+    let e = parse_csv(&format!("{}\n{old_line}\n", csv_header())).unwrap_err();
+    assert!(e.contains("line 2"), "{e}");
+    let bad_step = line.replacen(",70,", ",7x0,", 1);
+    assert_ne!(bad_step, line);
+    let e = parse_csv(&format!("{}\n{line}\n{bad_step}\n", csv_header())).unwrap_err();
+    assert!(e.contains("line 3") && e.contains("step"), "{e}");
+    // The phase has no default: a file without it cannot give rows, and serde names it.
+    let no_phase = csv_header().replace("phase,", "");
+    let e = parse_csv(&format!("{no_phase}\n{}\n", line.replacen(",confinement", "", 1))).unwrap_err();
+    assert!(e.contains("phase"), "{e}");
+    assert!(parse_csv("").is_err());
+}
+
+/// An archived test (configuration and thinned series, no record): `read_series` reads the
+/// thinned series and `read_config` the configuration, while `read_run` says what the
+/// directory is instead of "no such file".
+#[test]
+fn archived_test_gives_its_series_and_says_it_has_no_record() {
+    let tmp = TempDir::new("archived-series");
+    let rows: Vec<SeriesRow> = (0..20).map(row).collect();
+    let text: String = std::iter::once(csv_header())
+        .chain(rows.iter().map(SeriesRow::csv_line))
+        .map(|l| l + "\n")
+        .collect();
+    std::fs::write(tmp.0.join(THINNED_SERIES_FILE), text).unwrap();
+    std::fs::write(
+        tmp.0.join(ARCHIVED_CONFIG_FILE),
+        Config::default().to_toml_string().unwrap(),
+    )
+    .unwrap();
+    assert_eq!(read_series(&tmp.0).unwrap(), rows);
+    assert_eq!(read_config(&tmp.0).unwrap(), Config::default());
+    let e = read_run(&tmp.0).unwrap_err().to_string();
+    assert!(e.contains("archived test") && e.contains("--curves"), "{e}");
+}
