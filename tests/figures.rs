@@ -11,8 +11,8 @@ use cdlab::figures::colormap::{DIVERGING, SEQUENTIAL};
 use cdlab::figures::envelope::friction_color;
 use cdlab::figures::network::{ARROW, DISK_BACKGROUND, ROLLING, SLIDING};
 use cdlab::figures::{
-    ContactsFigure, EnvelopeFigure, Field, Figure, Format, LINE_COLORS, MuMacroFigure, ShearField,
-    SnapshotFigure, StressStrainFigure, render_png, render_svg, save,
+    CompareFigure, ContactsFigure, EnvelopeFigure, Field, Figure, Format, LINE_COLORS, MuMacroFigure,
+    ShearField, SnapshotFigure, StressStrainFigure, render_png, render_svg, save,
 };
 use cdlab::record::{ContactRecord, DiskRecord, SeriesRow, Snapshot};
 use common::cdlab;
@@ -781,6 +781,107 @@ fn render_command_draws_the_nearest_snapshot_and_the_curves() {
     synthetic_run(&bare, false);
     let (ok, text) = cdlab(&["render", bare.to_str().unwrap(), "--at", "0.05", "-o", fig]);
     assert!(!ok && text.contains("no snapshot"), "{text}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Two runs compared, the second at half the confining stress and half the axial stress
+/// of the first: their stress ratios are equal, so their upper polylines coincide point for
+/// point, while their volumetric strains differ and so do their lower ones. Each run's
+/// color has one polyline per panel with a point per compression row, and a key entry.
+#[test]
+fn compared_runs_share_the_stress_ratio_axis() {
+    let a: Vec<SeriesRow> = series()
+        .into_iter()
+        .map(|r| SeriesRow { sigma3_pa: 8e6, ..r })
+        .collect();
+    let b: Vec<SeriesRow> = a
+        .iter()
+        .map(|r| SeriesRow {
+            sigma1_pa: r.sigma1_pa / 2.0,
+            sigma3_pa: 4e6,
+            volumetric_strain: r.volumetric_strain / 2.0,
+            ..r.clone()
+        })
+        .collect();
+    let fig = CompareFigure {
+        runs: vec![("σ₃ = 8 MPa".into(), &a[..]), ("σ₃ = 4 MPa".into(), &b[..])],
+        title: "two runs".into(),
+    };
+    let (svg, ()) = render_svg(&fig).unwrap();
+    let doc = roxmltree::Document::parse(&svg).expect("well-formed SVG");
+    let curves = |k: usize| -> Vec<Vec<(f64, f64)>> {
+        svg_elements(&doc, "polyline", Some(("stroke", &hex(friction_color(k, 2)))))
+            .iter()
+            .map(points)
+            .filter(|p| p.len() == 101)
+            .collect()
+    };
+    let (ca, cb) = (curves(0), curves(1));
+    assert!(
+        ca.len() == 2 && cb.len() == 2,
+        "{} and {} curves",
+        ca.len(),
+        cb.len()
+    );
+    assert_eq!(ca[0], cb[0], "equal stress ratios draw the same upper curve");
+    assert_ne!(
+        ca[1], cb[1],
+        "different volumetric strains draw different lower curves"
+    );
+    let texts: Vec<String> = svg_elements(&doc, "text", None)
+        .iter()
+        .filter_map(|n| n.text().map(|t| t.trim().to_string()))
+        .collect();
+    for want in ["σ₃ = 8 MPa", "σ₃ = 4 MPa", "stress ratio σ₁/σ₃ (-)", "two runs"] {
+        assert!(texts.iter().any(|t| t == want), "{want:?} in {texts:?}");
+    }
+    let (png, ()) = render_png(&fig).unwrap();
+    let img = Img::decode(&png);
+    for k in 0..2 {
+        let n = img.count(friction_color(k, 2));
+        assert!(n > 500, "run {k}: {n} pixels of its color");
+    }
+    // Without a confining stress there is no ratio to draw: an error, not a NaN curve.
+    let bare = series();
+    let fig = CompareFigure {
+        runs: vec![("no sigma3".into(), &bare[..])],
+        title: String::new(),
+    };
+    let e = render_png(&fig).unwrap_err().to_string();
+    assert!(e.contains("no sigma3") && e.contains("confining stress"), "{e}");
+}
+
+/// `cdlab compare` on tests of the shipped archive: one figure, the runs counted; a bad
+/// output name or a directory that holds no run is an error naming it.
+#[test]
+fn compare_command_draws_archived_tests() {
+    let archive = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/results/campaign5000");
+    let runs =
+        ["seed1_mu3_s8MPa", "seed1_mu0.3_s8MPa"].map(|n| archive.join(n).to_str().unwrap().to_string());
+    let dir = scratch("compare");
+    let out = dir.join("cmp.png");
+    let (ok, text) = cdlab(&["compare", &runs[0], &runs[1], "-o", out.to_str().unwrap()]);
+    assert!(ok && text.contains("2 runs"), "{text}");
+    let img = Img::decode(&std::fs::read(&out).unwrap());
+    // Sorted by friction: 0.3 takes the first color, 3 the second.
+    for k in 0..2 {
+        assert!(img.count(friction_color(k, 2)) > 500, "run {k}");
+    }
+    let (ok, text) = cdlab(&["compare", &runs[0], "-o", "cmp.jpg"]);
+    assert!(!ok && text.contains(".png or .svg"), "{text}");
+    let empty = dir.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let (ok, text) = cdlab(&[
+        "compare",
+        &runs[0],
+        empty.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        !ok && text.contains("empty") && !text.contains("panicked"),
+        "{text}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

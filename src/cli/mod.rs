@@ -5,6 +5,7 @@ pub mod archive;
 pub mod bands;
 pub mod bench;
 pub mod biaxial;
+pub mod compare;
 pub mod config;
 pub mod export;
 pub mod fc2d;
@@ -59,6 +60,9 @@ pub enum Command {
     /// Draw a run's figures: a snapshot (`--at STRAIN --field NAME -o FIG.png|svg`) or the
     /// curves against axial strain (`--curves -o DIR`).
     Render(render::Args),
+    /// Draw several runs' curves on common axes, sigma_1/sigma_3 and dV/V0 against axial
+    /// strain (`compare RUN... -o FIG.png|svg`); runs may be archived tests.
+    Compare(compare::Args),
     /// Measure time per step on the CPU and GPU paths (table, bench.json, bench.md).
     Bench(bench::Args),
     /// Print the version and build information.
@@ -84,6 +88,7 @@ pub fn main() -> i32 {
         Command::Overlaps(args) => overlaps::run(&args),
         Command::Summarize(args) => summarize::run(&args),
         Command::Render(args) => render::run(&args),
+        Command::Compare(args) => compare::run(&args),
         Command::Bench(args) => bench::run(&args),
         Command::Version => {
             println!("cdlab {}", env!("CARGO_PKG_VERSION"));

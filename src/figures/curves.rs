@@ -183,3 +183,116 @@ impl Figure for ContactsFigure<'_> {
         )
     }
 }
+
+/// Several runs' curves against axial strain, for comparing tests (frictions, pressures,
+/// settings): the stress ratio sigma_1 / sigma_3 above, so that tests at different
+/// confining stresses share an axis, and the volumetric strain below. One color per run,
+/// in the order given, from the sequential map.
+#[derive(Clone, Debug)]
+pub struct CompareFigure<'a> {
+    /// Each run's legend label and series (any phases; only compression rows are drawn).
+    pub runs: Vec<(String, &'a [SeriesRow])>,
+    /// Title.
+    pub title: String,
+}
+
+/// Size of the comparison figure: two stacked panels and the key on their right.
+pub const COMPARE_SIZE: (u32, u32) = (1150, 900);
+
+/// Width of the key's column (px): room for labels such as "μ = 12, dt = 0.0625 ms".
+const KEY_WIDTH: u32 = 250;
+
+/// One panel of [`CompareFigure`]: its area, value range, axis title and value of a row.
+type Panel<'a, DB> = (
+    &'a DrawingArea<DB, Shift>,
+    (f64, f64),
+    &'a str,
+    fn(&SeriesRow) -> f64,
+);
+
+impl Figure for CompareFigure<'_> {
+    type Output = ();
+
+    fn size(&self) -> (u32, u32) {
+        COMPARE_SIZE
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
+        let mut runs = Vec::with_capacity(self.runs.len());
+        for (label, rows) in &self.runs {
+            let rows = compression(rows).map_err(|e| Error::Other(format!("{label}: {e}")))?;
+            if rows.iter().any(|r| r.sigma3_pa.is_nan() || r.sigma3_pa <= 0.0) {
+                return Err(Error::Other(format!(
+                    "{label}: a compression row without a positive confining stress: no stress ratio"
+                )));
+            }
+            runs.push((label, rows));
+        }
+        if runs.is_empty() {
+            return Err(Error::Other("no run to compare".into()));
+        }
+        let all = || runs.iter().flat_map(|(_, rows)| rows.iter());
+        let (x0, x1) = padded_range(all().map(|r| r.strain_axial), true);
+        let (s0, s1) = padded_range(all().map(|r| r.sigma1_pa / r.sigma3_pa), true);
+        let (v0, v1) = padded_range(all().map(|r| r.volumetric_strain), false);
+        let root = root.titled(&self.title, LABEL).map_err(draw_err)?;
+        // The key has its own column: inside a panel it would hide curves, which fill both.
+        let (w, h) = root.dim_in_pixel();
+        let (plots, key) = root.split_horizontally(w.saturating_sub(KEY_WIDTH));
+        let (top, bottom) = plots.split_vertically(h / 2);
+        let n = runs.len();
+        let color = |k: usize| super::envelope::friction_color(k, n);
+        let panels: [Panel<'_, DB>; 2] = [
+            (&top, (s0, s1), "stress ratio σ₁/σ₃ (-)", |r| {
+                r.sigma1_pa / r.sigma3_pa
+            }),
+            (
+                &bottom,
+                (v0, v1),
+                "volumetric strain ΔV/V₀ (-, dilation +)",
+                |r| r.volumetric_strain,
+            ),
+        ];
+        for (area, (y0, y1), desc, get) in panels {
+            let mut chart = ChartBuilder::on(area)
+                .margin(15)
+                .x_label_area_size(55)
+                .y_label_area_size(85)
+                .build_cartesian_2d(x0..x1, y0..y1)
+                .map_err(draw_err)?;
+            chart
+                .configure_mesh()
+                .x_desc("axial strain ε_z (-)")
+                .y_desc(desc)
+                .label_style(TICK)
+                .axis_desc_style(LABEL)
+                .light_line_style(WHITE)
+                .draw()
+                .map_err(draw_err)?;
+            for (j, (_, rows)) in runs.iter().enumerate() {
+                chart
+                    .draw_series(LineSeries::new(
+                        rows.iter().map(|r| (r.strain_axial, get(r))),
+                        color(j).stroke_width(2),
+                    ))
+                    .map_err(draw_err)?;
+            }
+        }
+        let row = 24;
+        for (j, (label, _)) in runs.iter().enumerate() {
+            let y = 30 + row * j as i32;
+            key.draw(&PathElement::new(
+                vec![(10, y), (40, y)],
+                color(j).stroke_width(3),
+            ))
+            .map_err(draw_err)?;
+            key.draw(&Text::new(
+                label.as_str(),
+                (48, y - 8),
+                TICK.into_font().color(&BLACK),
+            ))
+            .map_err(draw_err)?;
+        }
+        Ok(())
+    }
+}

@@ -26,7 +26,7 @@ use plotters::prelude::*;
 
 use crate::error::{Error, Result};
 
-pub use curves::{ContactsFigure, StressStrainFigure};
+pub use curves::{CompareFigure, ContactsFigure, StressStrainFigure};
 pub use envelope::{EnvelopeFigure, MuMacroFigure};
 pub use snapshot::{Field, Frame, ShearField, SnapshotFigure};
 

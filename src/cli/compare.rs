@@ -1,0 +1,163 @@
+//! `cdlab compare RUN... -o FIG.png|svg` draws several runs' curves on common axes: the
+//! stress ratio and the volumetric strain against axial strain. Runs may be archived tests
+//! (drawn from their thinned series), so a campaign's archive compares without its records.
+
+use std::path::PathBuf;
+
+use crate::config::Config;
+use crate::error::{Error, Result};
+use crate::figures::{self, CompareFigure, Format};
+use crate::record::{SeriesRow, read_config, read_series};
+
+/// Options of `cdlab compare`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Run directories or archived tests, e.g. a shell glob over a campaign
+    /// (`assets/results/campaign5000/seed1_mu*_s8MPa`). Drawn in order of contact friction,
+    /// then confining stress.
+    #[arg(required = true)]
+    pub runs: Vec<PathBuf>,
+    /// Output: a .png or .svg file.
+    #[arg(short, long)]
+    pub out: PathBuf,
+    /// Title (default: what the runs share, e.g. "σ₃ = 8 MPa, 5000 disks, 13 runs").
+    #[arg(long)]
+    pub title: Option<String>,
+}
+
+/// One run to draw: its configuration, where it is, its rows.
+struct Run {
+    config: Config,
+    dir: PathBuf,
+    rows: Vec<SeriesRow>,
+}
+
+/// The settings a label names, each as (what it is, its text for a run).
+fn parts(c: &Config) -> [String; 4] {
+    [
+        format!("μ = {}", c.test.mu),
+        format!("σ₃ = {} MPa", c.test.sigma3.0 / 1e6),
+        format!("{} disks", c.sample.disks),
+        format!("dt = {} ms", c.solver.dt.si() * 1e3),
+    ]
+}
+
+/// Legend labels naming what differs between the runs (the directory's name where that
+/// leaves two alike), and a title naming what they share.
+fn labels_and_title(runs: &[Run]) -> (Vec<String>, String) {
+    let all: Vec<[String; 4]> = runs.iter().map(|r| parts(&r.config)).collect();
+    let differs: Vec<bool> = (0..4).map(|k| all.iter().any(|p| p[k] != all[0][k])).collect();
+    let mut labels: Vec<String> = all
+        .iter()
+        .map(|p| {
+            (0..4)
+                .filter(|&k| differs[k])
+                .map(|k| p[k].as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        })
+        .collect();
+    // Twins are found among the labels as first made, before any is renamed.
+    let first = labels.clone();
+    for (k, label) in labels.iter_mut().enumerate() {
+        let twin = first.iter().enumerate().any(|(j, l)| j != k && *l == first[k]);
+        if twin || label.is_empty() {
+            let dir = &runs[k].dir;
+            let name = dir.file_name().unwrap_or(dir.as_os_str()).to_string_lossy();
+            *label = if label.is_empty() {
+                name.into_owned()
+            } else {
+                format!("{label} ({name})")
+            };
+        }
+    }
+    let mut shared: Vec<String> = (0..4)
+        .filter(|&k| !differs[k])
+        .map(|k| all[0][k].clone())
+        .collect();
+    shared.push(format!("{} runs", runs.len()));
+    (labels, shared.join(", "))
+}
+
+/// Runs `cdlab compare`.
+pub fn run(args: &Args) -> Result<()> {
+    // The output's format is checked before any run is read.
+    Format::from_path(&args.out)?;
+    let mut runs = Vec::with_capacity(args.runs.len());
+    for dir in &args.runs {
+        let config = read_config(dir)?;
+        let rows = read_series(dir)?;
+        runs.push(Run {
+            config,
+            dir: dir.clone(),
+            rows,
+        });
+    }
+    runs.sort_by(|a, b| {
+        (a.config.test.mu, a.config.test.sigma3.0)
+            .partial_cmp(&(b.config.test.mu, b.config.test.sigma3.0))
+            .unwrap_or(std::cmp::Ordering::Equal)
+            .then_with(|| a.dir.cmp(&b.dir))
+    });
+    let (labels, title) = labels_and_title(&runs);
+    let fig = CompareFigure {
+        runs: labels
+            .into_iter()
+            .zip(runs.iter().map(|r| r.rows.as_slice()))
+            .collect(),
+        title: args.title.clone().unwrap_or(title),
+    };
+    figures::save(&fig, &args.out).map_err(|e| match e {
+        Error::Other(m) => Error::Other(format!("compare: {m}")),
+        e => e,
+    })?;
+    println!("{} runs -> {}", runs.len(), args.out.display());
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(mu: f64, sigma3_mpa: f64, dir: &str) -> Run {
+        let mut config = Config::default();
+        config.test.mu = mu;
+        config.test.sigma3.0 = sigma3_mpa * 1e6;
+        Run {
+            config,
+            dir: dir.into(),
+            rows: Vec::new(),
+        }
+    }
+
+    /// Labels name what differs, the title what is shared; two runs alike in every named
+    /// setting are told apart by their directories.
+    #[test]
+    fn labels_name_what_differs_and_the_title_what_is_shared() {
+        let runs = [run(0.3, 8.0, "a"), run(3.0, 8.0, "b")];
+        let (labels, title) = labels_and_title(&runs);
+        assert_eq!(labels, ["μ = 0.3", "μ = 3"]);
+        let d = Config::default();
+        assert_eq!(
+            title,
+            format!(
+                "σ₃ = 8 MPa, {} disks, dt = {} ms, 2 runs",
+                d.sample.disks,
+                d.solver.dt.si() * 1e3
+            )
+        );
+        let runs = [
+            run(0.3, 8.0, "x/seed1"),
+            run(0.3, 8.0, "x/seed2"),
+            run(0.3, 4.0, "y"),
+        ];
+        let (labels, _) = labels_and_title(&runs);
+        assert_eq!(labels, ["σ₃ = 8 MPa (seed1)", "σ₃ = 8 MPa (seed2)", "σ₃ = 4 MPa"]);
+        let (labels, title) = labels_and_title(&[run(1.0, 1.0, "p/only")]);
+        assert_eq!(labels, ["only"]);
+        assert!(
+            title.starts_with("μ = 1, σ₃ = 1 MPa") && title.ends_with("1 runs"),
+            "{title}"
+        );
+    }
+}
