@@ -48,6 +48,43 @@ pub(crate) fn padded_range(values: impl Iterator<Item = f64>, from_zero: bool) -
     (if from_zero && lo == 0.0 { 0.0 } else { lo - pad }, hi + pad)
 }
 
+/// A chart of one quantity against axial strain, its mesh and axis titles drawn; no
+/// caption when `caption` is empty.
+fn strain_chart<'a, DB: DrawingBackend>(
+    area: &'a DrawingArea<DB, Shift>,
+    caption: &str,
+    (x0, x1): (f64, f64),
+    (y0, y1): (f64, f64),
+    y_desc: &str,
+) -> Result<
+    ChartContext<
+        'a,
+        DB,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+> {
+    let mut builder = ChartBuilder::on(area);
+    if !caption.is_empty() {
+        builder.caption(caption, LABEL);
+    }
+    let mut chart = builder
+        .margin(15)
+        .x_label_area_size(55)
+        .y_label_area_size(85)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(draw_err)?;
+    chart
+        .configure_mesh()
+        .x_desc("axial strain ε_z (-)")
+        .y_desc(y_desc)
+        .label_style(TICK)
+        .axis_desc_style(LABEL)
+        .light_line_style(WHITE)
+        .draw()
+        .map_err(draw_err)?;
+    Ok(chart)
+}
+
 /// sigma_1 (MPa, left axis) and volumetric strain (right axis) against axial strain.
 #[derive(Clone, Debug)]
 pub struct StressStrainFigure<'a> {
@@ -150,22 +187,7 @@ impl Figure for ContactsFigure<'_> {
                 .flat_map(|r| series.iter().map(move |s| s.1(r) as f64)),
             true,
         );
-        let mut chart = ChartBuilder::on(root)
-            .caption(&self.title, LABEL)
-            .margin(15)
-            .x_label_area_size(55)
-            .y_label_area_size(85)
-            .build_cartesian_2d(x0..x1, y0..y1)
-            .map_err(draw_err)?;
-        chart
-            .configure_mesh()
-            .x_desc("axial strain ε_z (-)")
-            .y_desc("contacts (count)")
-            .label_style(TICK)
-            .axis_desc_style(LABEL)
-            .light_line_style(WHITE)
-            .draw()
-            .map_err(draw_err)?;
+        let mut chart = strain_chart(root, &self.title, (x0, x1), (y0, y1), "contacts (count)")?;
         for (name, get, color) in series {
             chart
                 .draw_series(LineSeries::new(
@@ -254,21 +276,7 @@ impl Figure for CompareFigure<'_> {
             ),
         ];
         for (area, (y0, y1), desc, get) in panels {
-            let mut chart = ChartBuilder::on(area)
-                .margin(15)
-                .x_label_area_size(55)
-                .y_label_area_size(85)
-                .build_cartesian_2d(x0..x1, y0..y1)
-                .map_err(draw_err)?;
-            chart
-                .configure_mesh()
-                .x_desc("axial strain ε_z (-)")
-                .y_desc(desc)
-                .label_style(TICK)
-                .axis_desc_style(LABEL)
-                .light_line_style(WHITE)
-                .draw()
-                .map_err(draw_err)?;
+            let mut chart = strain_chart(area, "", (x0, x1), (y0, y1), desc)?;
             for (j, (_, rows)) in runs.iter().enumerate() {
                 chart
                     .draw_series(LineSeries::new(
