@@ -891,7 +891,7 @@ fn compare_command_draws_archived_tests() {
 #[test]
 fn archived_test_draws_its_curves_and_explains_the_rest() {
     let run = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/results/campaign5000/seed1_mu0.3_s8MPa");
-    let rows = cdlab::record::read_series(&run).unwrap();
+    let (rows, _) = cdlab::record::read_series(&run).unwrap();
     let thinned = std::fs::read_to_string(run.join("series_thinned.csv")).unwrap();
     assert_eq!(rows.len(), thinned.lines().count() - 1);
     let summary: serde_json::Value =

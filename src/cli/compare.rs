@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use crate::config::Config;
 use crate::error::{Error, Result};
 use crate::figures::{self, CompareFigure, Format};
-use crate::record::{SeriesRow, read_config, read_series};
+use crate::record::{SeriesRow, read_series};
 
 /// Options of `cdlab compare`.
 #[derive(clap::Args, Debug)]
@@ -32,7 +32,8 @@ struct Run {
     rows: Vec<SeriesRow>,
 }
 
-/// The settings a label names, each as (what it is, its text for a run).
+/// The settings a label or the title names, as their text for a run: friction, confining
+/// stress, size, time step.
 fn parts(c: &Config) -> [String; 4] {
     [
         format!("μ = {}", c.test.mu),
@@ -85,18 +86,18 @@ pub fn run(args: &Args) -> Result<()> {
     Format::from_path(&args.out)?;
     let mut runs = Vec::with_capacity(args.runs.len());
     for dir in &args.runs {
-        let config = read_config(dir)?;
-        let rows = read_series(dir)?;
+        let (rows, config) = read_series(dir)?;
         runs.push(Run {
-            config,
+            config: config?,
             dir: dir.clone(),
             rows,
         });
     }
     runs.sort_by(|a, b| {
-        (a.config.test.mu, a.config.test.sigma3.0)
-            .partial_cmp(&(b.config.test.mu, b.config.test.sigma3.0))
-            .unwrap_or(std::cmp::Ordering::Equal)
+        let (ta, tb) = (&a.config.test, &b.config.test);
+        ta.mu
+            .total_cmp(&tb.mu)
+            .then(ta.sigma3.0.total_cmp(&tb.sigma3.0))
             .then_with(|| a.dir.cmp(&b.dir))
     });
     let (labels, title) = labels_and_title(&runs);

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use crate::config::Config;
 use crate::error::{Error, Result};
 use crate::figures::{self, ContactsFigure, Field, Format, ShearField, SnapshotFigure, StressStrainFigure};
-use crate::record::{Snapshot, read_config, read_run, read_series};
+use crate::record::{Snapshot, read_run, read_series};
 
 /// Options of `cdlab render`.
 #[derive(clap::Args, Debug)]
@@ -141,9 +141,9 @@ fn run_title(config: Result<Config>, run: &Path) -> String {
 
 fn curves(args: &Args) -> Result<()> {
     // An archived test draws from its thinned series: the curves need no snapshot.
-    let series = read_series(&args.run)?;
+    let (series, config) = read_series(&args.run)?;
     std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
-    let title = run_title(read_config(&args.run), &args.run);
+    let title = run_title(config, &args.run);
     let written = [
         figures::save_both(
             &StressStrainFigure {

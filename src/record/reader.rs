@@ -67,16 +67,21 @@ fn is_archived(dir: &Path) -> bool {
 
 /// Reads the time series of a run (`path` as for [`read_run`]) from its record, or of an
 /// archived test from its thinned series ([`THINNED_SERIES_FILE`]: a few hundred rows
-/// spread over the run, enough to draw its curves).
-pub fn read_series(path: impl AsRef<Path>) -> Result<Vec<SeriesRow>> {
+/// spread over the run, enough to draw its curves), with the configuration found beside
+/// them in the same read. The configuration is a separate result: rows that read can still
+/// be drawn when it does not.
+pub fn read_series(path: impl AsRef<Path>) -> Result<(Vec<SeriesRow>, Result<Config>)> {
     let dir = path.as_ref();
     if !is_archived(dir) {
-        return Ok(read_run(dir)?.series);
+        let rec = read_run(dir)?;
+        let config = rec.config();
+        return Ok((rec.series, config));
     }
     let file = dir.join(THINNED_SERIES_FILE);
     let text = std::fs::read_to_string(&file).map_err(|e| Error::io(&file, e))?;
-    super::series::parse_csv(&text)
-        .map_err(|e| Error::io(&file, std::io::Error::new(std::io::ErrorKind::InvalidData, e)))
+    let rows = super::series::parse_csv(&text)
+        .map_err(|e| Error::io(&file, std::io::Error::new(std::io::ErrorKind::InvalidData, e)))?;
+    Ok((rows, Config::load(dir.join(ARCHIVED_CONFIG_FILE))))
 }
 
 /// Reads only the configuration of a run (`path` as for [`read_run`]). The recorder writes

@@ -445,7 +445,9 @@ fn archived_test_gives_its_series_and_says_it_has_no_record() {
         Config::default().to_toml_string().unwrap(),
     )
     .unwrap();
-    assert_eq!(read_series(&tmp.0).unwrap(), rows);
+    let (read, config) = read_series(&tmp.0).unwrap();
+    assert_eq!(read, rows);
+    assert_eq!(config.unwrap(), Config::default());
     assert_eq!(read_config(&tmp.0).unwrap(), Config::default());
     let e = read_run(&tmp.0).unwrap_err().to_string();
     assert!(e.contains("archived test") && e.contains("--curves"), "{e}");
