@@ -93,7 +93,7 @@ fn step(c: &mut Criterion) {
 
 /// The two Siconos fc2d problems solved to 1e-5 from r = 0.
 fn fc2d(c: &mut Criterion) {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/fc2d");
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/fc2d");
     for name in [
         "fc2d_granularflowonwall_00667_00000.dat",
         "fc2d_granularflowonwall_02020_00213.dat",

@@ -1,5 +1,6 @@
-//! The Siconos fc2d problems (shared/data/fc2d): an outside test suite of the local law and
-//! the Gauss-Seidel sweeps on problems built by another code.
+//! The Siconos fc2d problems shipped in `tests/data/fc2d/` (source and licence in its
+//! README): an outside test suite of the local law and the Gauss-Seidel sweeps on problems
+//! built by another code.
 
 use std::path::{Path, PathBuf};
 
@@ -7,19 +8,15 @@ use cdlab::fc2d::{SolveOptions, parse, read, siconos_error, solve};
 
 fn data(name: &str) -> PathBuf {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data/fc2d")
+        .join("tests/data/fc2d")
         .join(name);
-    assert!(
-        p.exists(),
-        "missing {}: the repository expects shared/ beside it",
-        p.display()
-    );
+    assert!(p.exists(), "missing test problem {}", p.display());
     p
 }
 
 #[test]
 fn both_shared_problems_reach_the_siconos_error_of_1e_5() {
-    // Siconos's own solvers are tested on these problems at 1e-5 (data README); plain
+    // Siconos tests its own solvers on these problems to an error of 1e-5; plain
     // Gauss-Seidel needs about 20 sweeps on the first and about 800 on the second.
     for (name, contacts, max_sweeps) in [
         ("fc2d_granularflowonwall_00667_00000.dat", 667, 100),

@@ -1,5 +1,22 @@
-//! Reader of Siconos 2D frictional contact problems (fc2d text files), see
-//! `shared/data/fc2d/README.md` for the layout.
+//! Reader of Siconos 2D frictional contact problems (fc2d text files).
+//!
+//! The layout, one item per line unless said otherwise:
+//!
+//! ```text
+//! 2                      space dimension
+//! nc                     number of contacts
+//! 2                      matrix storage: sparse
+//! n n                    matrix size, n = 2 nc
+//! 2                      sparse layout: compressed columns
+//! CSparse ...            a header line, then "n-by-n, nzmax: K nnz: K, 1-norm: X"
+//!     col j : locations a to b     for each column j, followed by its entries,
+//!       i : value                  one per line: row i, value W[i][j]
+//! q_0 ... q_{n-1}        the free velocities, on one line
+//! mu_0 ... mu_{nc-1}     the friction coefficients, on one line
+//! ```
+//!
+//! Components are ordered normal first, then tangent, contact by contact. Two such files are
+//! shipped as test data in `tests/data/fc2d/`.
 
 use std::path::Path;
 
