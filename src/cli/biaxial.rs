@@ -54,6 +54,9 @@ pub struct Args {
     /// No progress display.
     #[arg(long)]
     pub quiet: bool,
+    /// Do not draw the stress-strain and contact-count figures beside the summary.
+    #[arg(long)]
+    pub no_figures: bool,
 }
 
 /// The configuration of a new run: file or default, then the flags.
@@ -137,6 +140,17 @@ pub fn run(args: &Args) -> Result<()> {
         (dir.clone(), hint_resume(summary, &dir)?)
     };
     println!("biaxial test finished: {}\n{}", dir.display(), summary.table());
+    if !args.no_figures {
+        // The record and summary are complete: a figure that cannot be drawn is reported,
+        // not turned into a failed test.
+        match super::render::write_curves(&dir, &dir) {
+            Ok(files) => {
+                let names: Vec<String> = files.iter().map(|p| p.display().to_string()).collect();
+                println!("figures: {}", names.join(", "));
+            }
+            Err(e) => eprintln!("no figures drawn: {e}"),
+        }
+    }
     Ok(())
 }
 

@@ -140,23 +140,33 @@ fn run_title(config: Result<Config>, run: &Path) -> String {
 }
 
 fn curves(args: &Args) -> Result<()> {
-    // An archived test draws from its thinned series: the curves need no snapshot.
-    let (series, config) = read_series(&args.run)?;
-    std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
-    let title = run_title(config, &args.run);
-    let written = [
-        figures::save_both(
-            &StressStrainFigure {
-                rows: &series,
-                title: title.clone(),
-            },
-            &args.out,
-            "stress_strain",
-        )?,
-        figures::save_both(&ContactsFigure { rows: &series, title }, &args.out, "contacts")?,
-    ];
-    for p in written.iter().flatten() {
+    for p in write_curves(&args.run, &args.out)? {
         println!("{}", p.display());
     }
     Ok(())
+}
+
+/// Draws a run's curves against axial strain into `out`: `stress_strain` (sigma_1 and
+/// dV/V0) and `contacts` (rolling, sliding, zero-force counts), each as PNG and SVG. `run`
+/// may be a run directory or an archived test (drawn from its thinned series). Returns the
+/// files written.
+pub fn write_curves(run: &Path, out: &Path) -> Result<Vec<PathBuf>> {
+    let (series, config) = read_series(run)?;
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let title = run_title(config, run);
+    let mut written = Vec::with_capacity(4);
+    written.extend(figures::save_both(
+        &StressStrainFigure {
+            rows: &series,
+            title: title.clone(),
+        },
+        out,
+        "stress_strain",
+    )?);
+    written.extend(figures::save_both(
+        &ContactsFigure { rows: &series, title },
+        out,
+        "contacts",
+    )?);
+    Ok(written)
 }

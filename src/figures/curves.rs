@@ -49,13 +49,15 @@ pub(crate) fn padded_range(values: impl Iterator<Item = f64>, from_zero: bool) -
 }
 
 /// A chart of one quantity against axial strain, its mesh and axis titles drawn; no
-/// caption when `caption` is empty.
+/// caption when `caption` is empty. A `count` axis labels only its whole-number ticks, without
+/// a decimal point ("1400", not "1400.0"; no label at 2.5 on a short range).
 fn strain_chart<'a, DB: DrawingBackend>(
     area: &'a DrawingArea<DB, Shift>,
     caption: &str,
     (x0, x1): (f64, f64),
     (y0, y1): (f64, f64),
     y_desc: &str,
+    count: bool,
 ) -> Result<
     ChartContext<
         'a,
@@ -73,9 +75,18 @@ fn strain_chart<'a, DB: DrawingBackend>(
         .y_label_area_size(85)
         .build_cartesian_2d(x0..x1, y0..y1)
         .map_err(draw_err)?;
-    chart
-        .configure_mesh()
-        .x_desc("axial strain ε_z (-)")
+    let whole = |v: &f64| {
+        if (v - v.round()).abs() < 1e-9 {
+            format!("{v:.0}")
+        } else {
+            String::new()
+        }
+    };
+    let mut mesh = chart.configure_mesh();
+    if count {
+        mesh.y_label_formatter(&whole);
+    }
+    mesh.x_desc("axial strain ε_z (-)")
         .y_desc(y_desc)
         .label_style(TICK)
         .axis_desc_style(LABEL)
@@ -187,7 +198,7 @@ impl Figure for ContactsFigure<'_> {
                 .flat_map(|r| series.iter().map(move |s| s.1(r) as f64)),
             true,
         );
-        let mut chart = strain_chart(root, &self.title, (x0, x1), (y0, y1), "contacts (count)")?;
+        let mut chart = strain_chart(root, &self.title, (x0, x1), (y0, y1), "contacts (count)", true)?;
         for (name, get, color) in series {
             chart
                 .draw_series(LineSeries::new(
@@ -276,7 +287,7 @@ impl Figure for CompareFigure<'_> {
             ),
         ];
         for (area, (y0, y1), desc, get) in panels {
-            let mut chart = strain_chart(area, "", (x0, x1), (y0, y1), desc)?;
+            let mut chart = strain_chart(area, "", (x0, x1), (y0, y1), desc, false)?;
             for (j, (_, rows)) in runs.iter().enumerate() {
                 chart
                     .draw_series(LineSeries::new(

@@ -331,13 +331,29 @@ fn draw_bands<DB: DrawingBackend>(
                 BLACK.stroke_width(2),
             )))
             .map_err(draw_err)?;
-        // The label at the upper end, where the line leaves the sample.
+        // The label near the upper end, where the line leaves the sample, on a white box held
+        // wholly inside the plot: at the plot's edge it would run into the axis, and over
+        // the disks it would be unreadable.
         let top = if p.1 > q.1 { p } else { q };
         let label = format!("{:+.0}°, {:.1} d", b.angle_deg, b.width_diameters);
-        let style = TICK.into_text_style(chart.plotting_area()).color(&BLACK);
-        let at = (top.0.clamp(x0, x0 + 0.75 * (x1 - x0)), top.1 - 0.03 * (y1 - y0));
+        let area = chart.plotting_area();
+        let style = TICK.into_text_style(area).color(&BLACK);
+        let (pw, ph) = area.dim_in_pixel();
+        let (tw, th) = area.estimate_text_size(&label, &style).map_err(draw_err)?;
+        // Data units per pixel, and the box's padding (px).
+        let (sx, sy) = ((x1 - x0) / pw.max(1) as f64, (y1 - y0) / ph.max(1) as f64);
+        let pad = 4.0;
+        let (w, h) = (tw as f64 * sx, th as f64 * sy);
+        let x = (top.0 - 0.5 * w).clamp(x0 + 2.0 * pad * sx, (x1 - w - 2.0 * pad * sx).max(x0));
+        let y = (top.1 - 2.0 * pad * sy).clamp((y0 + h + 2.0 * pad * sy).min(y1), y1 - 2.0 * pad * sy);
         chart
-            .draw_series(std::iter::once(Text::new(label, at, style)))
+            .draw_series(std::iter::once(Rectangle::new(
+                [(x - pad * sx, y + pad * sy), (x + w + pad * sx, y - h - pad * sy)],
+                WHITE.mix(0.9).filled(),
+            )))
+            .map_err(draw_err)?;
+        chart
+            .draw_series(std::iter::once(Text::new(label, (x, y), style)))
             .map_err(draw_err)?;
     }
     Ok(())
