@@ -63,9 +63,9 @@ fn report_recovers_the_macroscopic_friction_and_its_saturation() {
 }
 
 /// The 5000-disk campaign's report shipped beside its archive
-/// (`assets/results/campaign5000_report.json`, README "Measured results") is what `cdlab
+/// (`assets/results/campaign5000_report.json`, docs/results.md) is what `cdlab
 /// report` makes of that archive now: a stale copy, or an archive changed without its
-/// report, fails here. Its fits are the README's: plateaus 0.491 at the peak and 0.291 at
+/// report, fails here. Its fits are those of docs/results.md: plateaus 0.491 at the peak and 0.291 at
 /// the residual.
 #[test]
 fn shipped_5000_disk_report_is_the_report_of_the_shipped_archive() {
@@ -104,7 +104,7 @@ fn shipped_5000_disk_report_is_the_report_of_the_shipped_archive() {
     let (fit, fit_res) = (now.mu_macro_fit.unwrap(), now.mu_macro_res_fit.unwrap());
     let shipped_fit = shipped.mu_macro_fit.unwrap();
     assert!((fit.a - shipped_fit.a).abs() < 1e-9 && (fit.c - shipped_fit.c).abs() < 1e-6);
-    // README: mu_macro = 0.491 - 0.367 exp(-6.0 mu), mu_macro_res = 0.291 - 0.217 exp(-9.7 mu).
+    // docs/results.md: mu_macro = 0.491 - 0.367 exp(-6.0 mu), mu_macro_res = 0.291 - 0.217 exp(-9.7 mu).
     assert!(
         (fit.a - 0.491).abs() < 5e-4 && (fit.b - 0.367).abs() < 5e-4,
         "{fit:?}"
@@ -145,8 +145,8 @@ fn readme_5000_disk_table_is_the_shipped_report() {
     }
 }
 
-/// The 1000-disk campaign's report shipped in `assets/results/` (README, "Measured
-/// results") reads back as a report of the current format, with the paper's 13 frictions
+/// The 1000-disk campaign's report shipped in `assets/results/` (docs/results.md, "The
+/// 1000-disk campaign") reads back as a report of the current format, with the paper's 13 frictions
 /// of 5 pressures each and both saturation fits.
 #[test]
 fn shipped_campaign_report_reads_back() {
@@ -157,7 +157,7 @@ fn shipped_campaign_report_reads_back() {
     assert_eq!(rep.frictions.len(), 13);
     assert!(rep.frictions.iter().all(|r| r.tests == 5 && !r.dt_ms.is_empty()));
     let fit = rep.mu_macro_fit.expect("peak saturation fit");
-    // The README's plateau: 0.474 at the peak.
+    // The plateau of docs/results.md: 0.474 at the peak.
     assert!((fit.a - 0.474).abs() < 5e-4, "{}", fit.a);
     assert!(rep.mu_macro_res_fit.is_some());
     // The campaign file's time steps: 0.25 ms from friction 3, 0.125 ms at 12.

@@ -172,7 +172,8 @@ fn park(rows: &mut Vec<Row>, gv: &[DVec3], open_skip: f64, active: &mut Vec<u32>
 ///
 /// With a diagonal Delassus block, `R_n = max(0, -U_free_n / W_nn)` where
 /// `U_free_n = U_n - W_nn R_n^old + bias_n`, i.e. `R_n^old - (U_n + bias_n) / W_nn`; the
-/// tangential part likewise, clamped to the Coulomb interval (method.md).
+/// tangential part likewise, clamped to the Coulomb interval (docs/method.md, "The local
+/// law and its exact solution").
 ///
 /// # Safety
 /// `ctx` must be valid for bodies `r.i` and `r.j` (and contact `r.i` of a [`FULL`] row), and
@@ -317,9 +318,9 @@ unsafe fn sweep_rows<const RELAXED: bool>(chunk: &mut [Row], ctx: Ctx) -> (f64, 
 /// [`FULL`] row). On x86_64, several rows at a time in the lanes of vector registers, with
 /// the same operations in the same order as [`update`], so bit for bit the same result:
 /// when the rows are packed ([`Ctx::quads`]), four at a time in AVX registers, then two in
-/// SSE2 registers (part of the baseline), then the last row alone. Pairs took 12-14% off a
-/// 5000-disk test at 101 iterations per step, the packed quads a further 8-9% (README,
-/// "Benchmarks"). Elsewhere, row by row.
+/// SSE2 registers (part of the baseline), then the last row alone: the sweeps are most of
+/// a step, and wider updates are what made them cheaper (docs/benchmarks.md, "Vector
+/// sweeps"). Elsewhere, row by row.
 ///
 /// # Safety
 /// As [`update`], for every row of the chunk; no two rows share a movable body; with

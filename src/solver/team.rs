@@ -1,8 +1,8 @@
 //! Colored Gauss-Seidel on a team of threads that lives for the whole solve.
 //!
 //! Forking and joining a thread pool once per color costs more than the color's work on
-//! samples of a few thousand disks (measured on 2 cores: 24 against 15 ns per contact
-//! update with rayon per color). Here the threads are started once per step; each sweeps
+//! samples of a few thousand disks (docs/benchmarks.md, "Thread team"). Here the threads
+//! are started once per step; each sweeps
 //! a fixed contiguous share of every color and waits for the others at a barrier between
 //! colors.
 //!
