@@ -115,8 +115,9 @@ fn shipped_5000_disk_report_is_the_report_of_the_shipped_archive() {
     );
 }
 
-/// The README's 5000-disk table (contact friction, mu_macro, mu_macro_res with their
-/// standard errors) prints the shipped report's values to three decimals, row for row.
+/// The 5000-disk table (contact friction, mu_macro, mu_macro_res with their standard
+/// errors) of the README and of docs/results.md prints the shipped report's values to three
+/// decimals, row for row, in both.
 #[test]
 fn readme_5000_disk_table_is_the_shipped_report() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -124,24 +125,35 @@ fn readme_5000_disk_table_is_the_shipped_report() {
         &std::fs::read_to_string(root.join("assets/results/campaign5000_report.json")).unwrap(),
     )
     .unwrap();
-    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
-    let head = "| contact friction | mu_macro, 5000 disks | mu_macro_res, 5000 disks |";
-    let start = readme.find(head).expect("the README's 5000-disk table");
-    let rows: Vec<Vec<&str>> = readme[start..]
-        .lines()
-        .skip(2)
-        .take_while(|l| l.starts_with('|'))
-        .map(|l| l.split('|').map(str::trim).collect())
-        .collect();
-    assert_eq!(rows.len(), shipped.frictions.len());
-    for (cells, f) in rows.iter().zip(&shipped.frictions) {
-        let mu: f64 = cells[1].split_whitespace().next().unwrap().parse().unwrap();
-        assert_eq!(mu, f.mu);
-        assert_eq!(cells[2], format!("{:.3} ± {:.3}", f.mu_macro, f.mu_macro_se));
-        assert_eq!(
-            cells[3],
-            format!("{:.3} ± {:.3}", f.mu_macro_res, f.mu_macro_res_se)
-        );
+    for file in ["README.md", "docs/results.md"] {
+        let text = std::fs::read_to_string(root.join(file)).unwrap();
+        let head = "| contact friction | mu_macro, 5000 disks | mu_macro_res, 5000 disks |";
+        let start = text
+            .find(head)
+            .unwrap_or_else(|| panic!("{file}: no 5000-disk table (a row starting {head:?})"));
+        let rows: Vec<Vec<&str>> = text[start..]
+            .lines()
+            .skip(2)
+            .take_while(|l| l.starts_with('|'))
+            .map(|l| l.split('|').map(str::trim).collect())
+            .collect();
+        assert_eq!(rows.len(), shipped.frictions.len(), "{file}");
+        for (cells, f) in rows.iter().zip(&shipped.frictions) {
+            let mu: f64 = cells[1].split_whitespace().next().unwrap().parse().unwrap();
+            assert_eq!(mu, f.mu, "{file}");
+            assert_eq!(
+                cells[2],
+                format!("{:.3} ± {:.3}", f.mu_macro, f.mu_macro_se),
+                "{file}, friction {}",
+                f.mu
+            );
+            assert_eq!(
+                cells[3],
+                format!("{:.3} ± {:.3}", f.mu_macro_res, f.mu_macro_res_se),
+                "{file}, friction {}",
+                f.mu
+            );
+        }
     }
 }
 
