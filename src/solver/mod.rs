@@ -238,8 +238,8 @@ impl SolverParams {
 /// whose gap, at the start-of-solve velocities, would stay open by more than 1e-3 `r_min` at
 /// the end of the step closes only if the relative velocity of its disks changes by 1e-3
 /// `r_min / dt` (1 m/s with the paper's `r_min` and `dt`, twice the top wall's speed)
-/// within the step. On the 5000-disk DWL sample this leaves out 14% of the candidates, and
-/// 2 steps in 9000 needed the second solve.
+/// within the step. How many it leaves out, and how rarely a step needs the second solve:
+/// docs/benchmarks.md, "Open candidates left out".
 pub fn default_open_skip_gap() -> f64 {
     1e-3
 }

@@ -7,8 +7,8 @@
 //! step: the full [`Contact`] is 192 bytes, three cache lines, and 10,000 of them do not
 //! fit in a core's L2 cache. A row keeps only what an update reads and writes (80 bytes),
 //! the inverse masses and lever arms live once per body in a small table, and the local
-//! law is written without divisions or data-dependent branches (a profile of the 5000-disk
-//! compression had 80% of the time in the update, at about 84 cycles per contact).
+//! law is written without divisions or data-dependent branches: the update is most of a
+//! step's time (docs/benchmarks.md, "Compact rows").
 
 use glam::DVec3;
 use rayon::prelude::*;

@@ -48,9 +48,9 @@ impl SpinBarrier {
             return;
         }
         // Spin for up to SPIN before sleeping: a color's work per thread is a few
-        // microseconds on a 5000-disk sample, and a sleep/wake pair through the kernel cost
-        // more than that (a profile of the 5000-disk compression showed 13% of the time in
-        // the scheduler with a spin of 1024 pauses, whose length varies by processor).
+        // microseconds on a 5000-disk sample, and a sleep/wake pair through the kernel costs
+        // more than that; the spin is bounded in time, not in pauses, whose length varies by
+        // processor (docs/benchmarks.md, "Thread team").
         const SPIN: std::time::Duration = std::time::Duration::from_micros(100);
         let start = std::time::Instant::now();
         let mut spins = 0u32;
