@@ -24,7 +24,7 @@ with open(path, "rb") as f:
             snapshot = message.data
 
 # A row holds the fields of series.csv; stresses in Pa, strains as fractions.
-print(f"friction {config['test']['mu']}, confining stress {config['test']['sigma3']}")
+print(f"friction {config['test']['mu']}, confining stress {config['test']['sigma3'] / 1e6} MPa")
 print(f"series rows {len(rows)}")
 last = rows[-1]
 print(f"last sigma_1 {last['sigma1_pa']!r} Pa at axial strain {last['strain_axial']:.4f}")
