@@ -322,6 +322,7 @@ fn markdown_files() -> Vec<PathBuf> {
 }
 
 #[test]
+#[cfg(unix)] // symbolic links and `sh`
 fn documented_example_commands_run() {
     // Run from an empty directory holding links to the repository's inputs, so that the
     // commands' outputs land there and not in the repository.
