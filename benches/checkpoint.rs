@@ -13,7 +13,7 @@
 //! It also prints how far the disk pairs that overlap at the end sank over the measured steps
 //! (their overlap at the end minus at the start, in `r_min`): the largest overlap of the
 //! sample is often an old contact, while a pair that sinks at every step shows the residual
-//! approach the solver leaves (README, "Overlaps at high friction").
+//! approach the solver leaves (docs/results.md, "Overlaps at high friction").
 
 use std::collections::HashMap;
 

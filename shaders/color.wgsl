@@ -100,7 +100,7 @@ fn scan_body(b: u32, k: u32, pk: u32, base: u32, r: u32) -> Scan {
     return out;
 }
 
-// Round 0 of the coloring: the seeds (design.md: seeded with last step's colors, so that
+// Round 0 of the coloring: the seeds (docs/gpu.md: seeded with last step's colors, so that
 // most contacts keep theirs). A persisting contact keeps the color it brought from the
 // warm start unless a neighbour with the same seed beats it; new contacts and the losers
 // start uncolored. The kept seeds share no body (of two equal neighbours the loser drops),

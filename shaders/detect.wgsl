@@ -161,7 +161,7 @@ fn build_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
         c.un0 = u.x;
         c.ut0 = u.y;
         if c.gap > 0.0 {
-            // Open gap: it may close during the step but not beyond (method.md).
+            // Open gap: it may close during the step but not beyond (docs/method.md).
             c.bias_n = max((c.gap + (1.0 - sim.theta) * sim.dt * u.x) / (sim.theta * sim.dt), 0.0);
         } else {
             c.bias_n = sim.e_n * min(u.x, 0.0);

@@ -1,4 +1,4 @@
-//! Protocol-level checks of validation.md on a small sample (a few hundred disks, short
+//! Protocol-level checks (docs/validation.md) on a small sample (a few hundred disks, short
 //! strain), and resume-equals-uninterrupted on the CPU path.
 
 use cdlab::backend::Backend;
@@ -14,7 +14,7 @@ fn small() -> ProtocolParams {
     // The paper's 7.5 m strips are for an 86 m wide sample; this one is about 27 m wide.
     p.strip_thickness = 4.0;
     // A looser tolerance keeps the test to seconds; the strength moves by a few percent
-    // (README, "Solver tolerance").
+    // (docs/results.md, "Solver tolerance").
     p.step.solver.tol = 1e-3;
     p.series_every = 10;
     p.checkpoint_every = 400;
@@ -44,7 +44,7 @@ fn small_biaxial_test_confines_then_peaks_and_dilates() {
     for e in &obs.ends[..2] {
         assert!(e.settled, "{:?} did not reach equilibrium: {e:?}", e.phase);
     }
-    // Confinement: the top wall carries sigma3 within 1% (validation.md) and the sample is
+    // Confinement: the top wall carries sigma3 within 1% (docs/validation.md) and the sample is
     // isotropic before compression (the strips carry sigma3 by construction).
     let last_conf = obs
         .rows
@@ -72,7 +72,7 @@ fn small_biaxial_test_confines_then_peaks_and_dilates() {
         "volumetric strain {}",
         last.volumetric_strain
     );
-    // Overlaps stay below 1% of the smallest radius (method.md).
+    // Overlaps stay below 1% of the smallest radius (docs/method.md, "Overlaps").
     let worst = obs.rows.iter().map(|r| r.overlap_max_rel).fold(0.0, f64::max);
     assert!(worst < 0.01, "largest overlap {worst} r_min");
     assert!(last.strain_axial >= p.strain_end);
@@ -213,7 +213,7 @@ fn strips_follow_the_sides_and_carry_exactly_sigma3_times_height() {
     // As the sample widens the strips move out with its sides and their inner disks drop
     // out (7 of them in this test).
     assert!(left > 0, "no disk left the strips: the refresh is not exercised");
-    // Each strip carries sigma3 x H (protocol.md, phase 3) and nothing else pushes: the
+    // Each strip carries sigma3 x H (docs/protocol.md, "Confinement") and nothing else pushes: the
     // disks that left the strips have lost their share. H is the height at the start of
     // the last step, when the forces were set, one wall move of v dt above the final one.
     let h = s.walls[walls::TOP].point.y - s.walls[walls::BOTTOM].point.y + p.axial_velocity * p.step.dt;

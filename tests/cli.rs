@@ -296,7 +296,7 @@ fn a_signal_stops_a_run_at_a_checkpoint_that_resumes_to_the_same_end() {
     let _ = std::fs::remove_dir_all(&base);
 }
 
-/// A run whose largest overlap passes method.md's 1% of r_min says so once, when it
+/// A run whose largest overlap passes docs/method.md's 1% of r_min says so once, when it
 /// happens, not only in its summary hours later; a run that stays below it says nothing.
 /// At dt = 1 ms (twice the paper's step) the compaction of this small sample under 8 MPa
 /// at friction 3 passes 1%; at the default 0.5 ms it stays below.

@@ -1,4 +1,4 @@
-//! Closed-form collisions (validation.md cases 2, 7, 8, 9).
+//! Closed-form collisions (docs/validation.md, "Collisions").
 
 mod common;
 

@@ -1,4 +1,4 @@
-//! Bit-reproducibility of the CPU path (validation.md, protocol-level checks).
+//! Bit-reproducibility of the CPU path (docs/validation.md, "Determinism").
 
 mod common;
 
@@ -227,7 +227,7 @@ fn kept_pair_list_gives_the_grid_search_records_bit_for_bit() {
         e.step(&mut s).unwrap();
     }
     // Rebuilt at the start, after the radius change, and whenever a disk has moved 0.01 m
-    // (every 10-20 steps here; measured 10 rebuilds in all): both paths were exercised.
+    // (every 10-20 steps here): both paths were exercised.
     assert!(
         list.rebuilds > 3 && list.rebuilds < 100,
         "rebuilds {}",

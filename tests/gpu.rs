@@ -1,4 +1,4 @@
-//! GPU path checks (validation.md, "Cross-checks between the two backends").
+//! GPU path checks (docs/validation.md, "Cross-checks between the two backends").
 //!
 //! The shader test needs no adapter. The others run on any adapter wgpu finds
 //! (`Backends::all()`; set `WGPU_BACKEND=vulkan` to pick Mesa's lavapipe on a machine

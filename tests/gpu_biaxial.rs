@@ -1,4 +1,4 @@
-//! A short biaxial run on both backends from the same compacted sample (validation.md,
+//! A short biaxial run on both backends from the same compacted sample (docs/validation.md,
 //! "Cross-checks between the two backends"): chaotic dynamics diverge in detail, the
 //! macroscopic curve must not.
 

@@ -1,4 +1,5 @@
-//! Closed-form cases on the GPU path (validation.md cases 2, 3, 5 and a glued-wall case),
+//! Closed-form cases on the GPU path (docs/validation.md, "Cross-checks between the two
+//! backends": collisions, rolling, statics and a glued-wall case),
 //! with f32 tolerances. Skips visibly without an adapter (see `gpu_support::gpu_or_skip`).
 
 mod common;
@@ -239,8 +240,8 @@ fn gpu_glued_disk_on_a_force_driven_wall_matches_the_hand_calculation() {
 /// column of five disks on the floor under gravity whose two lowest disks overlap by 1% of
 /// their radius, one step of two colored Gauss-Seidel iterations. Without local updates
 /// the contact 0-1 is left closing; with `deep_gap` below its overlap it alone is marked,
-/// counted once in the step's reductions, and leaves the step with `U_n^+ = 0` (method.md's
-/// Signorini law for a loaded contact) to f32 precision; disk 2, touched by no local
+/// counted once in the step's reductions, and leaves the step with `U_n^+ = 0` (the
+/// Signorini law of docs/method.md for a loaded contact) to f32 precision; disk 2, touched by no local
 /// update, keeps the velocity the iterations left it. The CPU path, from the same column,
 /// gives the same velocities of disks 0 and 1 to f32 precision.
 #[test]

@@ -53,8 +53,8 @@ fn check_coloring(contacts: &[GpuContact], colors: u32) -> usize {
 #[test]
 fn gpu_colors_a_graph_beyond_the_per_thread_loop_budget() {
     // 140 x 140 = 19,600 disks of radius 0.5 in contact on a hexagonal lattice: 58,381
-    // contacts (below). The smallest failing size of the single-workgroup kernel (measured
-    // on lavapipe: 135 to 139 passed, 140 failed). CDLAB_COLORING_SIDE overrides it.
+    // contacts (below): the smallest size at which the single-workgroup kernel failed on
+    // lavapipe (docs/gpu.md, "Coloring"). CDLAB_COLORING_SIDE overrides it.
     let side: usize = std::env::var("CDLAB_COLORING_SIDE")
         .ok()
         .and_then(|v| v.parse().ok())

@@ -1,4 +1,4 @@
-//! The exact local Signorini-Coulomb solution (validation.md case 1).
+//! The exact local Signorini-Coulomb solution (docs/validation.md, "Local law").
 
 mod common;
 

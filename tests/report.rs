@@ -63,9 +63,9 @@ fn report_recovers_the_macroscopic_friction_and_its_saturation() {
 }
 
 /// The 5000-disk campaign's report shipped beside its archive
-/// (`assets/results/campaign5000_report.json`, README "Measured results") is what `cdlab
+/// (`assets/results/campaign5000_report.json`, docs/results.md) is what `cdlab
 /// report` makes of that archive now: a stale copy, or an archive changed without its
-/// report, fails here. Its fits are the README's: plateaus 0.491 at the peak and 0.291 at
+/// report, fails here. Its fits are those of docs/results.md: plateaus 0.491 at the peak and 0.291 at
 /// the residual.
 #[test]
 fn shipped_5000_disk_report_is_the_report_of_the_shipped_archive() {
@@ -104,7 +104,7 @@ fn shipped_5000_disk_report_is_the_report_of_the_shipped_archive() {
     let (fit, fit_res) = (now.mu_macro_fit.unwrap(), now.mu_macro_res_fit.unwrap());
     let shipped_fit = shipped.mu_macro_fit.unwrap();
     assert!((fit.a - shipped_fit.a).abs() < 1e-9 && (fit.c - shipped_fit.c).abs() < 1e-6);
-    // README: mu_macro = 0.491 - 0.367 exp(-6.0 mu), mu_macro_res = 0.291 - 0.217 exp(-9.7 mu).
+    // docs/results.md: mu_macro = 0.491 - 0.367 exp(-6.0 mu), mu_macro_res = 0.291 - 0.217 exp(-9.7 mu).
     assert!(
         (fit.a - 0.491).abs() < 5e-4 && (fit.b - 0.367).abs() < 5e-4,
         "{fit:?}"
@@ -115,8 +115,9 @@ fn shipped_5000_disk_report_is_the_report_of_the_shipped_archive() {
     );
 }
 
-/// The README's 5000-disk table (contact friction, mu_macro, mu_macro_res with their
-/// standard errors) prints the shipped report's values to three decimals, row for row.
+/// The 5000-disk table (contact friction, mu_macro, mu_macro_res with their standard
+/// errors) of the README and of docs/results.md prints the shipped report's values to three
+/// decimals, row for row, in both.
 #[test]
 fn readme_5000_disk_table_is_the_shipped_report() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -124,29 +125,40 @@ fn readme_5000_disk_table_is_the_shipped_report() {
         &std::fs::read_to_string(root.join("assets/results/campaign5000_report.json")).unwrap(),
     )
     .unwrap();
-    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
-    let head = "| contact friction | mu_macro, 5000 disks | mu_macro_res, 5000 disks |";
-    let start = readme.find(head).expect("the README's 5000-disk table");
-    let rows: Vec<Vec<&str>> = readme[start..]
-        .lines()
-        .skip(2)
-        .take_while(|l| l.starts_with('|'))
-        .map(|l| l.split('|').map(str::trim).collect())
-        .collect();
-    assert_eq!(rows.len(), shipped.frictions.len());
-    for (cells, f) in rows.iter().zip(&shipped.frictions) {
-        let mu: f64 = cells[1].split_whitespace().next().unwrap().parse().unwrap();
-        assert_eq!(mu, f.mu);
-        assert_eq!(cells[2], format!("{:.3} ± {:.3}", f.mu_macro, f.mu_macro_se));
-        assert_eq!(
-            cells[3],
-            format!("{:.3} ± {:.3}", f.mu_macro_res, f.mu_macro_res_se)
-        );
+    for file in ["README.md", "docs/results.md"] {
+        let text = std::fs::read_to_string(root.join(file)).unwrap();
+        let head = "| contact friction | mu_macro, 5000 disks | mu_macro_res, 5000 disks |";
+        let start = text
+            .find(head)
+            .unwrap_or_else(|| panic!("{file}: no 5000-disk table (a row starting {head:?})"));
+        let rows: Vec<Vec<&str>> = text[start..]
+            .lines()
+            .skip(2)
+            .take_while(|l| l.starts_with('|'))
+            .map(|l| l.split('|').map(str::trim).collect())
+            .collect();
+        assert_eq!(rows.len(), shipped.frictions.len(), "{file}");
+        for (cells, f) in rows.iter().zip(&shipped.frictions) {
+            let mu: f64 = cells[1].split_whitespace().next().unwrap().parse().unwrap();
+            assert_eq!(mu, f.mu, "{file}");
+            assert_eq!(
+                cells[2],
+                format!("{:.3} ± {:.3}", f.mu_macro, f.mu_macro_se),
+                "{file}, friction {}",
+                f.mu
+            );
+            assert_eq!(
+                cells[3],
+                format!("{:.3} ± {:.3}", f.mu_macro_res, f.mu_macro_res_se),
+                "{file}, friction {}",
+                f.mu
+            );
+        }
     }
 }
 
-/// The 1000-disk campaign's report shipped in `assets/results/` (README, "Measured
-/// results") reads back as a report of the current format, with the paper's 13 frictions
+/// The 1000-disk campaign's report shipped in `assets/results/` (docs/results.md, "The
+/// 1000-disk campaign") reads back as a report of the current format, with the paper's 13 frictions
 /// of 5 pressures each and both saturation fits.
 #[test]
 fn shipped_campaign_report_reads_back() {
@@ -157,7 +169,7 @@ fn shipped_campaign_report_reads_back() {
     assert_eq!(rep.frictions.len(), 13);
     assert!(rep.frictions.iter().all(|r| r.tests == 5 && !r.dt_ms.is_empty()));
     let fit = rep.mu_macro_fit.expect("peak saturation fit");
-    // The README's plateau: 0.474 at the peak.
+    // The plateau of docs/results.md: 0.474 at the peak.
     assert!((fit.a - 0.474).abs() < 5e-4, "{}", fit.a);
     assert!(rep.mu_macro_res_fit.is_some());
     // The campaign file's time steps: 0.25 ms from friction 3, 0.125 ms at 12.

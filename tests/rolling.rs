@@ -1,4 +1,4 @@
-//! Disks on frictional planes under gravity (validation.md cases 3 and 4).
+//! Disks on frictional planes under gravity (docs/validation.md, "Rolling and sliding").
 
 mod common;
 
@@ -74,7 +74,7 @@ fn sliding_spinning_disk_on_a_floor_ends_rolling_at_the_predicted_velocity() {
     s.disks.spin[0] = w0;
     let mut e = engine(Method::Gs);
     let dt = e.params.dt;
-    // Expected (validation.md): the slip v + r w decays at 3 mu g, so rolling starts at
+    // Expected (docs/validation.md): the slip v + r w decays at 3 mu g, so rolling starts at
     // t* = |v0 + r w0| / (3 mu g); afterwards v = (2 v0 - r w0) / 3 and w = -v / r.
     let t_roll = (v0 + r * w0).abs() / (3.0 * mu * G);
     let v_final = (2.0 * v0 - r * w0) / 3.0;

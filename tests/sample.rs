@@ -1,4 +1,4 @@
-//! Grain size distribution and geometric deposition (validation.md, protocol-level checks).
+//! Grain size distribution and geometric deposition (docs/validation.md, "Sample").
 
 use cdlab::sample::{
     self, d_by_area, d10_d60, deposit_sample, geometric_coordination, max_overlap, packing_fraction,
@@ -6,7 +6,7 @@ use cdlab::sample::{
 
 #[test]
 fn grain_sizes_match_the_papers_d10_and_d60_by_area() {
-    // Paper (protocol.md): D10 = 1.3 m, D60 = 2.8 m, uniformity coefficient 2.15, for radii
+    // Paper (docs/protocol.md, "Grain sizes"): D10 = 1.3 m, D60 = 2.8 m, uniformity coefficient 2.15, for radii
     // uniform by area in [0.5, 2] m. The analytic distribution gives them exactly.
     assert!((d_by_area(0.1, 0.5, 2.0) - 1.3).abs() < 1e-12);
     assert!((d_by_area(0.6, 0.5, 2.0) - 2.8).abs() < 1e-12);
@@ -68,8 +68,8 @@ fn deposition_is_dense_supported_and_free_of_overlaps() {
         );
     }
     // Packing fraction of the band 10%-80% of the height, wall zones included: the paper
-    // reports about 0.84 for its deposit (measured here: 0.83 for 600 disks, 0.845 for
-    // 5000, the side walls loosening small samples more).
+    // reports about 0.84 for its deposit; the side walls loosen small samples more
+    // (docs/protocol.md, "Deposition").
     let phi = packing_fraction(&pk, 0.1 * pk.height, 0.8 * pk.height);
     assert!((0.80..=0.87).contains(&phi), "packing fraction {phi}");
     // Mean coordination (disk-disk touching pairs): a sequential deposit has each disk on two

@@ -1,4 +1,5 @@
-//! Static force transmission checked against hand calculations (validation.md cases 5, 6).
+//! Static force transmission checked against hand calculations (docs/validation.md,
+//! "Statics").
 
 mod common;
 
@@ -148,7 +149,7 @@ fn frictionless_pyramid_in_a_box_matches_the_hand_calculation() {
 /// local updates the iterations stop with that contact still closing (the contacts above,
 /// solved after it, push disk 1 down). With `deep_gap` below its overlap that contact alone
 /// is updated again and leaves the step satisfying its law exactly: the normal relative
-/// velocity `U_n^+` of a loaded contact is 0 (method.md's Signorini law; theta 0.5 from
+/// velocity `U_n^+` of a loaded contact is 0 (the Signorini law of docs/method.md; theta 0.5 from
 /// rest). The contacts that are not deep are not touched: disk 2 keeps the velocity the
 /// iterations left.
 #[test]

@@ -368,8 +368,8 @@ fn summaries_are_written_again_from_records_and_the_archive_follows() {
     let _ = std::fs::remove_dir_all(&base);
 }
 
-/// The 5000-disk campaign kept in `assets/results/campaign5000/` (README, "Measured
-/// results") is what `assets/campaign5000.toml` asks for: copied into an output directory,
+/// The 5000-disk campaign kept in `assets/results/campaign5000/` (docs/results.md, "The
+/// 5000-disk campaign") is what `assets/campaign5000.toml` asks for: copied into an output directory,
 /// every archived test is checked against the sweep file's settings and would be skipped, so
 /// the campaign resumes from it on any machine. The archive reads back in the report.
 #[test]

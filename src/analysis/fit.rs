@@ -1,4 +1,4 @@
-//! Least-squares fits of the campaign analysis (protocol.md, "Derived results"): the
+//! Least-squares fits of the campaign analysis (docs/protocol.md, "Derived results"): the
 //! Mohr-Coulomb line through the origin `q = p sin(phi)`, the unconstrained line
 //! `q = c + p s`, and the saturation `mu_macro = a - b exp(-c mu)`, each with standard errors.
 

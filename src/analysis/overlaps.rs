@@ -1,7 +1,7 @@
 //! The deepest disk pairs of a snapshot: where a run's largest overlap sits, how much force
 //! the pair carries and whether it is still closing. Used to tell a contact that closed
 //! within a step (a time step too large) from one sinking slowly under load (the solver's
-//! residual; README, "Overlaps at high friction").
+//! residual; docs/results.md, "Overlaps at high friction").
 
 use crate::record::Snapshot;
 

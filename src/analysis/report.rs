@@ -8,7 +8,7 @@ use super::fit::{Line, Saturation, saturation, through_origin, unconstrained};
 use crate::error::{Error, Result};
 use crate::measure::summary::QUASI_STATIC_KINETIC_RATIO;
 
-/// The largest overlap, relative to the smallest radius, that method.md allows at the
+/// The largest overlap, relative to the smallest radius, that docs/method.md allows at the
 /// largest confining pressure; the report names the tests that passed it.
 pub const OVERLAP_BOUND_REL: f64 = 0.01;
 
@@ -127,7 +127,7 @@ pub struct Report {
     #[serde(default)]
     pub suspect: Vec<(PathBuf, f64)>,
     /// Tests whose largest overlap passed [`OVERLAP_BOUND_REL`] of r_min, with that
-    /// overlap: the solver fell short of method.md's bound. They are in the fits; the table
+    /// overlap: the solver fell short of docs/method.md's bound. They are in the fits; the table
     /// names them.
     #[serde(default)]
     pub overlapping: Vec<(PathBuf, f64)>,
@@ -650,7 +650,7 @@ impl Report {
         }
         for (d, o) in &self.overlapping {
             s.push_str(&format!(
-                "overlap: {} (largest overlap {:.2}% of r_min, above method.md's {}%; its \
+                "overlap: {} (largest overlap {:.2}% of r_min, above docs/method.md's {}%; its \
                  points are in the fits)\n",
                 d.display(),
                 o * 100.0,
@@ -839,7 +839,7 @@ mod tests {
         assert_eq!(table.matches("suspect").count(), 1, "{table}");
     }
 
-    /// A test whose largest overlap passed 1% of r_min (method.md's bound) is named, one
+    /// A test whose largest overlap passed 1% of r_min (docs/method.md's bound) is named, one
     /// at the bound is not; the time steps of a friction's tests are listed, several when
     /// they differ.
     #[test]
@@ -866,7 +866,7 @@ mod tests {
         assert_eq!(rep.frictions[0].dt_ms, vec![0.25, 0.5]);
         let table = rep.table();
         assert!(
-            table.contains("overlap: deep (largest overlap 1.30% of r_min, above method.md's 1%"),
+            table.contains("overlap: deep (largest overlap 1.30% of r_min, above docs/method.md's 1%"),
             "{table}"
         );
         assert_eq!(table.matches("overlap:").count(), 1, "{table}");

@@ -16,7 +16,7 @@ pub const FORCE_THRESHOLD: f64 = 1e-6;
 /// `|T| >= mu N (1 - SLIDE_EPS)` (dimensionless).
 pub const SLIDE_EPS: f64 = 1e-6;
 
-/// A contact's class (method.md, "Contact classification").
+/// A contact's class (docs/method.md, "Contact classification").
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[repr(u8)]
 pub enum ContactClass {
@@ -238,7 +238,7 @@ impl Accumulator {
 /// Outer edges of the two strips (m): the mean over heights of the `Outline` of the
 /// left-strip and of the right-strip disks, over the heights crossed by both strips. The
 /// sample width `right - left` times the wall distance is the area between the outer edges
-/// of the strips and the walls (protocol.md's V).
+/// of the strips and the walls (docs/protocol.md, "Width and volume").
 ///
 /// The outline moves continuously with the disks. An earlier estimator took the extreme
 /// `x -+ r` of the disks in bands one largest diameter high: a disk passing from one band

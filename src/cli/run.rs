@@ -152,7 +152,7 @@ impl Recording {
         Ok(())
     }
 
-    /// Says once, when the largest overlap first passes method.md's bound, that the run
+    /// Says once, when the largest overlap first passes docs/method.md's bound, that the run
     /// has left it: the summary and the campaign report say so at the end, which for a
     /// 5000-disk test at high friction can be hours later.
     fn warn_overlap(&mut self, row: &SeriesRow) {
@@ -181,12 +181,12 @@ impl Recording {
             ),
         };
         let line = format!(
-            "{label}warning: the largest overlap passed {:.0}% of r_min (method.md's bound): \
+            "{label}warning: the largest overlap passed {:.0}% of r_min (docs/method.md's bound): \
              {:.2}% at step {} ({}, axial strain {:.4}); {since}. A contact that closes fast \
              within a step needs a smaller solver.dt; one that sinks slowly under load over \
              many steps (the solver's residual) needs further convergence, which a smaller \
              step gives only in part and solver.deep_overlap (say 0.005) gives to the deep \
-             contacts alone (`cdlab overlaps RUN` names the pair from the snapshots; README, \
+             contacts alone (`cdlab overlaps RUN` names the pair from the snapshots; docs/results.md, \
              \"Overlaps at high friction\")",
             OVERLAP_BOUND_REL * 100.0,
             row.overlap_max_rel * 100.0,

@@ -656,8 +656,8 @@ mod tests {
             assert_eq!(base.solver.threads, 1, "{file}: one thread per test");
             assert_eq!(base.solver.gs_relax_after, after, "{file}");
             // All run friction 1.2 at the base's 0.5 ms and 3 at 0.25 ms; 12 at 0.125 ms,
-            // or 0.0625 ms in the 5000-disk reference campaign (README, "Overlaps at high
-            // friction").
+            // or 0.0625 ms in the 5000-disk reference campaign (docs/results.md, "Overlaps at
+            // high friction").
             let base_dt = base.solver.dt.si();
             assert_eq!(base_dt, 5e-4, "{file}");
             let steps = [1.2, 3.0, 12.0].map(|mu| sweep.dt(mu, base_dt));

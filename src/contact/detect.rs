@@ -201,7 +201,7 @@ fn emit_all(
     // n_disks + w are larger than any disk index). A pair whose disk p cannot move is keyed
     // (q, p) by its free disk q > p: it waits in a heap and is emitted when the loop
     // reaches q, before q's own pairs, whose partners are all larger than p. (Merging them
-    // in at the end moved every record once per step: 5% of the 5000-disk compression.)
+    // in at the end would move every record once per step.)
     let mut partners: Vec<(u32, f64, DVec2)> = Vec::with_capacity(32);
     let mut swapped: Vec<Contact> = Vec::new();
     let mut waiting: BinaryHeap<Reverse<(u64, u32)>> = BinaryHeap::new();

@@ -1,6 +1,6 @@
 //! Contacts: the local frame, the Delassus diagonal and the record the solver iterates on.
 //!
-//! Conventions (method.md): for a contact between body `i` (always a disk) and body `j`
+//! Conventions (docs/method.md, "Contact frame and units"): for a contact between body `i` (always a disk) and body `j`
 //! (a disk or a wall), `n` points from `j` to `i`, `t = (n_y, -n_x)`, and the impulse
 //! exerted by `j` on `i` over the step is `P = R_n n + R_t t` with `R_n >= 0`.
 //! The relative velocity of the contact points is

@@ -356,11 +356,10 @@ fn at_step(e: Error, step: u64) -> Error {
     }
 }
 
-/// What to do about an overlap above the limit. Overlaps are never pushed apart (method.md),
-/// so they grow from steps that end unconverged; at high contact friction these are the
-/// steps that reach the iteration cap (friction 3: about 800 iterations per step on
-/// average, and overlaps of 5% of r_min at strain 0.016 of the 5000-disk test with a cap
-/// of 1000).
+/// What to do about an overlap above the limit. Overlaps are never pushed apart
+/// (docs/method.md, "Overlaps"), so they grow from steps that end unconverged; at high
+/// contact friction these are mostly the steps that reach the iteration cap
+/// (docs/results.md, "Overlaps at high friction").
 pub fn overlap_advice(max_iter: u32) -> String {
     format!(
         "Overlaps persist once made and grow from steps that end unconverged, mostly those \

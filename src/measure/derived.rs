@@ -1,4 +1,4 @@
-//! Results derived from a test's stress-strain curve (protocol.md, "Derived results").
+//! Results derived from a test's stress-strain curve (docs/protocol.md, "Derived results").
 
 use super::SeriesRow;
 
@@ -61,7 +61,7 @@ pub fn mean_in(rows: &[SeriesRow], lo: f64, hi: f64) -> f64 {
     }
 }
 
-/// The residual strain range of protocol.md.
+/// The residual strain range (docs/protocol.md, "Derived results").
 pub const RESIDUAL_RANGE: (f64, f64) = (0.05, 0.10);
 
 /// How far short of the end of [`RESIDUAL_RANGE`] a test may stop and still have a
@@ -89,7 +89,7 @@ pub fn friction_angle_deg(s1: f64, s3: f64) -> f64 {
     ((s1 - s3) / (s1 + s3)).asin().to_degrees()
 }
 
-/// Derives the strength of a test from its compression rows (protocol.md: peak over a
+/// Derives the strength of a test from its compression rows (docs/protocol.md: peak over a
 /// moving window of 0.002 strain; residual as the mean over strain 0.05-0.10).
 pub fn strength(rows: &[SeriesRow], sigma3: f64) -> Strength {
     let comp: Vec<SeriesRow> = rows
@@ -111,7 +111,7 @@ pub fn strength(rows: &[SeriesRow], sigma3: f64) -> Strength {
 }
 
 /// A stress-drop event: a fall of sigma_1 over consecutive rows with a concurrent
-/// contraction (protocol.md, "stress-drop events").
+/// contraction (docs/protocol.md, "Stress-drop events").
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct StressDrop {
     /// Axial strain where the fall starts.
@@ -126,10 +126,9 @@ pub struct StressDrop {
 
 /// Increment of axial strain over which the compression rows are averaged before stress
 /// drops are looked for. A row covers `series_every` steps, so by rows the events would
-/// follow the time step: at friction 12 and 0.0625 ms a row spans 3e-6 of strain and the
-/// row-to-row noise of rigid contact forces made 5460 "events" in one 5000-disk test, against
-/// 204 at friction 0.3 and 0.5 ms; averaged over 1e-4 of strain, 41 and 20 (README,
-/// "Outputs").
+/// follow the time step: at friction 12 and 0.0625 ms a row spans 3e-6 of strain, and the
+/// row-to-row noise of rigid contact forces would count as events (docs/protocol.md,
+/// "Stress-drop events").
 pub const STRESS_DROP_BIN: f64 = 1e-4;
 
 /// The stress-drop events of the compression: the rows are averaged (strain, sigma_1 and
@@ -292,7 +291,7 @@ mod tests {
     #[test]
     fn residual_needs_the_test_to_reach_the_end_of_its_range() {
         // Stopped at 0.05: a single row would be the residual; at 0.07, the strength just
-        // after the peak. Neither is protocol.md's residual.
+        // after the peak. Neither is the residual of docs/protocol.md.
         for end in [0.05, 0.07, 0.0979] {
             let r = rows(&[(0.03, 9.0), (0.05, 2.0), (end, 4.0)]);
             assert!(residual(&r).is_nan(), "stopped at {end}");

@@ -124,9 +124,8 @@ impl DeepContacts {
 }
 
 /// The kinetic ratio below which a compression counts as quasi-static in the summary:
-/// measured, healthy tests stay below it (9e-5 for the 5000-disk DWL test, 6e-4 at friction
-/// 0.1 and 1 MPa), while tests that were losing their confinement at low friction reached
-/// 5e-3 and more before the end.
+/// healthy tests stay well below it, while tests losing their confinement pass it long
+/// before the end (docs/results.md, "Low contact friction: the strips").
 pub const QUASI_STATIC_KINETIC_RATIO: f64 = 1e-3;
 
 impl Summary {

@@ -16,7 +16,8 @@ use crate::error::{Error, Result, check_positive, check_range};
 use crate::measure::SeriesRow;
 use crate::model::Scene;
 
-/// When a phase counts as settled (stated in the README; recorded with each phase end).
+/// When a phase counts as settled (docs/protocol.md, "Equilibrium"; recorded with each
+/// phase end).
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Equilibrium {
     /// Threshold on the kinetic ratio `K / (sigma A)`: the translational kinetic energy of
@@ -25,11 +26,10 @@ pub struct Equilibrium {
     /// rattler spins on, or slides along its frictionless cage, forever without doing work
     /// on the sample (the 5000-disk compaction never settled while they counted).
     pub kinetic_ratio: f64,
-    /// The kinetic threshold of the frictionless compaction (dimensionless). Measured on
-    /// 1000 disks: after the first second the ratio fluctuates between 2e-8 and 1.5e-7 for
-    /// 40 s of simulated time without decaying (frictionless disks keep sliding under the
-    /// load), so 1e-8 is met only by chance; the confinement that follows settles the
-    /// sample at `kinetic_ratio` with friction on.
+    /// The kinetic threshold of the frictionless compaction (dimensionless). Frictionless
+    /// disks keep sliding under the load, so the ratio fluctuates without decaying and
+    /// `kinetic_ratio` would be met only by chance (docs/protocol.md, "Equilibrium"); the
+    /// confinement that follows settles the sample at `kinetic_ratio` with friction on.
     #[serde(default = "default_compaction_kinetic_ratio")]
     pub compaction_kinetic_ratio: f64,
     /// Relative imbalance between the force the contacts exert on a force-driven wall and
@@ -123,8 +123,8 @@ pub struct ProtocolParams {
 }
 
 impl ProtocolParams {
-    /// The paper's parameters (protocol.md) for a sample of `disks` disks, with the
-    /// project's choices where the paper is silent (documented in the README):
+    /// The paper's parameters (docs/protocol.md) for a sample of `disks` disks, with the
+    /// project's choices where the paper is silent (docs/protocol.md):
     /// compaction at 8 MPa (the campaign's largest sigma3), wall friction equal to the disk
     /// friction, alert distance 0.1 r_min, overlap hard stop at 0.1 r_min.
     pub fn paper_defaults(disks: usize) -> Self {

@@ -1,4 +1,4 @@
-//! Geometric deposition (protocol.md, phase 1): disks placed one at a time, each at the
+//! Geometric deposition (docs/protocol.md, "Deposition"): disks placed one at a time, each at the
 //! lowest position where it rests on two supports (two disks, a disk and a side wall, a disk
 //! and the floor, or the floor and a wall) without overlap, reachable from above: its centre
 //! lies on the upper envelope of the pile's top chain dilated by its radius. No dynamics.

@@ -10,8 +10,8 @@ pub use psd::{d_by_area, d10_d60, mean_area, sample_radii};
 
 use crate::error::Result;
 
-/// Packing fraction assumed for a fresh deposit when sizing its box (measured: 0.83-0.85
-/// for the paper's distribution).
+/// Packing fraction assumed for a fresh deposit when sizing its box (what deposits of the
+/// paper's distribution reach: docs/protocol.md, "Deposition").
 pub const DEPOSIT_PACKING: f64 = 0.84;
 
 /// Width of the deposition box (m) such that `n` disks of the distribution fill a sample of

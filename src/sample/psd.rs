@@ -1,7 +1,7 @@
 //! Grain size distribution: radii uniform by area (weight) between r_min and r_max.
 //!
 //! The area-weighted CDF is linear in r, so the number density is proportional to 1/r^2
-//! and the inverse CDF is `r = 1 / (1/r_min - u (1/r_min - 1/r_max))` (protocol.md).
+//! and the inverse CDF is `r = 1 / (1/r_min - u (1/r_min - 1/r_max))` (docs/protocol.md, "Grain sizes").
 
 use super::rng::SplitMix64;
 use crate::error::{Error, Result, check_positive};

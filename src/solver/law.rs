@@ -6,7 +6,8 @@
 ///
 /// `ufn`, `uft` are the free formal velocities (`U_free + bias`). With `W_nt = 0` the normal
 /// and tangential problems decouple: `R_n = max(0, -ufn / W_nn)`, then
-/// `R_t = clamp(-uft / W_tt, -mu R_n, mu R_n)` (method.md).
+/// `R_t = clamp(-uft / W_tt, -mu R_n, mu R_n)` (docs/method.md, "The local law and its
+/// exact solution").
 #[inline]
 pub fn solve_diagonal(wnn: f64, wtt: f64, ufn: f64, uft: f64, mu: f64) -> (f64, f64) {
     let rn = if ufn < 0.0 { -ufn / wnn } else { 0.0 };

@@ -1,6 +1,6 @@
 //! The contact problem of one time step: local law, coloring and the iterative sweeps
 //! (Gauss-Seidel in plain or colored order, relaxed Jacobi) with the convergence test of
-//! method.md.
+//! docs/method.md, "Convergence".
 
 pub mod color;
 pub mod law;
@@ -90,7 +90,7 @@ pub struct SolverParams {
     /// Gauss-Seidel iterations gets `deep_sweeps` more local updates (unrelaxed, in
     /// contact order), so that it leaves the step satisfying its own law: a loaded contact
     /// the stopping tests leave closing by a small residual velocity would otherwise
-    /// deepen by it step after step (README, "Which contact, and why"). Its neighbours
+    /// deepen by it step after step (docs/results.md, "Which contact, and why"). Its neighbours
     /// take the change. Contacts with a force-driven wall (solved with the full 2x2 law)
     /// are left out. 0 turns it off, as in records written before it; Gauss-Seidel only (on
     /// the GPU, in color order: WGSL `deep_color`).
@@ -106,23 +106,19 @@ fn unrelaxed() -> f64 {
 }
 
 /// Default of the velocity test as a fraction of `r_min` per time step
-/// ([`SolverParams::velocity_tol`] is this times `r_min / dt`). On the 1000-disk test at
-/// friction 3 and 8 MPa to axial strain 0.01, 1e-5 cut the iterations per step from 406 to
-/// 148 and moved sigma1 averaged over strain windows of 0.003-0.004 by 1-2% (README,
-/// "Relaxed Gauss-Seidel").
+/// ([`SolverParams::velocity_tol`] is this times `r_min / dt`): at high friction it ends
+/// the steps whose velocities have settled while undetermined forces keep drifting, at a
+/// cost in strength within the scatter between trajectories (docs/results.md, "The
+/// velocity test").
 pub fn default_velocity_tol_rel() -> f64 {
     1e-5
 }
 
-/// Default of [`SolverParams::gs_relax`]. Measured on the 1000-disk test at contact
-/// friction 3 and 8 MPa, to axial strain 0.003 (README, "Relaxed Gauss-Seidel"): plain
-/// Gauss-Seidel took 778 iterations per step with a largest overlap of 1.6e-2 r_min; 0.8
-/// after 100 iterations took 390 and 9.6e-4 r_min. Some contacts of a high-friction packing
-/// flip between two states from one sweep to the next (a disk whose second contact opens
-/// and closes every iteration); relaxation damps these cycles. With the velocity test, to
-/// strain 0.01: 0.5 took 137 iterations per step against 168 for 0.8 (a capped step in 23
-/// windows of 377 against 67), 0.3 took 145; on the 5000-disk DWH state, 173 against 202
-/// (2 capped windows of 60 against 11). At friction 0.3 both took 48-49.
+/// Default of [`SolverParams::gs_relax`]. Some contacts of a high-friction packing flip
+/// between two states from one sweep to the next (a disk whose second contact opens and
+/// closes every iteration), and plain Gauss-Seidel then runs to the cap; relaxation damps
+/// these cycles. 0.5 needed the fewest iterations and capped steps among the values tried
+/// (docs/results.md, "Relaxed Gauss-Seidel").
 pub fn default_gs_relax() -> f64 {
     0.5
 }
@@ -130,8 +126,8 @@ pub fn default_gs_relax() -> f64 {
 /// Default of [`SolverParams::gs_relax_after`]. At friction 0.3 (40-60 iterations per step
 /// on average) relaxation from the first iteration cost 20-30% more iterations, while 50,
 /// 100 or 200 plain iterations first gave the same count as plain Gauss-Seidel within the
-/// scatter between trajectories, and the same gain at friction 3 (README, "Relaxed
-/// Gauss-Seidel").
+/// scatter between trajectories, and the same gain at friction 3 (docs/results.md,
+/// "Relaxed Gauss-Seidel").
 pub fn default_gs_relax_after() -> u32 {
     100
 }
@@ -242,8 +238,8 @@ impl SolverParams {
 /// whose gap, at the start-of-solve velocities, would stay open by more than 1e-3 `r_min` at
 /// the end of the step closes only if the relative velocity of its disks changes by 1e-3
 /// `r_min / dt` (1 m/s with the paper's `r_min` and `dt`, twice the top wall's speed)
-/// within the step. On the 5000-disk DWL sample this leaves out 14% of the candidates, and
-/// 2 steps in 9000 needed the second solve.
+/// within the step. How many it leaves out, and how rarely a step needs the second solve:
+/// docs/benchmarks.md, "Open candidates left out".
 pub fn default_open_skip_gap() -> f64 {
     1e-3
 }

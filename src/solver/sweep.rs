@@ -7,8 +7,8 @@
 //! step: the full [`Contact`] is 192 bytes, three cache lines, and 10,000 of them do not
 //! fit in a core's L2 cache. A row keeps only what an update reads and writes (80 bytes),
 //! the inverse masses and lever arms live once per body in a small table, and the local
-//! law is written without divisions or data-dependent branches (a profile of the 5000-disk
-//! compression had 80% of the time in the update, at about 84 cycles per contact).
+//! law is written without divisions or data-dependent branches: the update is most of a
+//! step's time (docs/benchmarks.md, "Compact rows").
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -172,7 +172,8 @@ fn park(rows: &mut Vec<Row>, gv: &[DVec3], open_skip: f64, active: &mut Vec<u32>
 ///
 /// With a diagonal Delassus block, `R_n = max(0, -U_free_n / W_nn)` where
 /// `U_free_n = U_n - W_nn R_n^old + bias_n`, i.e. `R_n^old - (U_n + bias_n) / W_nn`; the
-/// tangential part likewise, clamped to the Coulomb interval (method.md).
+/// tangential part likewise, clamped to the Coulomb interval (docs/method.md, "The local
+/// law and its exact solution").
 ///
 /// # Safety
 /// `ctx` must be valid for bodies `r.i` and `r.j` (and contact `r.i` of a [`FULL`] row), and
@@ -317,9 +318,9 @@ unsafe fn sweep_rows<const RELAXED: bool>(chunk: &mut [Row], ctx: Ctx) -> (f64, 
 /// [`FULL`] row). On x86_64, several rows at a time in the lanes of vector registers, with
 /// the same operations in the same order as [`update`], so bit for bit the same result:
 /// when the rows are packed ([`Ctx::quads`]), four at a time in AVX registers, then two in
-/// SSE2 registers (part of the baseline), then the last row alone. Pairs took 12-14% off a
-/// 5000-disk test at 101 iterations per step, the packed quads a further 8-9% (README,
-/// "Benchmarks"). Elsewhere, row by row.
+/// SSE2 registers (part of the baseline), then the last row alone: the sweeps are most of
+/// a step, and wider updates are what made them cheaper (docs/benchmarks.md, "Vector
+/// sweeps"). Elsewhere, row by row.
 ///
 /// # Safety
 /// As [`update`], for every row of the chunk; no two rows share a movable body; with

@@ -1,8 +1,8 @@
 //! Colored Gauss-Seidel on a team of threads that lives for the whole solve.
 //!
 //! Forking and joining a thread pool once per color costs more than the color's work on
-//! samples of a few thousand disks (measured on 2 cores: 24 against 15 ns per contact
-//! update with rayon per color). Here the threads are started once per step; each sweeps
+//! samples of a few thousand disks (docs/benchmarks.md, "Thread team"). Here the threads
+//! are started once per step; each sweeps
 //! a fixed contiguous share of every color and waits for the others at a barrier between
 //! colors.
 //!
@@ -48,9 +48,9 @@ impl SpinBarrier {
             return;
         }
         // Spin for up to SPIN before sleeping: a color's work per thread is a few
-        // microseconds on a 5000-disk sample, and a sleep/wake pair through the kernel cost
-        // more than that (a profile of the 5000-disk compression showed 13% of the time in
-        // the scheduler with a spin of 1024 pauses, whose length varies by processor).
+        // microseconds on a 5000-disk sample, and a sleep/wake pair through the kernel costs
+        // more than that; the spin is bounded in time, not in pauses, whose length varies by
+        // processor (docs/benchmarks.md, "Thread team").
         const SPIN: std::time::Duration = std::time::Duration::from_micros(100);
         let start = std::time::Instant::now();
         let mut spins = 0u32;
