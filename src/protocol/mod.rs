@@ -126,7 +126,7 @@ impl ProtocolParams {
     /// The paper's parameters (docs/protocol.md) for a sample of `disks` disks, with the
     /// project's choices where the paper is silent (docs/protocol.md):
     /// compaction at 8 MPa (the campaign's largest sigma3), wall friction equal to the disk
-    /// friction, alert distance 0.1 r_min, overlap hard stop at 0.1 r_min.
+    /// friction, alert distance 0.1 r_min, overlap hard stop at 0.05 r_min.
     pub fn paper_defaults(disks: usize) -> Self {
         use crate::solver::{Method, SolverParams};
         let (r_min, dt) = (0.5, 5e-4);
