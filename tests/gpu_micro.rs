@@ -87,7 +87,7 @@ fn gpu_micro_sums_match_the_cpu_measures() {
         ("stress_strong", g.stress_strong, h.stress_strong),
     ] {
         let scale = a.xx.abs().max(a.yy.abs()).max(b.xx.abs()).max(b.yy.abs());
-        let d = a.sub(b);
+        let d = a.minus(b);
         assert!(
             d.xx.abs().max(d.xy.abs()).max(d.yy.abs()) < 1e-4 * scale,
             "{name}: GPU {a:?}, from its contacts {b:?}"

@@ -91,7 +91,7 @@ impl Sym2 {
     }
 
     /// `self - o`.
-    pub fn sub(self, o: Sym2) -> Sym2 {
+    pub fn minus(self, o: Sym2) -> Sym2 {
         Sym2 {
             xx: self.xx - o.xx,
             xy: self.xy - o.xy,
