@@ -398,5 +398,35 @@ fn fabric_keys_round_trip_through_record_summarize_archive_and_fabric() {
             p.display()
         );
     }
+    // An archived test without its snapshot cannot be analysed, and says why; archived with
+    // --keep-last-snapshot it can, with the same numbers as the run's last snapshot.
+    let (ok, text) = cdlab(&["fabric", arch.join("t1").to_str().unwrap()]);
+    assert!(!ok && text.contains("archived test"), "{text}");
+    let arch2 = base.join("archive2");
+    let (ok, text) = cdlab(&[
+        "archive",
+        out.to_str().unwrap(),
+        "--to",
+        arch2.to_str().unwrap(),
+        "--keep-last-snapshot",
+    ]);
+    assert!(ok, "{text}");
+    let (ok, from_archive) = cdlab(&[
+        "fabric",
+        arch2.join("t1").to_str().unwrap(),
+        "-o",
+        figs.to_str().unwrap(),
+    ]);
+    assert!(ok, "{from_archive}");
+    let (ok, from_run) = cdlab(&["fabric", out.to_str().unwrap(), "-o", figs.to_str().unwrap()]);
+    assert!(ok, "{from_run}");
+    let measures = |t: &str| {
+        t.lines()
+            .filter(|l| l.contains("anisotropy"))
+            .map(String::from)
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(measures(&from_archive), measures(&from_run));
+    assert_eq!(measures(&from_run).len(), 3, "{from_run}");
     let _ = std::fs::remove_dir_all(&base);
 }

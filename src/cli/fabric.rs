@@ -2,7 +2,8 @@
 //! snapshot (`crate::measure::micro`, docs/micromechanics.md): fabric and force
 //! anisotropies, the strong and weak networks, the Love-Weber stress against the boundary
 //! stresses, the force-chain observables; with the rose diagram and the force PDF as
-//! figures (PNG and SVG).
+//! figures (PNG and SVG). An archived test can be analysed when it was archived with
+//! `--keep-last-snapshot` (its last snapshot, with the area from its thinned series).
 
 use std::path::PathBuf;
 
@@ -10,7 +11,46 @@ use super::render::nearest_snapshot;
 use crate::error::{Error, Result};
 use crate::figures::rose::{ForcePdfFigure, RoseFigure};
 use crate::measure::micro::{Analysis, PDF_BINS, PDF_MAX, ROSE_BINS, from_snapshot};
-use crate::record::read_run;
+use crate::record::{MCAP_FILE, SeriesRow, Snapshot, read_run, read_series};
+
+/// The last snapshot of a run kept by `cdlab archive --keep-last-snapshot` in an archived
+/// test's directory: one snapshot in the `/snapshot` layout (`crate::record::snapshot`).
+pub const LAST_SNAPSHOT_FILE: &str = "last_snapshot.bin";
+
+/// Writes the last snapshot of the run in `src` into the archived test `dest`, through a
+/// temporary file synced and renamed; nothing when the record holds no snapshot.
+pub fn keep_last_snapshot(src: &std::path::Path, dest: &std::path::Path) -> Result<()> {
+    let rec = read_run(src)?;
+    let Some(snap) = rec.snapshots.last() else {
+        return Ok(());
+    };
+    let bytes = snap.encode()?;
+    let to = dest.join(LAST_SNAPSHOT_FILE);
+    let tmp = dest.join(format!("{LAST_SNAPSHOT_FILE}.part"));
+    let io = |p: &std::path::Path, e| Error::io(p, e);
+    {
+        use std::io::Write;
+        let mut f = std::fs::File::create(&tmp).map_err(|e| io(&tmp, e))?;
+        f.write_all(&bytes).map_err(|e| io(&tmp, e))?;
+        f.sync_all().map_err(|e| io(&tmp, e))?;
+    }
+    std::fs::rename(&tmp, &to).map_err(|e| io(&to, e))
+}
+
+/// The snapshots and series of a run directory, or of an archived test holding its last
+/// snapshot (with its thinned series).
+fn snapshots_and_series(run: &std::path::Path) -> Result<(Vec<Snapshot>, Vec<SeriesRow>)> {
+    let kept = run.join(LAST_SNAPSHOT_FILE);
+    if run.is_dir() && !run.join(MCAP_FILE).exists() && kept.exists() {
+        let bytes = std::fs::read(&kept).map_err(|e| Error::io(&kept, e))?;
+        let snap = Snapshot::decode(&bytes)
+            .map_err(|e| Error::io(&kept, std::io::Error::new(std::io::ErrorKind::InvalidData, e)))?;
+        let (series, _) = read_series(run)?;
+        return Ok((vec![snap], series));
+    }
+    let rec = read_run(run)?;
+    Ok((rec.snapshots, rec.series))
+}
 
 /// Options of `cdlab fabric`.
 #[derive(clap::Args, Debug)]
@@ -31,22 +71,22 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(at) = args.at.filter(|a| !a.is_finite() || *a < 0.0) {
         return Err(Error::invalid("--at", at, "an axial strain (>= 0)"));
     }
-    let rec = read_run(&args.run)?;
-    if rec.snapshots.is_empty() {
+    let (snapshots, series) = snapshots_and_series(&args.run)?;
+    if snapshots.is_empty() {
         return Err(Error::Other(format!(
-            "{}: the record holds no snapshot to analyse (an archived test keeps none)",
+            "{}: the record holds no snapshot to analyse",
             args.run.display()
         )));
     }
     let k = match args.at {
-        Some(at) => nearest_snapshot(&rec.snapshots, at).expect("snapshots exist"),
-        None => rec.snapshots.len() - 1,
+        Some(at) => nearest_snapshot(&snapshots, at).expect("snapshots exist"),
+        None => snapshots.len() - 1,
     };
-    let snap = &rec.snapshots[k];
+    let snap = &snapshots[k];
     // The sample's area and boundary stresses from the series row recorded at the
-    // snapshot's step (the snapshot holds no walls).
-    let row = rec
-        .series
+    // snapshot's step (the snapshot holds no walls); an archived test's thinned series
+    // gives the nearest row it kept.
+    let row = series
         .iter()
         .min_by(|a, b| {
             (a.time_s - snap.time_s)
