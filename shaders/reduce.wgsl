@@ -43,6 +43,17 @@ fn wall_impulse(@builtin(local_invocation_index) t: u32, @builtin(workgroup_id) 
 
 var<workgroup> cnt: array<atomic<u32>, 8>;
 var<workgroup> ov_max: atomic<u32>;
+// Micromechanical counts: 0 force-carrying disk-disk contacts, 1 strong ones, 2.. the
+// orientation histogram's MICRO_BINS bins.
+var<workgroup> mcnt: array<atomic<u32>, 20>;
+
+const MICRO_PI: f32 = 3.14159265358979;
+const MICRO_BINS: u32 = 18u;
+
+// The symmetric part of a b^T as (xx, xy, yy).
+fn sym_outer(a: vec2<f32>, b: vec2<f32>) -> vec3<f32> {
+    return vec3<f32>(a.x * b.x, 0.5 * (a.x * b.y + a.y * b.x), a.y * b.y);
+}
 
 const SLIDE_EPS: f32 = 1e-6;
 const FORCE_THRESHOLD: f32 = 1e-6;
@@ -51,12 +62,14 @@ const FORCE_THRESHOLD: f32 = 1e-6;
 // 0 mean R_n of loaded contacts, 1 rolling, 2 sliding, 3 zero-force, 4 disks with >= 2
 // force-carrying contacts, 5 free disks, 6 overlapping contacts, 7 overlap sum, 8 overlap
 // max, 9 kinetic energy, 10-11 strip x sums, 12-13 strip counts (counts as u32 bits),
-// 14 translational kinetic energy, 15 that of the disks with two or more force contacts.
+// 14 translational kinetic energy, 15 that of the disks with two or more force contacts;
+// 16.. the micromechanical sums (see micro_sums).
 @compute @workgroup_size(256)
 fn reduce_final(@builtin(local_invocation_index) t: u32) {
     let nd = sim.n_disks;
     let n = n_contacts();
     if t < 8u { atomicStore(&cnt[t], 0u); }
+    if t < 20u { atomicStore(&mcnt[t], 0u); }
     if t == 0u { atomicStore(&ov_max, 0u); }
     for (var k = t; k < nd; k += 256u) { st(sim.o_per_disk + k, 0u); }
     storageBarrier();
@@ -93,6 +106,7 @@ fn reduce_final(@builtin(local_invocation_index) t: u32) {
         }
     }
     let ovs = wg_sum2(t, ov);
+    micro_sums(t, threshold);
     storageBarrier();
     workgroupBarrier();
     var ke = 0.0;
@@ -137,5 +151,84 @@ fn reduce_final(@builtin(local_invocation_index) t: u32) {
         floats[r + 13u] = scs.y;
         floats[r + 14u] = kes.y;
         floats[r + 15u] = kcs.x;
+    }
+}
+
+// The micromechanical sums of the last step's contacts (CPU twin:
+// measure::micro::MicroSums::of, in impulses: the host divides by dt), to
+// floats[f_red + 16 ..]: 16 force-carrying disk-disk contacts, 17 strong ones (u32 bits),
+// 18-35 orientation bins over [0, pi) (u32 bits), then sums over the force-carrying
+// contacts as (xx, xy, yy): 36 n n, 39 R_n, 40 R_n n n, 43 R_t sym(t n), 46 R l over every
+// contact (walls included), 49 R l over the disk-disk ones, 52 R l over the strong ones.
+// `threshold` is the force-carrying threshold of reduce_final; the strong threshold, the
+// mean R_n of the force-carrying disk-disk contacts, takes a first pass.
+fn micro_sums(t: u32, threshold: f32) {
+    let nd = sim.n_disks;
+    let n = n_contacts();
+    var dd = vec2<f32>(0.0);
+    for (var k = t; k < n; k += 256u) {
+        let c = contacts[k];
+        if c.disk_j < nd && c.rn > threshold { dd += vec2<f32>(c.rn, 1.0); }
+    }
+    let dds = wg_sum2(t, dd);
+    let strong = select(0.0, dds.x / max(dds.y, 1.0), dds.y > 0.0);
+    var nn = vec3<f32>(0.0);
+    var fs = 0.0;
+    var fnn = vec3<f32>(0.0);
+    var ftn = vec3<f32>(0.0);
+    var st = vec3<f32>(0.0);
+    var sdd = vec3<f32>(0.0);
+    var sst = vec3<f32>(0.0);
+    for (var k = t; k < n; k += 256u) {
+        let c = contacts[k];
+        if !(c.rn > threshold) { continue; }
+        let nv = vec2<f32>(c.nx, c.ny);
+        let tg = vec2<f32>(c.ny, -c.nx);
+        let disk = c.disk_j < nd;
+        var len = disks[c.i].radius + c.gap;
+        if disk { len += disks[c.disk_j].radius; }
+        let fl = len * sym_outer(c.rn * nv + c.rt * tg, nv);
+        st += fl;
+        if !disk { continue; }
+        atomicAdd(&mcnt[0], 1u);
+        let o = sym_outer(nv, nv);
+        nn += o;
+        fs += c.rn;
+        fnn += c.rn * o;
+        ftn += c.rt * sym_outer(tg, nv);
+        sdd += fl;
+        if c.rn > strong {
+            atomicAdd(&mcnt[1], 1u);
+            sst += fl;
+        }
+        var a = atan2(c.ny, c.nx);
+        if a < 0.0 { a += MICRO_PI; }
+        if a >= MICRO_PI { a = 0.0; }
+        let b = min(u32(floor(a / MICRO_PI * f32(MICRO_BINS))), MICRO_BINS - 1u);
+        atomicAdd(&mcnt[2u + b], 1u);
+    }
+    let s0 = wg_sum2(t, nn.xy);
+    let s1 = wg_sum2(t, vec2<f32>(nn.z, fs));
+    let s2 = wg_sum2(t, fnn.xy);
+    let s3 = wg_sum2(t, vec2<f32>(fnn.z, ftn.x));
+    let s4 = wg_sum2(t, ftn.yz);
+    let s5 = wg_sum2(t, st.xy);
+    let s6 = wg_sum2(t, vec2<f32>(st.z, sdd.x));
+    let s7 = wg_sum2(t, sdd.yz);
+    let s8 = wg_sum2(t, sst.xy);
+    let s9 = wg_sum2(t, vec2<f32>(sst.z, 0.0));
+    workgroupBarrier();
+    if t == 0u {
+        let r = sim.f_red + 16u;
+        for (var b = 0u; b < 20u; b++) {
+            floats[r + b] = bitcast<f32>(atomicLoad(&mcnt[b]));
+        }
+        var v = array<f32, 19>(
+            s0.x, s0.y, s1.x, s1.y, s2.x, s2.y, s3.x, s3.y, s4.x, s4.y,
+            s5.x, s5.y, s6.x, s6.y, s7.x, s7.y, s8.x, s8.y, s9.x,
+        );
+        for (var k = 0u; k < 19u; k++) {
+            floats[r + 20u + k] = v[k];
+        }
     }
 }

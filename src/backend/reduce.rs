@@ -117,6 +117,10 @@ pub struct Reductions {
     pub colors_mean: f64,
     /// Contacts given local updates after the iterations, summed over the steps.
     pub deep_sum: u64,
+    /// Sums over the last step's contacts for the micromechanical measures
+    /// ([`crate::measure::micro::MicroSums`]; forces in N/m).
+    #[serde(default)]
+    pub micro: crate::measure::micro::MicroSums,
 }
 
 /// Sums over the steps of one run.
@@ -194,6 +198,11 @@ impl Accumulator {
             }
         }
         r.force_carrying = r.rolling + r.sliding;
+        // Same force-carrying criterion as the counts above (the mean over every loaded
+        // contact), so `micro.n_force` equals `force_carrying`.
+        r.micro = crate::measure::micro::MicroSums::of(&crate::measure::micro::from_solver(
+            contacts, &d.radius, dt,
+        ));
         r.overlap_mean = if n_ov > 0 { sum_ov / n_ov as f64 } else { 0.0 };
         let free: Vec<usize> = (0..nd).filter(|&k| d.kind[k] == BodyKind::Free).collect();
         let connected = free.iter().filter(|&&k| per_disk[k] >= 2).count();

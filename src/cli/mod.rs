@@ -8,6 +8,7 @@ pub mod biaxial;
 pub mod compare;
 pub mod config;
 pub mod export;
+pub mod fabric;
 pub mod fc2d;
 pub mod info;
 pub mod overlaps;
@@ -54,6 +55,10 @@ pub enum Command {
     /// The deepest disk pairs of a recorded run's snapshots, with their forces and normal
     /// velocities (`overlaps RUN [--at STRAIN]`): which contact holds an overlap warning.
     Overlaps(overlaps::Args),
+    /// The microstructure of a recorded run's snapshot: fabric and force anisotropies,
+    /// strong network, Love-Weber stress, rose diagram and force PDF
+    /// (`fabric RUN [--at STRAIN] [-o DIR]`).
+    Fabric(fabric::Args),
     /// Write finished tests' summaries again from their records, as this version computes
     /// them (`summarize DIR... [--dry-run]`): tests finished by an older version.
     Summarize(summarize::Args),
@@ -86,6 +91,7 @@ pub fn main() -> i32 {
         Command::Export(args) => export::run(&args),
         Command::Bands(args) => bands::run(&args),
         Command::Overlaps(args) => overlaps::run(&args),
+        Command::Fabric(args) => fabric::run(&args),
         Command::Summarize(args) => summarize::run(&args),
         Command::Render(args) => render::run(&args),
         Command::Compare(args) => compare::run(&args),

@@ -17,6 +17,7 @@ pub mod curves;
 pub mod envelope;
 pub mod font;
 pub mod network;
+pub mod rose;
 pub mod snapshot;
 
 use std::path::Path;

@@ -252,7 +252,8 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
     let ints_len = o.max(1);
     let mut f = 0u32;
     p.f_wall = take(&mut f, 2 * p.n_walls);
-    p.f_red = take(&mut f, 16);
+    // 16 counts and energies, then 39 micromechanical sums (reduce.wgsl, micro_sums).
+    p.f_red = take(&mut f, 56);
     p.f_grid = take(&mut f, 8);
     p.f_conv = take(&mut f, 4);
     p.f_deep = take(&mut f, 1);

@@ -424,6 +424,7 @@ impl GpuBackend {
         red.kinetic_energy = f[r + 9] as f64;
         red.translational_energy = f[r + 14] as f64;
         red.connected_energy = f[r + 15] as f64;
+        red.micro = micro_sums(&f[r + 16..r + 55], dt);
         let has = |s: i8| loading.strip.contains(&s);
         // The outer edges need the positions: one download at the output interval.
         if !loading.strip.is_empty() {
@@ -440,5 +441,33 @@ impl GpuBackend {
             }
         });
         Ok(red)
+    }
+}
+
+/// The micromechanical sums as `reduce_final` leaves them (reduce.wgsl, `micro_sums`):
+/// counts as u32 bits, sums of impulses turned into forces with `dt`.
+fn micro_sums(m: &[f32], dt: f64) -> crate::measure::micro::MicroSums {
+    use crate::measure::micro::{MicroSums, ROSE_BINS, Sym2};
+    let sym = |k: usize, scale: f64| Sym2 {
+        xx: m[k] as f64 * scale,
+        xy: m[k + 1] as f64 * scale,
+        yy: m[k + 2] as f64 * scale,
+    };
+    let per_dt = 1.0 / dt;
+    let mut rose = [0u32; ROSE_BINS];
+    for (b, r) in rose.iter_mut().enumerate() {
+        *r = m[2 + b].to_bits();
+    }
+    MicroSums {
+        n_force: m[0].to_bits(),
+        nn: sym(20, 1.0),
+        f_n: m[23] as f64 * per_dt,
+        fnn: sym(24, per_dt),
+        ftn: sym(27, per_dt),
+        stress: sym(30, per_dt),
+        stress_dd: sym(33, per_dt),
+        n_strong: m[1].to_bits(),
+        stress_strong: sym(36, per_dt),
+        rose,
     }
 }

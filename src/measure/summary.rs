@@ -91,6 +91,152 @@ pub struct Summary {
     /// the run recorded fewer than two snapshots or the analysis could not run.
     #[serde(default)]
     pub shear_bands: Option<crate::analysis::bands::ShearBands>,
+    /// Fabric and force anisotropies at the ends of the preparation phases, at the peak and
+    /// at the end ([`crate::measure::micro`]); absent when the rows hold no
+    /// micromechanical columns (records written before them).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fabric: Option<FabricSummary>,
+}
+
+/// The micromechanical state at four points of a test, from the series rows.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FabricSummary {
+    /// Last row of the compaction (the state the confinement starts from).
+    pub after_compaction: FabricState,
+    /// Last row of the confinement (the state the compression starts from).
+    pub after_confinement: FabricState,
+    /// The compression row nearest the peak's strain.
+    pub peak: FabricState,
+    /// Last row.
+    pub end: FabricState,
+    /// The paper's homogeneity of the contact orientations after compaction: the largest
+    /// deviation of the orientation histogram from its mean, in % of the mean, over
+    /// `homogeneity_bins` bins of equal width over 180 degrees.
+    pub homogeneity_after_compaction_pct: f64,
+    /// Bins of that histogram.
+    pub homogeneity_bins: usize,
+    /// The counting noise of one bin at that row, `100 / sqrt(N_c / bins)` % for `N_c`
+    /// force-carrying contacts: an isotropic fabric's largest deviation over 18 bins is
+    /// typically about twice this, so a homogeneity near it says the fabric is isotropic
+    /// within what the sample's size can show.
+    pub homogeneity_bin_noise_pct: f64,
+}
+
+/// The micromechanical columns of one row.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct FabricState {
+    /// Axial strain of the row (0 before the compression).
+    pub strain: f64,
+    /// Fabric anisotropy.
+    pub a_c: f64,
+    /// Principal direction of the fabric (degrees from x).
+    pub theta_c_deg: f64,
+    /// Normal force anisotropy.
+    pub a_n: f64,
+    /// Tangential force anisotropy.
+    pub a_t: f64,
+    /// Strong-network fraction of the force-carrying contacts.
+    pub strong_fraction: f64,
+    /// Strong network's share of the deviatoric stress.
+    pub strong_q_share: f64,
+    /// Love-Weber principal stresses (MPa).
+    pub lw_sigma1_mpa: f64,
+    /// See `lw_sigma1_mpa`.
+    pub lw_sigma3_mpa: f64,
+}
+
+impl FabricState {
+    /// The state of a row; `None` when the row holds no micromechanical columns (NaN).
+    pub fn of(r: &SeriesRow) -> Option<FabricState> {
+        let s = FabricState {
+            strain: r.strain_axial,
+            a_c: r.a_c,
+            theta_c_deg: r.theta_c_deg,
+            a_n: r.a_n,
+            a_t: r.a_t,
+            strong_fraction: r.strong_fraction,
+            strong_q_share: r.strong_q_share,
+            lw_sigma1_mpa: r.lw_sigma1_pa / 1e6,
+            lw_sigma3_mpa: r.lw_sigma3_pa / 1e6,
+        };
+        [
+            s.a_c,
+            s.theta_c_deg,
+            s.a_n,
+            s.a_t,
+            s.strong_fraction,
+            s.strong_q_share,
+        ]
+        .iter()
+        .chain(&[s.lw_sigma1_mpa, s.lw_sigma3_mpa])
+        .all(|x| x.is_finite())
+        .then_some(s)
+    }
+
+    fn line(&self) -> String {
+        format!(
+            "a_c {:.3} at {:.0} deg, a_n {:.3}, a_t {:.3}; strong {:.1}% carrying {:.0}% of q; \
+             Love-Weber sigma1 {:.3} MPa, sigma3 {:.3} MPa",
+            self.a_c,
+            self.theta_c_deg,
+            self.a_n,
+            self.a_t,
+            100.0 * self.strong_fraction,
+            100.0 * self.strong_q_share,
+            self.lw_sigma1_mpa,
+            self.lw_sigma3_mpa
+        )
+    }
+}
+
+impl FabricSummary {
+    /// The summary of a test's rows at the peak strain `strain_peak`; `None` without a
+    /// compaction, a confinement and a compression row holding the micromechanical columns.
+    pub fn of_run(rows: &[SeriesRow], strain_peak: f64) -> Option<FabricSummary> {
+        let last_of = |phase: &str| rows.iter().rev().find(|r| r.phase == phase);
+        let compaction = last_of("compaction")?;
+        let confinement = last_of("confinement")?;
+        let peak = rows.iter().filter(|r| r.phase == "compression").min_by(|a, b| {
+            (a.strain_axial - strain_peak)
+                .abs()
+                .total_cmp(&(b.strain_axial - strain_peak).abs())
+        })?;
+        Some(FabricSummary {
+            after_compaction: FabricState::of(compaction)?,
+            after_confinement: FabricState::of(confinement)?,
+            peak: FabricState::of(peak)?,
+            end: FabricState::of(rows.last()?)?,
+            homogeneity_after_compaction_pct: 100.0 * compaction.rose_max_dev,
+            homogeneity_bins: super::micro::ROSE_BINS,
+            homogeneity_bin_noise_pct: 100.0
+                / (compaction.n_force as f64 / super::micro::ROSE_BINS as f64)
+                    .sqrt()
+                    .max(1.0),
+        })
+        .filter(|f| f.homogeneity_after_compaction_pct.is_finite())
+    }
+
+    /// Lines of the summary's table.
+    pub fn table(&self) -> String {
+        let mut s = String::new();
+        for (k, st) in [
+            ("after compaction", &self.after_compaction),
+            ("after confinement", &self.after_confinement),
+            ("at the peak", &self.peak),
+            ("at the end", &self.end),
+        ] {
+            s.push_str(&format!("    {k:<18} (strain {:.4}) {}\n", st.strain, st.line()));
+        }
+        s.push_str(&format!(
+            "    orientation homogeneity after compaction: largest deviation {:.1}% of the mean \
+             ({} bins of {:.0} deg; counting noise {:.1}% a bin)\n",
+            self.homogeneity_after_compaction_pct,
+            self.homogeneity_bins,
+            180.0 / self.homogeneity_bins as f64,
+            self.homogeneity_bin_noise_pct
+        ));
+        s
+    }
 }
 
 /// How a run used local updates of deep contacts (`solver.deep_overlap`).
@@ -178,6 +324,7 @@ impl Summary {
             stress_drops: super::derived::stress_drops(rows, 0.05 * sigma3, super::derived::STRESS_DROP_BIN),
             stress_drop_bin_strain: Some(super::derived::STRESS_DROP_BIN),
             shear_bands: None,
+            fabric: FabricSummary::of_run(rows, st.strain_peak),
         }
     }
 
@@ -285,6 +432,10 @@ impl Summary {
             Some(b) => s.push_str(&format!("  shear bands\n{}", b.table())),
             None => s.push_str("  shear bands                        n/a (fewer than two snapshots)\n"),
         }
+        match &self.fabric {
+            Some(f) => s.push_str(&format!("  fabric and forces\n{}", f.table())),
+            None => s.push_str("  fabric and forces                  n/a (not in the series)\n"),
+        }
         s
     }
 }
@@ -352,5 +503,51 @@ mod tests {
         );
         let back: Summary = serde_json::from_str(&json).unwrap();
         assert_eq!(back, s);
+    }
+
+    /// The fabric summary takes the last compaction and confinement rows, the compression
+    /// row nearest the peak strain and the last row; a record without the columns (NaN, as
+    /// read from files written before them) gives none. 1800 contacts in 18 bins: 100 a
+    /// bin, counting noise 10%.
+    #[test]
+    fn fabric_summary_picks_its_rows() {
+        let mk = |phase: &str, strain: f64, a_c: f64| SeriesRow {
+            phase: phase.into(),
+            strain_axial: strain,
+            a_c,
+            n_force: 1800,
+            rose_max_dev: a_c / 10.0,
+            lw_sigma1_pa: 2e6 * a_c,
+            ..Default::default()
+        };
+        let rows = vec![
+            mk("compaction", 0.0, 0.1),
+            mk("compaction", 0.0, 0.2),
+            mk("confinement", 0.0, 0.3),
+            mk("compression", 0.001, 0.4),
+            mk("compression", 0.004, 0.5),
+            mk("compression", 0.009, 0.6),
+        ];
+        let f = FabricSummary::of_run(&rows, 0.0035).expect("columns present");
+        let got = [
+            f.after_compaction.a_c,
+            f.after_confinement.a_c,
+            f.peak.a_c,
+            f.end.a_c,
+        ];
+        assert_eq!(got, [0.2, 0.3, 0.5, 0.6]);
+        assert_eq!(f.peak.strain, 0.004);
+        assert!((f.end.lw_sigma1_mpa - 1.2).abs() < 1e-12);
+        assert!((f.homogeneity_after_compaction_pct - 2.0).abs() < 1e-12);
+        assert!((f.homogeneity_bin_noise_pct - 10.0).abs() < 1e-12);
+        assert!(f.table().contains("counting noise 10.0% a bin"), "{}", f.table());
+        let mut old = rows.clone();
+        old[1].a_c = f64::NAN;
+        assert_eq!(FabricSummary::of_run(&old, 0.0035), None);
+        assert_eq!(
+            FabricSummary::of_run(&rows[3..], 0.0035),
+            None,
+            "no preparation rows"
+        );
     }
 }

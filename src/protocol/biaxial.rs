@@ -119,6 +119,7 @@ impl<B: Backend> Lab<B> {
                 let mut row = self.row(&red, 0.0, 0.0);
                 row.width_m = red.wall_point[walls::RIGHT].x - red.wall_point[walls::LEFT].x;
                 row.sigma1_pa = red.wall_force[walls::TOP].y / row.width_m;
+                let row = row.with_micro(&red.micro);
                 obs.series(&row)?;
                 self.state.loading.wall_forces = vec![(walls::RIGHT, applied)];
                 if self.settle(&red, p.sigma_c, applied, pushed, obs)? {

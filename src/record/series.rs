@@ -77,6 +77,37 @@ pub struct SeriesRow {
     /// (`solver.deep_overlap`); 0 without them, and in records written before them.
     #[serde(default, deserialize_with = "f64_or_nan")]
     pub deep_contacts: f64,
+    /// Fabric anisotropy `a_c = 2 (phi_1 - phi_2)` of the force-carrying disk-disk contacts
+    /// ([`crate::measure::micro`]); 0 without such contacts, NaN in records written before
+    /// the micromechanical columns (as are the columns below).
+    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
+    pub a_c: f64,
+    /// Principal direction of the fabric (degrees in [0, 180), from the x axis).
+    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
+    pub theta_c_deg: f64,
+    /// Normal force anisotropy `a_n`.
+    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
+    pub a_n: f64,
+    /// Tangential force anisotropy `a_t`.
+    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
+    pub a_t: f64,
+    /// Fraction of the force-carrying disk-disk contacts with `f_n > <f_n>` (strong network).
+    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
+    pub strong_fraction: f64,
+    /// Share of the network's deviatoric stress carried by the strong network.
+    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
+    pub strong_q_share: f64,
+    /// Larger principal value of the Love-Weber stress over the sample area `h w` (Pa); 0
+    /// without a positive area.
+    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
+    pub lw_sigma1_pa: f64,
+    /// Smaller principal value of the Love-Weber stress (Pa).
+    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
+    pub lw_sigma3_pa: f64,
+    /// Largest deviation of the contact orientation histogram (18 bins of 10 degrees) from
+    /// its mean, relative to the mean.
+    #[serde(default = "nan", deserialize_with = "f64_or_nan")]
+    pub rose_max_dev: f64,
 }
 
 fn nan() -> f64 {
@@ -142,6 +173,43 @@ pub const SERIES_FIELDS: &[(&str, &str, &str)] = &[
         "number",
         "mean contacts per step given local updates (solver.deep_overlap)",
     ),
+    (
+        "a_c",
+        "number",
+        "fabric anisotropy of the force-carrying contacts",
+    ),
+    (
+        "theta_c_deg",
+        "number",
+        "principal direction of the fabric (degrees from x)",
+    ),
+    ("a_n", "number", "normal force anisotropy"),
+    ("a_t", "number", "tangential force anisotropy"),
+    (
+        "strong_fraction",
+        "number",
+        "fraction of force-carrying contacts with f_n > <f_n>",
+    ),
+    (
+        "strong_q_share",
+        "number",
+        "share of the deviatoric stress carried by the strong network",
+    ),
+    (
+        "lw_sigma1_pa",
+        "number",
+        "major principal Love-Weber stress over h w (Pa)",
+    ),
+    (
+        "lw_sigma3_pa",
+        "number",
+        "minor principal Love-Weber stress over h w (Pa)",
+    ),
+    (
+        "rose_max_dev",
+        "number",
+        "largest deviation of the 18-bin orientation histogram from its mean / mean",
+    ),
 ];
 
 /// The JSON schema of `/series` messages (Foxglove uses it to offer the fields in plots).
@@ -180,8 +248,8 @@ pub fn csv_header() -> String {
 }
 
 /// Rows from the text of a series CSV (`series.csv`, or an archive's `series_thinned.csv`),
-/// columns found by the header's names: a file written before `wall_s` or `deep_contacts`
-/// existed reads with their defaults, as its MCAP does. `NaN` and infinities (how
+/// columns found by the header's names: a file written before `wall_s`, `deep_contacts` or
+/// the micromechanical columns (`a_c` to `rose_max_dev`) existed reads with their defaults, as its MCAP does. `NaN` and infinities (how
 /// [`SeriesRow::csv_line`] writes non-finite values) read as NaN. An unknown column, a
 /// missing one that has no default, or a value that does not parse is an error naming its
 /// line.
@@ -283,7 +351,7 @@ impl SeriesRow {
             self.phase.clone()
         };
         format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             self.time_s,
             self.step,
             phase,
@@ -308,6 +376,15 @@ impl SeriesRow {
             self.width_m,
             self.wall_s,
             self.deep_contacts,
+            self.a_c,
+            self.theta_c_deg,
+            self.a_n,
+            self.a_t,
+            self.strong_fraction,
+            self.strong_q_share,
+            self.lw_sigma1_pa,
+            self.lw_sigma3_pa,
+            self.rose_max_dev,
         )
     }
 }

@@ -50,6 +50,15 @@ fn row(k: u64) -> SeriesRow {
         width_m: 39.0 + x * 1e-4,
         wall_s: 0.37 * x,
         deep_contacts: (k % 3) as f64 * 0.5,
+        a_c: 0.01 * x.cos().abs(),
+        theta_c_deg: 90.0 + x * 1e-2,
+        a_n: 0.2 - x * 1e-4,
+        a_t: 0.05 / (1.0 + x),
+        strong_fraction: 0.37 + x * 1e-5,
+        strong_q_share: 0.9 + 1.0 / (3.0 + x),
+        lw_sigma1_pa: 1.2e7 + x * 987.654321,
+        lw_sigma3_pa: 7.9e6 - x * 12.5,
+        rose_max_dev: 0.08 + x * 1e-6,
     }
 }
 
@@ -407,12 +416,27 @@ fn series_csv_reads_back_the_rows_written() {
 /// short line or a value that is not a number is an error naming the column or line.
 #[test]
 fn series_csv_of_older_and_bad_files() {
-    let old_header = csv_header().replace(",wall_s,deep_contacts", "");
+    // The first `m` columns of the current header and of a line.
+    let first = |text: &str, m: usize| text.split(',').take(m).collect::<Vec<_>>().join(",");
+    let at = |name: &str| csv_header().split(',').position(|c| c == name).unwrap();
+    let old_header = first(&csv_header(), at("wall_s"));
     let line = row(7).csv_line();
-    let old_line = line.rsplitn(3, ',').nth(2).unwrap();
+    let old_line = first(&line, at("wall_s"));
     let back = parse_csv(&format!("{old_header}\n{old_line}\n")).unwrap();
     assert!(back[0].wall_s.is_nan() && back[0].deep_contacts == 0.0);
     assert_eq!(back[0].sigma1_pa, row(7).sigma1_pa);
+    // Written before the micromechanical columns: they read as NaN (not measured), the
+    // columns before them as written.
+    let pre_micro = parse_csv(&format!(
+        "{}\n{}\n",
+        first(&csv_header(), at("a_c")),
+        first(&line, at("a_c"))
+    ))
+    .unwrap();
+    assert_eq!(pre_micro[0].deep_contacts, row(7).deep_contacts);
+    assert!(
+        pre_micro[0].a_c.is_nan() && pre_micro[0].lw_sigma1_pa.is_nan() && pre_micro[0].rose_max_dev.is_nan()
+    );
     let e = parse_csv(&format!("{},sigma2_pa\n{line},1\n", csv_header())).unwrap_err();
     assert!(e.contains("sigma2_pa"), "{e}");
     let e = parse_csv(&format!("{}\n{old_line}\n", csv_header())).unwrap_err();
