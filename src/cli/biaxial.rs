@@ -166,18 +166,11 @@ pub struct PreparedSample {
 /// Reads a sample written by `cdlab prepare`, checking that its scene holds the disks its
 /// parameters announce.
 pub fn read_sample(path: &Path) -> Result<PreparedSample> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let ck = decode(&bytes).map_err(|e| Error::Other(format!("{}: {e}", path.display())))?;
-    let (scene, params) = (ck.scene, ck.state.params);
-    if scene.disks.len() != params.disks {
-        return Err(Error::Other(format!(
-            "{}: the sample holds {} disks but records {} (a corrupt or foreign file)",
-            path.display(),
-            scene.disks.len(),
-            params.disks
-        )));
-    }
-    Ok(PreparedSample { scene, params })
+    let s = crate::sample::file::read_sample(path)?;
+    Ok(PreparedSample {
+        scene: s.scene,
+        params: s.params,
+    })
 }
 
 /// The `[sample]` and `[compaction]` settings of `config` that differ from those a sample

@@ -166,7 +166,7 @@ pub fn run(args: &Args) -> Result<()> {
         .map(parse_shard)
         .transpose()?
         .unwrap_or((0, 1));
-    let text = std::fs::read_to_string(&args.file).map_err(|e| Error::io(&args.file, e))?;
+    let text = crate::config::read_capped(&args.file, crate::config::MAX_CONFIG_BYTES, "a sweep file")?;
     let sweep: SweepFile = toml::from_str(&text).map_err(|e| Error::Parse {
         path: args.file.clone(),
         line: 0,
@@ -562,7 +562,8 @@ fn point_differences(ours: &Config, recorded: &Config) -> Vec<String> {
 }
 
 /// The compacted sample of `seed`: from memory, from `out/samples/seedS.bin`, or prepared
-/// now (once: a second thread asking for the same seed waits on the lock).
+/// now (once: a second thread asking for the same seed waits on the mutex, a second process,
+/// another shard, waits on the sample's file lock and then reads the finished file).
 fn sample(
     config: &Config,
     out: &Path,
@@ -574,6 +575,16 @@ fn sample(
         return Ok(s.clone());
     }
     let path = out.join("samples").join(format!("seed{seed}.bin"));
+    let dir = path.parent().expect("has a parent");
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    // Held while the sample is looked for and, when absent, prepared and written: the file
+    // appears whole (temporary name, fsync, rename) and only once.
+    let _lock = crate::sample::file::SampleLock::acquire(&path, || {
+        eprintln!(
+            "sweep: another process is preparing {}; waiting for it",
+            path.display()
+        )
+    })?;
     let scene = if path.exists() {
         let sample = read_sample(&path)?;
         // A samples directory left by a campaign with other sample settings must not
@@ -589,8 +600,6 @@ fn sample(
         }
         sample.scene
     } else {
-        let dir = path.parent().expect("has a parent");
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         super::prepare::prepare_to(config, &path, true)?
     };
     cache.push((seed, scene.clone()));

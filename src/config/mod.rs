@@ -62,6 +62,30 @@ pub struct Overrides {
     pub out: Option<PathBuf>,
 }
 
+/// Largest configuration or sweep file read (1 MiB): the default configuration, comments
+/// included, is a few kilobytes, so anything larger is the wrong file (or `/dev/zero`), and
+/// reading it whole would take all the memory there is.
+pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
+
+/// Reads the UTF-8 text of `path`, refusing a file longer than `limit` bytes (`what` names
+/// the kind of file in that error) without reading more than `limit + 1` bytes of it: a
+/// device or a pipe that never ends is refused as well as a huge file.
+pub fn read_capped(path: &Path, limit: u64, what: &str) -> Result<String> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut bytes = Vec::new();
+    file.take(limit + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::io(path, e))?;
+    if bytes.len() as u64 > limit {
+        return Err(Error::Other(format!(
+            "{}: longer than {limit} bytes, too long for {what}: is it the right file?",
+            path.display()
+        )));
+    }
+    String::from_utf8(bytes).map_err(|e| Error::Other(format!("{}: not UTF-8 text ({e})", path.display())))
+}
+
 impl Config {
     /// The commented default configuration file (what `cdlab config --print-default` shows).
     pub fn default_toml() -> &'static str {
@@ -76,7 +100,7 @@ impl Config {
     /// Reads, parses and validates a TOML file.
     pub fn load(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = read_capped(path, MAX_CONFIG_BYTES, "a configuration file")?;
         Self::parse(&text, path)
     }
 
