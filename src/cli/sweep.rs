@@ -287,8 +287,13 @@ pub fn run(args: &Args) -> Result<()> {
     let started = Instant::now();
     let queue = Mutex::new(mine.iter().cloned().collect::<VecDeque<Point>>());
     let samples: Mutex<Vec<(u64, crate::model::Scene)>> = Mutex::new(Vec::new());
-    // Tests ended, failures, tests a signal stopped.
-    let done = Mutex::new((0usize, Vec::<(PathBuf, String)>::new(), Vec::<PathBuf>::new()));
+    // Tests ended, failures, tests a signal stopped, tests another process runs.
+    let done = Mutex::new((
+        0usize,
+        Vec::<(PathBuf, String)>::new(),
+        Vec::<PathBuf>::new(),
+        Vec::<PathBuf>::new(),
+    ));
     let total = mine.len();
     // A dry run checks the tests one by one, so that it lists them in the order a run
     // would start them (with several workers, a slow check, such as reading a long record,
@@ -332,7 +337,7 @@ pub fn run(args: &Args) -> Result<()> {
                             } else {
                                 ""
                             };
-                            format!("{}{note}", what.dry_run())
+                            Some(format!("{}{note}", what.dry_run()))
                         })
                     } else {
                         run_point(&base, &sweep.out, &p, &samples, &progress, &say)
@@ -341,6 +346,15 @@ pub fn run(args: &Args) -> Result<()> {
                         m.remove(b);
                     }
                     let mut d = done.lock().expect("progress");
+                    if matches!(outcome, Ok(None)) {
+                        say(&format!(
+                            "{}: running in another process, skipped (its results appear \
+                             when that process ends it)",
+                            p.dir.display()
+                        ));
+                        d.3.push(p.dir.clone());
+                        continue;
+                    }
                     if let Err(Error::Interrupted { step, .. }) = &outcome {
                         let at = if *step > 0 {
                             format!("stopped at its checkpoint of step {step}")
@@ -358,9 +372,10 @@ pub fn run(args: &Args) -> Result<()> {
                     let hours = started.elapsed().as_secs_f64() / 3600.0;
                     match outcome {
                         Ok(line) => say(&format!(
-                            "[{}/{total}, campaign {hours:.2} h] {}: {line}",
+                            "[{}/{total}, campaign {hours:.2} h] {}: {}",
                             d.0,
-                            p.dir.display()
+                            p.dir.display(),
+                            line.unwrap_or_default()
                         )),
                         Err(e) => {
                             say(&format!(
@@ -378,21 +393,32 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(b) = &overall {
         b.finish_and_clear();
     }
-    let (ended, failed, stopped) = done.into_inner().expect("progress");
+    let (ended, failed, stopped, elsewhere) = done.into_inner().expect("progress");
     if let Some(signal) = crate::interrupt::requested() {
         eprintln!(
             "sweep: stopped by {}: {ended} of {total} tests ended or were found finished ({} \
-             failed), {} stopped at a checkpoint or before starting, {} not started; the same \
-             command resumes the campaign",
+             failed), {} stopped at a checkpoint or before starting, {} running in another \
+             process, {} not started; the same command resumes the campaign",
             crate::interrupt::signal_name(signal),
             failed.len(),
             stopped.len(),
-            total - ended - stopped.len()
+            elsewhere.len(),
+            total - ended - stopped.len() - elsewhere.len()
         );
         return Err(Error::Interrupted { signal, step: 0 });
     }
     if failed.is_empty() && args.dry_run {
         eprintln!("sweep: dry run, nothing was run; {} checked", tests(total));
+        Ok(())
+    } else if failed.is_empty() && !elsewhere.is_empty() {
+        eprintln!(
+            "sweep: {ended} of this shard's {} finished, {} running in another process \
+             (not failed: that process ends them); `cdlab report {}` analyses the campaign \
+             once it has",
+            tests(total),
+            elsewhere.len(),
+            sweep.out.display()
+        );
         Ok(())
     } else if failed.is_empty() {
         eprintln!(
@@ -488,7 +514,8 @@ fn check_point(config: &Config, p: &Point) -> Result<State> {
     })
 }
 
-/// Runs, resumes or skips one test; returns a one-line outcome.
+/// Runs, resumes or skips one test; returns a one-line outcome, or None when another
+/// process runs the test.
 fn run_point(
     base: &Config,
     out: &Path,
@@ -496,14 +523,20 @@ fn run_point(
     samples: &Mutex<Vec<(u64, crate::model::Scene)>>,
     progress: &Progress,
     say: &dyn Fn(&str),
-) -> Result<String> {
+) -> Result<Option<String>> {
     let config = point_config(base, p);
     // Held until the test ends, so that a second sweep on this directory leaves it alone.
-    let _lock = crate::record::RunLock::acquire(&p.dir)?;
+    // A test whose lock another process holds is that process's to run (two sweeps on one
+    // directory, or a biaxial --resume beside the sweep): skipped, not failed.
+    let _lock = match crate::record::RunLock::acquire(&p.dir) {
+        Ok(lock) => lock,
+        Err(_) if crate::record::RunLock::held_elsewhere(&p.dir) => return Ok(None),
+        Err(e) => return Err(e),
+    };
     let state = check_point(&config, p)?;
     let resume = state == State::Resumable;
     let how = match state {
-        State::Finished => return Ok("already finished, skipped".into()),
+        State::Finished => return Ok(Some("already finished, skipped".into())),
         State::Resumable => "resuming",
         State::Restart => "restarting (its record holds no checkpoint yet)",
         State::New => "starting",
@@ -520,7 +553,7 @@ fn run_point(
         let scene = sample(&prepare, out, p.seed, samples)?;
         run_fresh(&config, &p.dir, Some(scene), progress)?
     };
-    Ok(format!(
+    Ok(Some(format!(
         "peak sigma1 {:.3} MPa, residual {}, {:.0} s",
         summary.sigma1_peak_mpa,
         summary.sigma1_residual_mpa.map_or(
@@ -531,7 +564,7 @@ fn run_point(
             |v| format!("{v:.3} MPa")
         ),
         summary.wall_time_s
-    ))
+    )))
 }
 
 /// The settings the sweep gives each test on which `recorded` (a test found in its
