@@ -153,3 +153,96 @@ fn a_damaged_sample_is_refused_before_use() {
     assert!(left.is_empty(), "{left:?}");
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// Quantities on the command line need their unit: `--sigma3 8` was taken as 8 Pa and
+/// failed only after a long confinement, with a hint about strips.
+#[test]
+fn a_flag_quantity_without_unit_is_refused() {
+    let base = scratch("unit");
+    let out = base.join("run");
+    let text = exits_with_error(&["biaxial", "--sigma3", "8", "--out", out.to_str().unwrap()]);
+    assert!(
+        text.contains("--sigma3") && text.contains("needs a unit") && text.contains("8MPa"),
+        "{text}"
+    );
+    assert!(!out.exists());
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// Configuration values absurd for their quantity name their own key: a 1e-320 s step
+/// was blamed on solver.velocity_tol (derived from r_min / dt), and `sigma3 = 8` (8 Pa)
+/// was accepted.
+#[test]
+fn absurd_configuration_values_name_their_key() {
+    let base = scratch("absurd");
+    for (text, key) in [
+        ("[solver]\ndt = \"1e-320 s\"\n", "solver.dt"),
+        ("[test]\nsigma3 = 8\n", "test.sigma3"),
+        ("[test]\nsigma3 = \"1e400 MPa\"\n", "test.sigma3"),
+    ] {
+        let path = base.join("c.toml");
+        std::fs::write(&path, text).unwrap();
+        let out = exits_with_error(&["config", "--check", path.to_str().unwrap()]);
+        assert!(out.contains(key) && out.contains("c.toml"), "{text}: {out}");
+        if text.contains("1e400") {
+            assert!(!out.contains("inf"), "{out}");
+        }
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// A WGPU_BACKEND that names no backend is reported by name with the valid values, not
+/// as a missing driver.
+#[test]
+fn a_bad_wgpu_backend_is_named() {
+    let base = scratch("wgpu");
+    let cfg = small_config(&base);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args([
+            "biaxial",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--backend",
+            "gpu",
+            "--out",
+            base.join("run").to_str().unwrap(),
+            "--quiet",
+        ])
+        .env("WGPU_BACKEND", "vulkn")
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("WGPU_BACKEND") && text.contains("vulkn") && text.contains("vulkan"),
+        "{text}"
+    );
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// A sweep's grid is checked before a dry run lists what it would start: frictions
+/// finite and >= 0, pressures with units.
+#[test]
+fn a_sweep_grid_is_validated_before_a_dry_run() {
+    let base = scratch("grid");
+    for (grid, key) in [
+        ("mu = [0.3, -1]\nsigma3 = [\"1 MPa\"]", "`mu` = -1"),
+        ("mu = [nan]\nsigma3 = [\"1 MPa\"]", "`mu` = NaN"),
+        ("mu = [0.3]\nsigma3 = [8]", "`sigma3`"),
+        ("mu = [0.3]\nsigma3 = [\"8\"]", "needs a unit"),
+        ("mu = [0.3]\nsigma3 = [\"-1 MPa\"]", "`sigma3`"),
+    ] {
+        let file = base.join("sweep.toml");
+        std::fs::write(
+            &file,
+            format!("out = \"{}\"\n{grid}\n", base.join("campaign").display()),
+        )
+        .unwrap();
+        let text = exits_with_error(&["sweep", file.to_str().unwrap(), "--dry-run"]);
+        assert!(
+            text.contains(key) && !text.contains("would start"),
+            "{grid}: {text}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::config::units::{Dimension, parse_quantity};
+use crate::config::units::{Dimension, parse_with_unit};
 use crate::config::{Config, Density, Length, Overrides, Pressure};
 use crate::error::{Error, Result};
 use crate::measure::summary::Summary;
@@ -64,7 +64,7 @@ pub fn configuration(args: &Args) -> Result<Config> {
     };
     let sigma3 = match &args.sigma3 {
         Some(s) => Some(Pressure(
-            parse_quantity(s, Dimension::Pressure).map_err(|e| Error::invalid("--sigma3", s, &e.0))?,
+            parse_with_unit(s, Dimension::Pressure).map_err(|e| Error::invalid("--sigma3", s, &e.0))?,
         )),
         None => None,
     };

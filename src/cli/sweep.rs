@@ -14,7 +14,7 @@ use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use serde::Deserialize;
 
 use crate::analysis::report::tests;
-use crate::config::units::{Dimension, parse_quantity};
+use crate::config::units::{Dimension, parse_with_unit};
 use crate::config::{Config, Duration, Pressure};
 use crate::error::{Error, Result};
 
@@ -181,14 +181,29 @@ pub fn run(args: &Args) -> Result<()> {
         .sigma3
         .iter()
         .map(|v| match v {
+            // A unit is required: `sigma3 = [8]` would be 8 Pa.
             toml::Value::String(s) => {
-                parse_quantity(s, Dimension::Pressure).map_err(|e| Error::invalid("sigma3", s, &e.0))
+                let pa = parse_with_unit(s, Dimension::Pressure)
+                    .map_err(|e| Error::invalid("sigma3", format!("\"{s}\""), &e.0))?;
+                crate::config::validate::check_pressure("sigma3", pa)?;
+                Ok(pa)
             }
-            toml::Value::Float(f) => Ok(*f),
-            toml::Value::Integer(i) => Ok(*i as f64),
-            other => Err(Error::invalid("sigma3", other, "a pressure such as \"8 MPa\"")),
+            other => Err(Error::invalid(
+                "sigma3",
+                other,
+                "a pressure with its unit, as a string such as \"8 MPa\"",
+            )),
         })
-        .collect::<Result<_>>()?;
+        .collect::<Result<_>>()
+        .map_err(|e| Error::Other(format!("{}: {e}", args.file.display())))?;
+    // Every friction a test can run at, before anything is run or a dry run says it would.
+    if let Some(mu) = sweep.mu.iter().find(|m| !(m.is_finite() && **m >= 0.0)) {
+        return Err(Error::Other(format!(
+            "{}: {}",
+            args.file.display(),
+            Error::invalid("mu", mu, "every friction must be a finite number >= 0")
+        )));
+    }
     if sweep.mu.is_empty() || sigma3.is_empty() || sweep.seeds.is_empty() {
         return Err(Error::Other(format!(
             "{}: the grid is empty (mu, sigma3 and seeds need values)",
@@ -215,6 +230,17 @@ pub fn run(args: &Args) -> Result<()> {
                 });
             }
         }
+    }
+    // Each test's configuration (its friction, pressure and time step in the base one) is
+    // checked before anything is written or a dry run says it would start.
+    for p in &grid {
+        point_config(&base, p).validate().map_err(|e| {
+            Error::Other(format!(
+                "{}: the test {}: {e}",
+                args.file.display(),
+                p.dir.display()
+            ))
+        })?;
     }
     // The whole grid, whatever the shard, so that a report on any shard's directory (or on
     // several, merged) names the tests no shard has run yet.

@@ -8,7 +8,7 @@
 
 mod sections;
 pub mod units;
-mod validate;
+pub mod validate;
 
 #[cfg(test)]
 mod tests;
@@ -62,6 +62,30 @@ pub struct Overrides {
     pub out: Option<PathBuf>,
 }
 
+/// The dotted key (`test.sigma3`) of the `key = value` line holding byte `at` of `text`,
+/// with the `[section]` above it: toml's messages about a value do not name its key, and a
+/// user looks for the key, not the line.
+fn key_at(text: &str, at: usize) -> Option<String> {
+    let line_start = text[..at].rfind('\n').map_or(0, |k| k + 1);
+    let line = text[line_start..].lines().next()?;
+    let (key, _) = line.split_once('=')?;
+    let key = key.trim().trim_matches('"');
+    let plain = |k: &str| !k.is_empty() && k.chars().all(|c| c.is_ascii_alphanumeric() || "_-.".contains(c));
+    if !plain(key) {
+        return None;
+    }
+    let section = text[..line_start]
+        .lines()
+        .rev()
+        .map(str::trim)
+        .find(|l| l.starts_with('[') && l.ends_with(']') && !l.starts_with("[["))
+        .map(|l| l.trim_matches(|c| c == '[' || c == ']').trim().to_string());
+    Some(match section {
+        Some(s) if plain(&s) => format!("{s}.{key}"),
+        _ => key.to_string(),
+    })
+}
+
 /// Largest configuration or sweep file read (1 MiB): the default configuration, comments
 /// included, is a few kilobytes, so anything larger is the wrong file (or `/dev/zero`), and
 /// reading it whole would take all the memory there is.
@@ -107,14 +131,16 @@ impl Config {
     fn parse(text: &str, path: &Path) -> Result<Self> {
         let config: Config = toml::from_str(text).map_err(|e| {
             // toml reports a byte span; users want a line number.
-            let line = e
-                .span()
-                .map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1)
-                .unwrap_or(0);
+            let start = e.span().map(|s| s.start.min(text.len()));
+            let line = start.map_or(0, |s| text[..s].matches('\n').count() + 1);
+            let message = match start.and_then(|s| key_at(text, s)) {
+                Some(key) => format!("`{key}`: {}", e.message()),
+                None => e.message().to_string(),
+            };
             Error::Parse {
                 path: path.to_path_buf(),
                 line,
-                message: e.message().to_string(),
+                message,
             }
         })?;
         config.validate()?;

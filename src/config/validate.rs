@@ -88,6 +88,44 @@ pub fn check_disk_count(field: &str, disks: usize) -> Result<()> {
 /// brings it to about 0.89, so the width shrinks by about 0.84 / 0.89.
 const COMPACTED_WIDTH: f64 = 0.95;
 
+/// Confining and compaction stresses accepted (Pa): from 1 kPa, below which a bare number
+/// meant as MPa lands (`sigma3 = 8` is 8 Pa), to 10 GPa, the stiffness of the grains
+/// themselves, where rigid disks mean nothing.
+pub const PRESSURE_RANGE: (f64, f64) = (1e3, 1e10);
+
+/// Time steps accepted (s): from 1 ns, where a test of the paper's strain would take
+/// billions of steps (and `r_min / dt` overflows below about 1e-308 s), to 1 s.
+pub const DT_RANGE: (f64, f64) = (1e-9, 1.0);
+
+/// Refuses a stress outside [`PRESSURE_RANGE`], naming `field` and hinting at a forgotten
+/// unit.
+pub fn check_pressure(field: &str, pa: f64) -> Result<()> {
+    let (lo, hi) = PRESSURE_RANGE;
+    if pa.is_finite() && (lo..=hi).contains(&pa) {
+        return Ok(());
+    }
+    Err(Error::invalid(
+        field,
+        format!("{pa:e} Pa"),
+        "must lie between 1 kPa and 10 GPa; give the unit, e.g. \"8 MPa\" (a bare number is \
+         in Pa)",
+    ))
+}
+
+/// Refuses a time step outside [`DT_RANGE`], naming `field`.
+pub fn check_time_step(field: &str, s: f64) -> Result<()> {
+    let (lo, hi) = DT_RANGE;
+    if s.is_finite() && (lo..=hi).contains(&s) {
+        return Ok(());
+    }
+    Err(Error::invalid(
+        field,
+        format!("{s:e} s"),
+        "must lie between 1e-9 s and 1 s (the paper uses 5e-4 s); give the unit, e.g. \
+         \"0.5 ms\" (a bare number is in s)",
+    ))
+}
+
 impl Config {
     /// Checks every value against its allowed range; the first failure is returned.
     pub fn validate(&self) -> Result<()> {
@@ -121,6 +159,7 @@ impl Config {
 
         let v = &self.solver;
         check_positive("solver.dt", v.dt.0)?;
+        check_time_step("solver.dt", v.dt.0)?;
         check_range("solver.theta", v.theta, 0.5, 1.0)?;
         check_open("solver.tol", v.tol, 0.0, 1.0)?;
         check_at_least("solver.max_iter", v.max_iter.into(), 1, "at least one sweep")?;
@@ -148,6 +187,7 @@ impl Config {
 
         let c = &self.compaction;
         check_positive("compaction.sigma_c", c.sigma_c.0)?;
+        check_pressure("compaction.sigma_c", c.sigma_c.0)?;
         check_non_negative("compaction.friction", c.friction)?;
 
         let t = &self.test;
@@ -156,6 +196,7 @@ impl Config {
             check_non_negative("test.wall_mu", w)?;
         }
         check_positive("test.sigma3", t.sigma3.0)?;
+        check_pressure("test.sigma3", t.sigma3.0)?;
         check_positive("test.strip_thickness", t.strip_thickness.0)?;
         // The strips need a core between them, which the confinement checks on the compacted
         // sample; a sample too narrow for them by far is refused here, before minutes of
