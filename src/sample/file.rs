@@ -158,35 +158,73 @@ pub fn read_sample(path: &Path) -> Result<PreparedSample> {
 }
 
 /// An exclusive claim on the preparation of one sample file, shared by processes (the
-/// shards of a sweep): an advisory lock on `FILE.lock` beside it, dropped with the value or
+/// shards of a sweep): an advisory lock on `FILE.lock` beside it, released with the value or
 /// when the process ends, however it ends.
+///
+/// The holder removes the lock file before releasing it, so a campaign's `samples/` holds
+/// only samples. A waiter may therefore get the lock of a file already removed: it checks
+/// that the path still names the file it locked, and starts again if not.
 #[derive(Debug)]
 pub struct SampleLock {
-    _file: File,
+    file: File,
+    path: PathBuf,
 }
 
 impl SampleLock {
     /// Takes the lock of the sample `path`, waiting while another process holds it;
-    /// `waiting` is called once, before the wait, when the lock is taken elsewhere.
+    /// `waiting` is called once, before the first wait, when the lock is taken elsewhere.
     pub fn acquire(path: &Path, waiting: impl FnOnce()) -> Result<SampleLock> {
         let mut name = path.as_os_str().to_owned();
         name.push(".lock");
         let lock = PathBuf::from(name);
-        let file = OpenOptions::new()
-            .create(true)
-            .truncate(false)
-            .write(true)
-            .open(&lock)
-            .map_err(|e| Error::io(&lock, e))?;
-        match file.try_lock() {
-            Ok(()) => {}
-            Err(TryLockError::WouldBlock) => {
-                waiting();
-                file.lock().map_err(|e| Error::io(&lock, e))?;
+        let mut waiting = Some(waiting);
+        loop {
+            let file = OpenOptions::new()
+                .create(true)
+                .truncate(false)
+                .write(true)
+                .open(&lock)
+                .map_err(|e| Error::io(&lock, e))?;
+            match file.try_lock() {
+                Ok(()) => {}
+                Err(TryLockError::WouldBlock) => {
+                    if let Some(say) = waiting.take() {
+                        say();
+                    }
+                    file.lock().map_err(|e| Error::io(&lock, e))?;
+                }
+                Err(TryLockError::Error(e)) => return Err(Error::io(&lock, e)),
             }
-            Err(TryLockError::Error(e)) => return Err(Error::io(&lock, e)),
+            if same_file(&file, &lock) {
+                return Ok(SampleLock { file, path: lock });
+            }
         }
-        Ok(SampleLock { _file: file })
+    }
+}
+
+/// Whether `path` still names the open `file` (not removed, nor replaced by another).
+#[cfg(unix)]
+fn same_file(file: &File, path: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (file.metadata(), std::fs::metadata(path)) {
+        (Ok(a), Ok(b)) => (a.dev(), a.ino()) == (b.dev(), b.ino()),
+        _ => false,
+    }
+}
+
+/// Without inode numbers the lock file is never removed (see `Drop`), so it is the same.
+#[cfg(not(unix))]
+fn same_file(_: &File, _: &Path) -> bool {
+    true
+}
+
+impl Drop for SampleLock {
+    fn drop(&mut self) {
+        // Removed while still locked (the file closes after this), so no one can lock it
+        // between the removal and the release without seeing it removed.
+        #[cfg(unix)]
+        let _ = std::fs::remove_file(&self.path);
+        let _ = &self.file;
     }
 }
 
@@ -238,6 +276,27 @@ mod tests {
             let e = decode_sample(&bytes[..cut], path).unwrap_err().to_string();
             assert!(e.contains("s.bin"), "cut {cut}: {e}");
         }
+    }
+
+    /// The lock excludes a second holder, leaves no file behind once released, and a
+    /// waiter that got the lock of a removed file takes a fresh one.
+    #[test]
+    fn sample_lock_is_exclusive_and_leaves_no_file() {
+        let dir = std::env::temp_dir().join(format!("cdlab-samplelock-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("seed1.bin");
+        let first = SampleLock::acquire(&path, || panic!("free")).unwrap();
+        let lock = dir.join("seed1.bin.lock");
+        assert!(lock.exists());
+        // A second open file description cannot take it while the first holds it.
+        let other = File::open(&lock).unwrap();
+        assert!(matches!(other.try_lock(), Err(TryLockError::WouldBlock)));
+        drop(other);
+        drop(first);
+        assert!(!lock.exists(), "the lock file stays after release");
+        let again = SampleLock::acquire(&path, || panic!("free")).unwrap();
+        drop(again);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     /// A version 1 file (a bare checkpoint) is refused with how to prepare it again.
