@@ -554,7 +554,10 @@ fn run_point(
     // Held until the test ends, so that a second sweep on this directory leaves it alone.
     // A test whose lock another process holds is that process's to run (two sweeps on one
     // directory, or a biaxial --resume beside the sweep): skipped, not failed.
-    let _lock = match crate::record::RunLock::acquire(&p.dir) {
+    // A refusal is tried once more: the other process may have ended in between (its test
+    // is then found finished, or resumed here).
+    let acquire = || crate::record::RunLock::acquire(&p.dir);
+    let _lock = match acquire().or_else(|_| acquire()) {
         Ok(lock) => lock,
         Err(_) if crate::record::RunLock::held_elsewhere(&p.dir) => return Ok(None),
         Err(e) => return Err(e),

@@ -76,16 +76,28 @@ impl<'a> Lines<'a> {
         l.split_whitespace()
             .map(|t| {
                 t.parse::<usize>()
-                    .map_err(|_| self.err(format!("expected {what}, found `{t}`")))
+                    .map_err(|_| self.err(format!("expected {what}, found `{}`", shown(t))))
             })
             .collect()
+    }
+}
+
+/// `text` for an error message, cut to 60 characters: a damaged file may hold a line of
+/// megabytes, which the message need not repeat.
+fn shown(text: &str) -> String {
+    match text.char_indices().nth(60) {
+        Some((k, _)) => format!("{}...", &text[..k]),
+        None => text.to_string(),
     }
 }
 
 fn finite(l: &Lines, t: &str, what: &str) -> Result<f64> {
     match t.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
-        _ => Err(l.err(format!("expected a finite number for {what}, found `{t}`"))),
+        _ => Err(l.err(format!(
+            "expected a finite number for {what}, found `{}`",
+            shown(t)
+        ))),
     }
 }
 
@@ -127,40 +139,48 @@ pub fn parse(text: &str, path: &Path) -> Result<Problem> {
     let n = rows;
     let banner = l.next("the CSparse banner")?;
     if !banner.starts_with("CSparse") {
-        return Err(l.err(format!("expected the CSparse banner, found `{banner}`")));
+        return Err(l.err(format!("expected the CSparse banner, found `{}`", shown(banner))));
     }
     let size = l.next("the matrix size line")?;
     if !size.starts_with(&format!("{n}-by-{n}")) {
-        return Err(l.err(format!("expected `{n}-by-{n}, ...`, found `{size}`")));
+        return Err(l.err(format!("expected `{n}-by-{n}, ...`, found `{}`", shown(size))));
     }
     let mut col_start = vec![0usize; n + 1];
     let mut row_idx = Vec::new();
     let mut vals = Vec::new();
     let mut line = l.next("the first column")?;
     for j in 0..n {
-        let rest = line
-            .strip_prefix("col ")
-            .ok_or_else(|| l.err(format!("expected `col {j} : locations a to b`, found `{line}`")))?;
+        let rest = line.strip_prefix("col ").ok_or_else(|| {
+            l.err(format!(
+                "expected `col {j} : locations a to b`, found `{}`",
+                shown(line)
+            ))
+        })?;
         let mut it = rest.split_whitespace();
         let cj = it.next().and_then(|t| t.parse::<usize>().ok());
         let words: Vec<&str> = it.collect();
         let (a, b) = match (cj, words.as_slice()) {
             (Some(c), [":", "locations", a, "to", b]) if c == j => (a.parse::<usize>(), b.parse::<usize>()),
-            _ => return Err(l.err(format!("expected `col {j} : locations a to b`, found `{line}`"))),
+            _ => {
+                return Err(l.err(format!(
+                    "expected `col {j} : locations a to b`, found `{}`",
+                    shown(line)
+                )));
+            }
         };
         let (a, b) = match (a, b) {
             (Ok(a), Ok(b)) if a == vals.len() && b + 1 >= a => (a, b),
-            _ => return Err(l.err(format!("bad location range in `{line}`"))),
+            _ => return Err(l.err(format!("bad location range in `{}`", shown(line)))),
         };
         for _ in a..=b {
             let e = l.next("a matrix entry")?;
             let (i, v) = e
                 .split_once(':')
-                .ok_or_else(|| l.err(format!("expected `row : value`, found `{e}`")))?;
+                .ok_or_else(|| l.err(format!("expected `row : value`, found `{}`", shown(e))))?;
             let i = i
                 .trim()
                 .parse::<usize>()
-                .map_err(|_| l.err(format!("bad row index in `{e}`")))?;
+                .map_err(|_| l.err(format!("bad row index in `{}`", shown(e))))?;
             if i >= n {
                 return Err(l.err(format!("row index {i} out of range 0..{n}")));
             }
