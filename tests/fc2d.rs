@@ -72,3 +72,67 @@ fn malformed_problem_files_are_rejected_with_the_line() {
         );
     }
 }
+
+/// A small problem written in the fc2d layout (see `src/fc2d/parse.rs`): `nc` contacts,
+/// a diagonal Delassus matrix, q and mu on their own lines.
+fn synthetic(nc: usize) -> String {
+    let n = 2 * nc;
+    let mut t =
+        format!("2\n{nc}\n2\n{n}\n{n}\n2\nCSparse synthetic\n{n}-by-{n}, nzmax: {n} nnz: {n}, 1-norm: 1.5\n");
+    for j in 0..n {
+        t += &format!("    col {j} : locations {j} to {j}\n      {j} : 1.25\n");
+    }
+    let q: Vec<String> = (0..n).map(|k| format!("-0.{}5", k + 1)).collect();
+    let mu: Vec<String> = (0..nc).map(|k| format!("0.{}3", k + 2)).collect();
+    t + &q.join(" ") + "\n" + &mu.join(" ") + "\n"
+}
+
+/// A file cut at any byte is refused, never read as a smaller or different problem: every
+/// cut of a synthetic file, and of the shipped files every cut in the last 300 bytes (the
+/// q and mu lines, where a cut inside a number still parses as a number) and every 499th
+/// byte elsewhere.
+#[test]
+fn a_file_cut_at_any_byte_is_refused() {
+    let path = Path::new("cut.dat");
+    let text = synthetic(3);
+    let whole = parse(&text, path).unwrap();
+    assert_eq!((whole.nc, whole.mu.clone()), (3, vec![0.23, 0.33, 0.43]));
+    for cut in 0..text.len() {
+        let e = parse(&text[..cut], path);
+        assert!(
+            e.is_err(),
+            "the synthetic file cut at byte {cut} of {} was read",
+            text.len()
+        );
+    }
+    for name in [
+        "fc2d_granularflowonwall_00667_00000.dat",
+        "fc2d_granularflowonwall_02020_00213.dat",
+    ] {
+        let text = std::fs::read_to_string(data(name)).unwrap();
+        parse(&text, path).unwrap();
+        let tail = text.len().saturating_sub(300);
+        for cut in (0..tail).step_by(499).chain(tail..text.len()) {
+            assert!(
+                parse(&text[..cut], path).is_err(),
+                "{name} cut at byte {cut} was read"
+            );
+        }
+    }
+}
+
+/// A header announcing more contacts than the file can hold is refused before anything is
+/// allocated for them (it was a capacity-overflow panic at 2^62 contacts).
+#[test]
+fn a_huge_contact_count_is_refused_without_allocating() {
+    let text = synthetic(2);
+    for nc in [u64::MAX / 2, 1 << 62, 1 << 40, 10_000] {
+        let n = nc.wrapping_mul(2);
+        let bad = text.replacen("\n2\n2\n4\n4\n", &format!("\n{nc}\n2\n{n}\n{n}\n"), 1);
+        let e = parse(&bad, Path::new("huge.dat")).unwrap_err().to_string();
+        assert!(
+            e.contains("huge.dat") && e.contains("contacts announced"),
+            "{nc}: {e}"
+        );
+    }
+}

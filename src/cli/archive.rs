@@ -7,8 +7,8 @@
 //! repository, moved between machines and resumed by copying the archive into its output
 //! directory.
 //!
-//! With `--with-unfinished`, a test still running or interrupted is kept as a slim record
-//! instead: its configuration, its time series up to its last checkpoint and that
+//! With `--with-unfinished`, an interrupted test is kept as a slim record instead (a test
+//! another process is running now, its lock held, is skipped with a message): its configuration, its time series up to its last checkpoint and that
 //! checkpoint, without snapshots (a 5000-disk test's comes to a few megabytes). The sweep
 //! resumes it from there as from its full record and ends it bit for bit as an
 //! uninterrupted run; only the snapshots before the checkpoint are missing from its new
@@ -98,6 +98,21 @@ pub fn run(args: &Args) -> Result<()> {
         // A run with a summary that could not be read is finished, not to be resumed.
         let unfinished = dir.join(MCAP_FILE).exists() && !dir.join("summary.json").exists();
         let kept = if args.with_unfinished && unfinished {
+            // A test that a process is running now changes under the reader, and its
+            // archived checkpoint would be stale the moment it is written: left alone.
+            // Holding its lock while archiving keeps a sweep from starting it meanwhile.
+            let _lock = match crate::record::RunLock::acquire(dir) {
+                Ok(lock) => lock,
+                Err(_) if crate::record::RunLock::held_elsewhere(dir) => {
+                    println!(
+                        "  running now in another process, not archived (archive it once it \
+                         has ended or stopped): {}",
+                        dir.display()
+                    );
+                    continue;
+                }
+                Err(e) => return Err(e),
+            };
             let name = dir.file_name().unwrap_or_default();
             archive_unfinished(dir, &args.to.join(name))
         } else {

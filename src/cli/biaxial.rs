@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::config::units::{Dimension, parse_quantity};
+use crate::config::units::{Dimension, parse_with_unit};
 use crate::config::{Config, Density, Length, Overrides, Pressure};
 use crate::error::{Error, Result};
 use crate::measure::summary::Summary;
@@ -67,7 +67,7 @@ pub fn configuration(args: &Args) -> Result<Config> {
     };
     let sigma3 = match &args.sigma3 {
         Some(s) => Some(Pressure(
-            parse_quantity(s, Dimension::Pressure).map_err(|e| Error::invalid("--sigma3", s, &e.0))?,
+            parse_with_unit(s, Dimension::Pressure).map_err(|e| Error::invalid("--sigma3", s, &e.0))?,
         )),
         None => None,
     };
@@ -180,18 +180,11 @@ pub struct PreparedSample {
 /// Reads a sample written by `cdlab prepare`, checking that its scene holds the disks its
 /// parameters announce.
 pub fn read_sample(path: &Path) -> Result<PreparedSample> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let ck = decode(&bytes).map_err(|e| Error::Other(format!("{}: {e}", path.display())))?;
-    let (scene, params) = (ck.scene, ck.state.params);
-    if scene.disks.len() != params.disks {
-        return Err(Error::Other(format!(
-            "{}: the sample holds {} disks but records {} (a corrupt or foreign file)",
-            path.display(),
-            scene.disks.len(),
-            params.disks
-        )));
-    }
-    Ok(PreparedSample { scene, params })
+    let s = crate::sample::file::read_sample(path)?;
+    Ok(PreparedSample {
+        scene: s.scene,
+        params: s.params,
+    })
 }
 
 /// The `[sample]` and `[compaction]` settings of `config` that differ from those a sample

@@ -5,7 +5,6 @@ use std::path::PathBuf;
 
 use crate::error::{Error, Result};
 use crate::protocol::biaxial::Lab;
-use crate::protocol::checkpoint::encode;
 use crate::protocol::{Collect, Phase, prepare};
 
 use super::run::open_backend;
@@ -84,8 +83,7 @@ pub fn prepare_to(
         .cloned()
         .ok_or_else(|| Error::Other("compaction did not end".into()))?;
     let scene = crate::backend::Backend::scene(&mut lab.backend)?;
-    let bytes = encode(&lab.state, &scene, &[], &[]);
-    std::fs::write(path, bytes).map_err(|e| Error::io(path, e))?;
+    crate::sample::file::write_sample(path, &lab.state, &scene)?;
     if !quiet {
         let d = &scene.disks;
         let last = obs.rows.last();

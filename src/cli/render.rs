@@ -27,10 +27,18 @@ pub struct Args {
     /// Output: a .png or .svg file with --at, a directory with --curves.
     #[arg(short, long)]
     pub out: PathBuf,
-    /// Height of a snapshot's plot area in pixels (the width follows the sample's aspect).
+    /// Height of a snapshot's plot area in pixels (the width follows the sample's aspect),
+    /// 50 to 20000.
     #[arg(long, default_value_t = 900)]
     pub height: u32,
 }
+
+/// Largest snapshot height accepted (pixels): 20,000 px is about 30 cm at 1,600 dpi, more than
+/// a poster needs, and its RGB image in memory stays in the gigabyte range.
+pub const MAX_HEIGHT: u32 = 20_000;
+
+/// Largest snapshot figure accepted, in pixels (a 20,000 x 20,000 image, 1.2 GB in RGB).
+pub const MAX_PIXELS: u64 = 400_000_000;
 
 /// Runs `cdlab render`.
 pub fn run(args: &Args) -> Result<()> {
@@ -68,11 +76,11 @@ fn snapshot(args: &Args, at: f64) -> Result<()> {
     }
     let field: Field = args.field.parse()?;
     Format::from_path(&args.out)?;
-    if args.height < 50 {
+    if !(50..=MAX_HEIGHT).contains(&args.height) {
         return Err(Error::invalid(
             "--height",
             args.height,
-            "must be at least 50 pixels",
+            &format!("must lie in [50, {MAX_HEIGHT}] pixels"),
         ));
     }
     let rec = read_run(&args.run)?;
@@ -93,6 +101,19 @@ fn snapshot(args: &Args, at: f64) -> Result<()> {
         plot_height: args.height,
         shear: shear.as_ref(),
     };
+    // The width follows the sample's shape: a wide sample could still ask for more pixels
+    // than the memory holds (3 bytes each, drawn in memory before encoding).
+    let (w, h) = figures::Figure::size(&fig);
+    if u64::from(w) * u64::from(h) > MAX_PIXELS {
+        return Err(Error::invalid(
+            "--height",
+            args.height,
+            &format!(
+                "the figure would be {w} x {h} pixels, above the limit of {MAX_PIXELS}: \
+                 ask for a smaller height"
+            ),
+        ));
+    }
     figures::save(&fig, &args.out)?;
     println!(
         "{} at axial strain {:.5} (requested {at}; snapshot {} of {}, t = {:.4} s) -> {}",

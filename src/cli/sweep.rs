@@ -14,7 +14,7 @@ use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use serde::Deserialize;
 
 use crate::analysis::report::tests;
-use crate::config::units::{Dimension, parse_quantity};
+use crate::config::units::{Dimension, parse_with_unit};
 use crate::config::{Config, Duration, Pressure};
 use crate::error::{Error, Result};
 
@@ -166,7 +166,7 @@ pub fn run(args: &Args) -> Result<()> {
         .map(parse_shard)
         .transpose()?
         .unwrap_or((0, 1));
-    let text = std::fs::read_to_string(&args.file).map_err(|e| Error::io(&args.file, e))?;
+    let text = crate::config::read_capped(&args.file, crate::config::MAX_CONFIG_BYTES, "a sweep file")?;
     let sweep: SweepFile = toml::from_str(&text).map_err(|e| Error::Parse {
         path: args.file.clone(),
         line: 0,
@@ -181,14 +181,29 @@ pub fn run(args: &Args) -> Result<()> {
         .sigma3
         .iter()
         .map(|v| match v {
+            // A unit is required: `sigma3 = [8]` would be 8 Pa.
             toml::Value::String(s) => {
-                parse_quantity(s, Dimension::Pressure).map_err(|e| Error::invalid("sigma3", s, &e.0))
+                let pa = parse_with_unit(s, Dimension::Pressure)
+                    .map_err(|e| Error::invalid("sigma3", format!("\"{s}\""), &e.0))?;
+                crate::config::validate::check_pressure("sigma3", pa)?;
+                Ok(pa)
             }
-            toml::Value::Float(f) => Ok(*f),
-            toml::Value::Integer(i) => Ok(*i as f64),
-            other => Err(Error::invalid("sigma3", other, "a pressure such as \"8 MPa\"")),
+            other => Err(Error::invalid(
+                "sigma3",
+                other,
+                "a pressure with its unit, as a string such as \"8 MPa\"",
+            )),
         })
-        .collect::<Result<_>>()?;
+        .collect::<Result<_>>()
+        .map_err(|e| Error::Other(format!("{}: {e}", args.file.display())))?;
+    // Every friction a test can run at, before anything is run or a dry run says it would.
+    if let Some(mu) = sweep.mu.iter().find(|m| !(m.is_finite() && **m >= 0.0)) {
+        return Err(Error::Other(format!(
+            "{}: {}",
+            args.file.display(),
+            Error::invalid("mu", mu, "every friction must be a finite number >= 0")
+        )));
+    }
     if sweep.mu.is_empty() || sigma3.is_empty() || sweep.seeds.is_empty() {
         return Err(Error::Other(format!(
             "{}: the grid is empty (mu, sigma3 and seeds need values)",
@@ -215,6 +230,17 @@ pub fn run(args: &Args) -> Result<()> {
                 });
             }
         }
+    }
+    // Each test's configuration (its friction, pressure and time step in the base one) is
+    // checked before anything is written or a dry run says it would start.
+    for p in &grid {
+        point_config(&base, p).validate().map_err(|e| {
+            Error::Other(format!(
+                "{}: the test {}: {e}",
+                args.file.display(),
+                p.dir.display()
+            ))
+        })?;
     }
     // The whole grid, whatever the shard, so that a report on any shard's directory (or on
     // several, merged) names the tests no shard has run yet.
@@ -287,8 +313,13 @@ pub fn run(args: &Args) -> Result<()> {
     let started = Instant::now();
     let queue = Mutex::new(mine.iter().cloned().collect::<VecDeque<Point>>());
     let samples: Mutex<Vec<(u64, crate::model::Scene)>> = Mutex::new(Vec::new());
-    // Tests ended, failures, tests a signal stopped.
-    let done = Mutex::new((0usize, Vec::<(PathBuf, String)>::new(), Vec::<PathBuf>::new()));
+    // Tests ended, failures, tests a signal stopped, tests another process runs.
+    let done = Mutex::new((
+        0usize,
+        Vec::<(PathBuf, String)>::new(),
+        Vec::<PathBuf>::new(),
+        Vec::<PathBuf>::new(),
+    ));
     let total = mine.len();
     // A dry run checks the tests one by one, so that it lists them in the order a run
     // would start them (with several workers, a slow check, such as reading a long record,
@@ -332,7 +363,7 @@ pub fn run(args: &Args) -> Result<()> {
                             } else {
                                 ""
                             };
-                            format!("{}{note}", what.dry_run())
+                            Some(format!("{}{note}", what.dry_run()))
                         })
                     } else {
                         run_point(&base, &sweep.out, &p, &samples, &progress, &say)
@@ -341,6 +372,15 @@ pub fn run(args: &Args) -> Result<()> {
                         m.remove(b);
                     }
                     let mut d = done.lock().expect("progress");
+                    if matches!(outcome, Ok(None)) {
+                        say(&format!(
+                            "{}: running in another process, skipped (its results appear \
+                             when that process ends it)",
+                            p.dir.display()
+                        ));
+                        d.3.push(p.dir.clone());
+                        continue;
+                    }
                     if let Err(Error::Interrupted { step, .. }) = &outcome {
                         let at = if *step > 0 {
                             format!("stopped at its checkpoint of step {step}")
@@ -358,9 +398,10 @@ pub fn run(args: &Args) -> Result<()> {
                     let hours = started.elapsed().as_secs_f64() / 3600.0;
                     match outcome {
                         Ok(line) => say(&format!(
-                            "[{}/{total}, campaign {hours:.2} h] {}: {line}",
+                            "[{}/{total}, campaign {hours:.2} h] {}: {}",
                             d.0,
-                            p.dir.display()
+                            p.dir.display(),
+                            line.unwrap_or_default()
                         )),
                         Err(e) => {
                             say(&format!(
@@ -378,21 +419,32 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(b) = &overall {
         b.finish_and_clear();
     }
-    let (ended, failed, stopped) = done.into_inner().expect("progress");
+    let (ended, failed, stopped, elsewhere) = done.into_inner().expect("progress");
     if let Some(signal) = crate::interrupt::requested() {
         eprintln!(
             "sweep: stopped by {}: {ended} of {total} tests ended or were found finished ({} \
-             failed), {} stopped at a checkpoint or before starting, {} not started; the same \
-             command resumes the campaign",
+             failed), {} stopped at a checkpoint or before starting, {} running in another \
+             process, {} not started; the same command resumes the campaign",
             crate::interrupt::signal_name(signal),
             failed.len(),
             stopped.len(),
-            total - ended - stopped.len()
+            elsewhere.len(),
+            total - ended - stopped.len() - elsewhere.len()
         );
         return Err(Error::Interrupted { signal, step: 0 });
     }
     if failed.is_empty() && args.dry_run {
         eprintln!("sweep: dry run, nothing was run; {} checked", tests(total));
+        Ok(())
+    } else if failed.is_empty() && !elsewhere.is_empty() {
+        eprintln!(
+            "sweep: {ended} of this shard's {} finished, {} running in another process \
+             (not failed: that process ends them); `cdlab report {}` analyses the campaign \
+             once it has",
+            tests(total),
+            elsewhere.len(),
+            sweep.out.display()
+        );
         Ok(())
     } else if failed.is_empty() {
         eprintln!(
@@ -488,7 +540,8 @@ fn check_point(config: &Config, p: &Point) -> Result<State> {
     })
 }
 
-/// Runs, resumes or skips one test; returns a one-line outcome.
+/// Runs, resumes or skips one test; returns a one-line outcome, or None when another
+/// process runs the test.
 fn run_point(
     base: &Config,
     out: &Path,
@@ -496,14 +549,23 @@ fn run_point(
     samples: &Mutex<Vec<(u64, crate::model::Scene)>>,
     progress: &Progress,
     say: &dyn Fn(&str),
-) -> Result<String> {
+) -> Result<Option<String>> {
     let config = point_config(base, p);
     // Held until the test ends, so that a second sweep on this directory leaves it alone.
-    let _lock = crate::record::RunLock::acquire(&p.dir)?;
+    // A test whose lock another process holds is that process's to run (two sweeps on one
+    // directory, or a biaxial --resume beside the sweep): skipped, not failed.
+    // A refusal is tried once more: the other process may have ended in between (its test
+    // is then found finished, or resumed here).
+    let acquire = || crate::record::RunLock::acquire(&p.dir);
+    let _lock = match acquire().or_else(|_| acquire()) {
+        Ok(lock) => lock,
+        Err(_) if crate::record::RunLock::held_elsewhere(&p.dir) => return Ok(None),
+        Err(e) => return Err(e),
+    };
     let state = check_point(&config, p)?;
     let resume = state == State::Resumable;
     let how = match state {
-        State::Finished => return Ok("already finished, skipped".into()),
+        State::Finished => return Ok(Some("already finished, skipped".into())),
         State::Resumable => "resuming",
         State::Restart => "restarting (its record holds no checkpoint yet)",
         State::New => "starting",
@@ -520,7 +582,7 @@ fn run_point(
         let scene = sample(&prepare, out, p.seed, samples)?;
         run_fresh(&config, &p.dir, Some(scene), progress)?
     };
-    Ok(format!(
+    Ok(Some(format!(
         "peak sigma1 {:.3} MPa, residual {}, {:.0} s",
         summary.sigma1_peak_mpa,
         summary.sigma1_residual_mpa.map_or(
@@ -531,7 +593,7 @@ fn run_point(
             |v| format!("{v:.3} MPa")
         ),
         summary.wall_time_s
-    ))
+    )))
 }
 
 /// The settings the sweep gives each test on which `recorded` (a test found in its
@@ -562,7 +624,8 @@ fn point_differences(ours: &Config, recorded: &Config) -> Vec<String> {
 }
 
 /// The compacted sample of `seed`: from memory, from `out/samples/seedS.bin`, or prepared
-/// now (once: a second thread asking for the same seed waits on the lock).
+/// now (once: a second thread asking for the same seed waits on the mutex, a second process,
+/// another shard, waits on the sample's file lock and then reads the finished file).
 fn sample(
     config: &Config,
     out: &Path,
@@ -574,6 +637,16 @@ fn sample(
         return Ok(s.clone());
     }
     let path = out.join("samples").join(format!("seed{seed}.bin"));
+    let dir = path.parent().expect("has a parent");
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    // Held while the sample is looked for and, when absent, prepared and written: the file
+    // appears whole (temporary name, fsync, rename) and only once.
+    let _lock = crate::sample::file::SampleLock::acquire(&path, || {
+        eprintln!(
+            "sweep: another process is preparing {}; waiting for it",
+            path.display()
+        )
+    })?;
     let scene = if path.exists() {
         let sample = read_sample(&path)?;
         // A samples directory left by a campaign with other sample settings must not
@@ -589,8 +662,6 @@ fn sample(
         }
         sample.scene
     } else {
-        let dir = path.parent().expect("has a parent");
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         super::prepare::prepare_to(config, &path, true)?
     };
     cache.push((seed, scene.clone()));

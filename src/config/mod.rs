@@ -8,7 +8,7 @@
 
 mod sections;
 pub mod units;
-mod validate;
+pub mod validate;
 
 #[cfg(test)]
 mod tests;
@@ -62,6 +62,54 @@ pub struct Overrides {
     pub out: Option<PathBuf>,
 }
 
+/// The dotted key (`test.sigma3`) of the `key = value` line holding byte `at` of `text`,
+/// with the `[section]` above it: toml's messages about a value do not name its key, and a
+/// user looks for the key, not the line.
+fn key_at(text: &str, at: usize) -> Option<String> {
+    let line_start = text[..at].rfind('\n').map_or(0, |k| k + 1);
+    let line = text[line_start..].lines().next()?;
+    let (key, _) = line.split_once('=')?;
+    let key = key.trim().trim_matches('"');
+    let plain = |k: &str| !k.is_empty() && k.chars().all(|c| c.is_ascii_alphanumeric() || "_-.".contains(c));
+    if !plain(key) {
+        return None;
+    }
+    let section = text[..line_start]
+        .lines()
+        .rev()
+        .map(str::trim)
+        .find(|l| l.starts_with('[') && l.ends_with(']') && !l.starts_with("[["))
+        .map(|l| l.trim_matches(|c| c == '[' || c == ']').trim().to_string());
+    Some(match section {
+        Some(s) if plain(&s) => format!("{s}.{key}"),
+        _ => key.to_string(),
+    })
+}
+
+/// Largest configuration or sweep file read (1 MiB): the default configuration, comments
+/// included, is a few kilobytes, so anything larger is the wrong file (or `/dev/zero`), and
+/// reading it whole would take all the memory there is.
+pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
+
+/// Reads the UTF-8 text of `path`, refusing a file longer than `limit` bytes (`what` names
+/// the kind of file in that error) without reading more than `limit + 1` bytes of it: a
+/// device or a pipe that never ends is refused as well as a huge file.
+pub fn read_capped(path: &Path, limit: u64, what: &str) -> Result<String> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut bytes = Vec::new();
+    file.take(limit + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::io(path, e))?;
+    if bytes.len() as u64 > limit {
+        return Err(Error::Other(format!(
+            "{}: longer than {limit} bytes, too long for {what}: is it the right file?",
+            path.display()
+        )));
+    }
+    String::from_utf8(bytes).map_err(|e| Error::Other(format!("{}: not UTF-8 text ({e})", path.display())))
+}
+
 impl Config {
     /// The commented default configuration file (what `cdlab config --print-default` shows).
     pub fn default_toml() -> &'static str {
@@ -76,21 +124,23 @@ impl Config {
     /// Reads, parses and validates a TOML file.
     pub fn load(path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = read_capped(path, MAX_CONFIG_BYTES, "a configuration file")?;
         Self::parse(&text, path)
     }
 
     fn parse(text: &str, path: &Path) -> Result<Self> {
         let config: Config = toml::from_str(text).map_err(|e| {
             // toml reports a byte span; users want a line number.
-            let line = e
-                .span()
-                .map(|s| text[..s.start.min(text.len())].matches('\n').count() + 1)
-                .unwrap_or(0);
+            let start = e.span().map(|s| s.start.min(text.len()));
+            let line = start.map_or(0, |s| text[..s].matches('\n').count() + 1);
+            let message = match start.and_then(|s| key_at(text, s)) {
+                Some(key) => format!("`{key}`: {}", e.message()),
+                None => e.message().to_string(),
+            };
             Error::Parse {
                 path: path.to_path_buf(),
                 line,
-                message: e.message().to_string(),
+                message,
             }
         })?;
         config.validate()?;

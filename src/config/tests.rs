@@ -18,7 +18,7 @@ fn empty_file_is_the_default() {
 fn toml_round_trip_is_exact() {
     let mut c = Config::default();
     c.test.wall_mu = Some(0.7);
-    c.test.sigma3 = Pressure(0.1 + 0.2); // not exactly representable in decimal
+    c.test.sigma3 = Pressure(1e6 * (0.1 + 0.2)); // not exactly representable in decimal
     c.solver.dt = Duration(1.0 / 3.0 * 1e-3);
     c.solver.method = Method::Jacobi;
     c.sample.seed = i64::MAX as u64;
@@ -70,6 +70,11 @@ fn each_bad_value_is_rejected_naming_its_field() {
         ("[sample]\naspect_ratio = nan", "sample.aspect_ratio"),
         ("[solver]\ndt = 0", "solver.dt"),
         ("[solver]\ndt = inf", "solver.dt"),
+        // Absurd for a time step; 1e-320 s used to be blamed on solver.velocity_tol (which
+        // is derived from r_min / dt and overflowed).
+        ("[solver]\ndt = \"1e-320 s\"", "solver.dt"),
+        ("[solver]\ndt = \"1e-10 s\"", "solver.dt"),
+        ("[solver]\ndt = \"2 s\"", "solver.dt"),
         ("[solver]\ntheta = 0.4", "solver.theta"),
         ("[solver]\ntheta = 1.1", "solver.theta"),
         ("[solver]\ntol = 0", "solver.tol"),
@@ -97,6 +102,14 @@ fn each_bad_value_is_rejected_naming_its_field() {
         ("[test]\nwall_mu = -1", "test.wall_mu"),
         ("[test]\nsigma3 = 0", "test.sigma3"),
         ("[test]\nsigma3 = nan", "test.sigma3"),
+        // A bare number is in Pa: 8 meant as MPa. And beyond the grains' own stiffness.
+        ("[test]\nsigma3 = 8", "test.sigma3"),
+        ("[test]\nsigma3 = \"999 Pa\"", "test.sigma3"),
+        ("[test]\nsigma3 = \"11 GPa\"", "test.sigma3"),
+        ("[compaction]\nsigma_c = 8", "compaction.sigma_c"),
+        // Too few disks for the default strips (7.5 m each): refused before any work.
+        ("[sample]\ndisks = 150", "sample.disks"),
+        ("[sample]\ndisks = 1000000000", "sample.disks"),
         ("[test]\nstrip_thickness = 0", "test.strip_thickness"),
         ("[test]\naxial_velocity = 0", "test.axial_velocity"),
         ("[test]\nstrain_end = 0", "test.strain_end"),

@@ -1,7 +1,11 @@
 //! Physical quantities with unit suffixes, for configuration files and the command line.
 //!
-//! A quantity is written either as a bare number (SI: Pa, m, s, m/s, kg/m^3) or as a string
-//! with a unit suffix, with or without a space: `"8MPa"`, `"8 MPa"`, `"0.5 m/s"`, `"7.5 m"`.
+//! In a configuration file a quantity is written either as a bare number (SI: Pa, m, s, m/s,
+//! kg/m^3) or as a string with a unit suffix, with or without a space: `"8MPa"`, `"8 MPa"`,
+//! `"0.5 m/s"`, `"7.5 m"`, `"+8 MPa"`. On the command line ([`parse_with_unit`]) the unit is
+//! required: `--sigma3 8` read as 8 Pa confined a sample at a millionth of the intended
+//! stress. A value that overflows (`"1e400 MPa"`) is an error, never infinity. Microseconds
+//! are `us`, `µs` (micro sign) or `μs` (Greek mu), which look alike.
 //! Units are case-sensitive on purpose: `mPa` (millipascal) and `MPa` differ by 1e9, and a
 //! silent case-folding would turn a typo into a wrong experiment.
 //!
@@ -37,7 +41,13 @@ impl Dimension {
         match self {
             Dimension::Pressure => &[("Pa", 1.0), ("kPa", 1e3), ("MPa", 1e6), ("GPa", 1e9)],
             Dimension::Length => &[("m", 1.0), ("mm", 1e-3), ("cm", 1e-2), ("km", 1e3)],
-            Dimension::Duration => &[("s", 1.0), ("ms", 1e-3), ("us", 1e-6), ("µs", 1e-6)],
+            Dimension::Duration => &[
+                ("s", 1.0),
+                ("ms", 1e-3),
+                ("us", 1e-6),
+                ("\u{b5}s", 1e-6),
+                ("\u{3bc}s", 1e-6),
+            ],
             Dimension::Velocity => &[("m/s", 1.0), ("mm/s", 1e-3), ("cm/s", 1e-2)],
             Dimension::Density => &[("kg/m3", 1.0), ("kg/m^3", 1.0)],
         }
@@ -79,9 +89,39 @@ pub struct UnitError(pub String);
 /// Parses `text` as a quantity of dimension `dim` and returns its value in SI units.
 ///
 /// The number part is the longest prefix made of digits, `.`, `e`, `E`, `+`, `-`; the rest,
-/// trimmed, is the unit (empty = SI). Non-finite results are not rejected here: range checks
-/// belong to `Config::validate`, which names the field.
+/// trimmed, is the unit (empty = SI). A value beyond the range of `f64` (`1e400`, or
+/// `1e308 GPa` once converted) is an error; range checks of finite values belong to
+/// `Config::validate`, which names the field.
 pub fn parse_quantity(text: &str, dim: Dimension) -> Result<f64, UnitError> {
+    let (value, _) = split_quantity(text, dim)?;
+    Ok(value)
+}
+
+/// Parses `text` as [`parse_quantity`] does but requires a unit: for command-line flags,
+/// where a bare number is more likely a forgotten unit than a value in SI units. The error
+/// gives an example with a unit.
+pub fn parse_with_unit(text: &str, dim: Dimension) -> Result<f64, UnitError> {
+    let (value, unit) = split_quantity(text, dim)?;
+    if !unit {
+        let example = match dim {
+            Dimension::Pressure => "8MPa or 500kPa",
+            Dimension::Length => "7.5m or 30cm",
+            Dimension::Duration => "0.5ms or 5e-4s",
+            Dimension::Velocity => "0.5m/s or 20mm/s",
+            Dimension::Density => "2600kg/m3",
+        };
+        let list: Vec<&str> = dim.units().iter().map(|(u, _)| *u).collect();
+        return Err(UnitError(format!(
+            "needs a unit, e.g. {example} (one of {}); a bare number is not taken as {} here",
+            list.join(", "),
+            dim.si()
+        )));
+    }
+    Ok(value)
+}
+
+/// The value in SI units, and whether a unit was written.
+fn split_quantity(text: &str, dim: Dimension) -> Result<(f64, bool), UnitError> {
     let s = text.trim();
     let split = s
         .find(|c: char| !(c.is_ascii_digit() || matches!(c, '.' | 'e' | 'E' | '+' | '-')))
@@ -92,14 +132,34 @@ pub fn parse_quantity(text: &str, dim: Dimension) -> Result<f64, UnitError> {
     let bad = || UnitError(format!("`{text}` is not {}", dim.expected()));
     let value: f64 = num.parse().map_err(|_| bad())?;
     let unit = unit.trim();
-    if unit.is_empty() {
-        return Ok(value);
+    let (value, has_unit) = if unit.is_empty() {
+        (value, false)
+    } else {
+        let factor = dim
+            .units()
+            .iter()
+            .find(|(u, _)| *u == unit)
+            .map(|(_, f)| *f)
+            .ok_or_else(bad)?;
+        // A sub-unit divides by its exact power of ten, so that "5 us" gives the same bits
+        // as "5e-6 s" (5 * 1e-6 does not: 1e-6 is not exact in binary).
+        let si = if factor < 1.0 {
+            value / (1.0 / factor).round()
+        } else {
+            value * factor
+        };
+        (si, true)
+    };
+    // "inf" and "nan" are not made of the number characters above, so only an overflow
+    // gets here non-finite.
+    if !value.is_finite() {
+        return Err(UnitError(format!(
+            "`{text}` is too large: beyond the range of numbers ({:e} {} at most)",
+            f64::MAX,
+            dim.si()
+        )));
     }
-    dim.units()
-        .iter()
-        .find(|(u, _)| *u == unit)
-        .map(|(_, f)| value * f)
-        .ok_or_else(bad)
+    Ok((value, has_unit))
 }
 
 /// Defines one newtype per dimension with serde, `FromStr` and `Display` (SI value + unit).
@@ -231,6 +291,49 @@ mod tests {
         assert!("".parse::<Length>().is_err());
         assert!("1e m".parse::<Length>().is_err());
         assert!("nan".parse::<Length>().is_err());
+    }
+
+    /// Overflow is an error (it gave infinity); micro, milli and kilo prefixes, both micro
+    /// signs and a leading `+` are read with their factors; odd forms are refused.
+    #[test]
+    fn overflow_prefixes_and_signs() {
+        for text in ["1e400 MPa", "1e400", "1e308 GPa", "-1e400 Pa"] {
+            let e = text.parse::<Pressure>().unwrap_err().0;
+            assert!(e.contains("too large") && e.contains(text), "{text}: {e}");
+        }
+        assert_eq!("5 us".parse::<Duration>().unwrap().0, 5e-6);
+        assert_eq!("5 \u{b5}s".parse::<Duration>().unwrap().0, 5e-6);
+        assert_eq!("5\u{3bc}s".parse::<Duration>().unwrap().0, 5e-6);
+        assert_eq!("250 mm".parse::<Length>().unwrap().0, 0.25);
+        assert_eq!("2 km".parse::<Length>().unwrap().0, 2000.0);
+        assert_eq!("+8 MPa".parse::<Pressure>().unwrap().0, 8e6);
+        assert_eq!("+5e-4s".parse::<Duration>().unwrap().0, 5e-4);
+        for bad in [
+            "++8 MPa",
+            "8 Mpa",
+            "8 M Pa",
+            "8 MPa MPa",
+            "1.2.3 m",
+            "5 Us",
+            "inf MPa",
+            "8e MPa",
+        ] {
+            assert!(bad.parse::<Pressure>().is_err(), "{bad} was accepted");
+        }
+        // Underflow to a subnormal or zero is finite: the range checks refuse it by name.
+        assert_eq!("1e-400 s".parse::<Duration>().unwrap().0, 0.0);
+    }
+
+    /// A flag's quantity needs its unit: `--sigma3 8` was taken as 8 Pa.
+    #[test]
+    fn flags_require_a_unit() {
+        let e = parse_with_unit("8", Dimension::Pressure).unwrap_err().0;
+        assert!(e.contains("needs a unit") && e.contains("8MPa"), "{e}");
+        let e = parse_with_unit(" 0.5 ", Dimension::Duration).unwrap_err().0;
+        assert!(e.contains("ms"), "{e}");
+        assert_eq!(parse_with_unit("8MPa", Dimension::Pressure).unwrap(), 8e6);
+        assert_eq!(parse_with_unit("500 kPa", Dimension::Pressure).unwrap(), 5e5);
+        assert!(parse_with_unit("8 m", Dimension::Pressure).is_err());
     }
 
     #[test]

@@ -17,15 +17,29 @@
 //!
 //! Components are ordered normal first, then tangent, contact by contact. Two such files are
 //! shipped as test data in `tests/data/fc2d/`.
+//!
+//! A file cut short must not read as a smaller or different problem: q and mu must hold
+//! exactly `n` and `nc` values on their own lines, nothing but blank lines may follow, and the
+//! text must end with a newline, so a cut inside the last number (which still parses as a
+//! number) is an error. The contact count is checked against the file's length before
+//! anything is allocated for it: every contact needs at least [`BYTES_PER_CONTACT`] bytes.
 
 use std::path::Path;
 
 use super::{Csc, Problem};
 use crate::error::{Error, Result};
 
+/// Largest fc2d file read (256 MiB, about 500,000 contacts); larger, or a device that never
+/// ends, is refused before it fills the memory.
+pub const MAX_FILE_BYTES: u64 = 256 << 20;
+
+/// Fewest bytes one contact takes in a file: its two q values and its friction coefficient,
+/// each at least one digit and one separator.
+pub const BYTES_PER_CONTACT: usize = 6;
+
 /// Reads a problem; every malformed input is an [`Error::Parse`] naming the line.
 pub fn read(path: &Path) -> Result<Problem> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::config::read_capped(path, MAX_FILE_BYTES, "an fc2d problem")?;
     parse(&text, path)
 }
 
@@ -62,16 +76,28 @@ impl<'a> Lines<'a> {
         l.split_whitespace()
             .map(|t| {
                 t.parse::<usize>()
-                    .map_err(|_| self.err(format!("expected {what}, found `{t}`")))
+                    .map_err(|_| self.err(format!("expected {what}, found `{}`", shown(t))))
             })
             .collect()
+    }
+}
+
+/// `text` for an error message, cut to 60 characters: a damaged file may hold a line of
+/// megabytes, which the message need not repeat.
+fn shown(text: &str) -> String {
+    match text.char_indices().nth(60) {
+        Some((k, _)) => format!("{}...", &text[..k]),
+        None => text.to_string(),
     }
 }
 
 fn finite(l: &Lines, t: &str, what: &str) -> Result<f64> {
     match t.parse::<f64>() {
         Ok(v) if v.is_finite() => Ok(v),
-        _ => Err(l.err(format!("expected a finite number for {what}, found `{t}`"))),
+        _ => Err(l.err(format!(
+            "expected a finite number for {what}, found `{}`",
+            shown(t)
+        ))),
     }
 }
 
@@ -95,6 +121,13 @@ pub fn parse(text: &str, path: &Path) -> Result<Problem> {
     if nc == 0 {
         return Err(l.err("the problem has no contact"));
     }
+    if nc > text.len() / BYTES_PER_CONTACT {
+        return Err(l.err(format!(
+            "{nc} contacts announced, but a file of {} bytes holds at most {} (a damaged header?)",
+            text.len(),
+            text.len() / BYTES_PER_CONTACT
+        )));
+    }
     if kind != 2 || sub != 2 {
         return Err(l.err(format!(
             "matrix storage {kind}/{sub}: only sparse compressed columns (2/2) are supported"
@@ -106,40 +139,48 @@ pub fn parse(text: &str, path: &Path) -> Result<Problem> {
     let n = rows;
     let banner = l.next("the CSparse banner")?;
     if !banner.starts_with("CSparse") {
-        return Err(l.err(format!("expected the CSparse banner, found `{banner}`")));
+        return Err(l.err(format!("expected the CSparse banner, found `{}`", shown(banner))));
     }
     let size = l.next("the matrix size line")?;
     if !size.starts_with(&format!("{n}-by-{n}")) {
-        return Err(l.err(format!("expected `{n}-by-{n}, ...`, found `{size}`")));
+        return Err(l.err(format!("expected `{n}-by-{n}, ...`, found `{}`", shown(size))));
     }
     let mut col_start = vec![0usize; n + 1];
     let mut row_idx = Vec::new();
     let mut vals = Vec::new();
     let mut line = l.next("the first column")?;
     for j in 0..n {
-        let rest = line
-            .strip_prefix("col ")
-            .ok_or_else(|| l.err(format!("expected `col {j} : locations a to b`, found `{line}`")))?;
+        let rest = line.strip_prefix("col ").ok_or_else(|| {
+            l.err(format!(
+                "expected `col {j} : locations a to b`, found `{}`",
+                shown(line)
+            ))
+        })?;
         let mut it = rest.split_whitespace();
         let cj = it.next().and_then(|t| t.parse::<usize>().ok());
         let words: Vec<&str> = it.collect();
         let (a, b) = match (cj, words.as_slice()) {
             (Some(c), [":", "locations", a, "to", b]) if c == j => (a.parse::<usize>(), b.parse::<usize>()),
-            _ => return Err(l.err(format!("expected `col {j} : locations a to b`, found `{line}`"))),
+            _ => {
+                return Err(l.err(format!(
+                    "expected `col {j} : locations a to b`, found `{}`",
+                    shown(line)
+                )));
+            }
         };
         let (a, b) = match (a, b) {
             (Ok(a), Ok(b)) if a == vals.len() && b + 1 >= a => (a, b),
-            _ => return Err(l.err(format!("bad location range in `{line}`"))),
+            _ => return Err(l.err(format!("bad location range in `{}`", shown(line)))),
         };
         for _ in a..=b {
             let e = l.next("a matrix entry")?;
             let (i, v) = e
                 .split_once(':')
-                .ok_or_else(|| l.err(format!("expected `row : value`, found `{e}`")))?;
+                .ok_or_else(|| l.err(format!("expected `row : value`, found `{}`", shown(e))))?;
             let i = i
                 .trim()
                 .parse::<usize>()
-                .map_err(|_| l.err(format!("bad row index in `{e}`")))?;
+                .map_err(|_| l.err(format!("bad row index in `{}`", shown(e))))?;
             if i >= n {
                 return Err(l.err(format!("row index {i} out of range 0..{n}")));
             }
@@ -153,28 +194,35 @@ pub fn parse(text: &str, path: &Path) -> Result<Problem> {
             "the vector q"
         })?;
     }
-    // Remaining tokens: q (n values) then mu (nc values), whatever the line breaks.
+    // q then mu, each on its own line with exactly its number of values.
     let mut numbers = Vec::with_capacity(n + nc);
-    loop {
-        for t in line.split_whitespace() {
-            numbers.push(finite(&l, t, "q or mu")?);
-        }
-        if numbers.len() >= n + nc {
-            break;
-        }
-        line = l.next(if numbers.len() < n {
-            "the rest of q"
-        } else {
-            "the friction coefficients"
-        })?;
+    for t in line.split_whitespace() {
+        numbers.push(finite(&l, t, "q")?);
     }
-    if numbers.len() > n + nc {
+    if numbers.len() != n {
         return Err(l.err(format!(
-            "{} numbers after the matrix, expected {} (q) + {} (mu)",
-            numbers.len(),
-            n,
-            nc
+            "{} values on the line of q, expected {n} (2 x {nc} contacts)",
+            numbers.len()
         )));
+    }
+    let line = l.next("the friction coefficients")?;
+    for t in line.split_whitespace() {
+        numbers.push(finite(&l, t, "mu")?);
+    }
+    if numbers.len() != n + nc {
+        return Err(l.err(format!(
+            "{} friction coefficients, expected {nc}",
+            numbers.len() - n
+        )));
+    }
+    if l.next("").is_ok() {
+        return Err(l.err("text after the friction coefficients"));
+    }
+    if !text.ends_with('\n') {
+        return Err(l.err(
+            "the file does not end with a newline after the friction coefficients: it was \
+             cut short (an incomplete copy or download?)",
+        ));
     }
     let mu = numbers.split_off(n);
     if let Some(m) = mu.iter().find(|m| **m < 0.0) {

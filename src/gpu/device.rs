@@ -123,6 +123,38 @@ fn instance() -> wgpu::Instance {
     wgpu::Instance::new(desc.with_env())
 }
 
+/// The names `WGPU_BACKEND` accepts (a comma-separated list), as wgpu reads them.
+pub const BACKEND_NAMES: &[&str] = &[
+    "vulkan", "vk", "dx12", "d3d12", "metal", "mtl", "opengl", "gles", "gl", "webgpu",
+];
+
+/// Refuses a `WGPU_BACKEND` with a name wgpu does not know: wgpu ignores it, finds no
+/// adapter, and the user is told to install a driver without a word about the variable.
+fn check_backend_env() -> Result<()> {
+    let Some(value) = std::env::var_os("WGPU_BACKEND") else {
+        return Ok(());
+    };
+    let value = value.to_string_lossy();
+    let unknown: Vec<&str> = value
+        .split(',')
+        .map(str::trim)
+        .filter(|b| !BACKEND_NAMES.contains(&b.to_lowercase().as_str()))
+        .collect();
+    if unknown.is_empty() {
+        return Ok(());
+    }
+    Err(Error::Gpu(format!(
+        "the environment variable WGPU_BACKEND = `{value}` names no GPU backend ({}): use one \
+         or more, comma-separated, of {} (e.g. WGPU_BACKEND=vulkan), or unset it to try them all",
+        unknown
+            .iter()
+            .map(|b| format!("`{b}`"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        BACKEND_NAMES.join(", ")
+    )))
+}
+
 /// Sort key of an adapter: hardware before software, and GL last within a type (its
 /// compute support is the weakest).
 fn rank(a: &wgpu::Adapter) -> (u32, bool) {
@@ -163,6 +195,7 @@ pub fn list_adapters() -> Vec<AdapterSummary> {
 /// Opens the best adapter: hardware first, software with a warning on stderr, and
 /// [`Error::Gpu`] naming the packages to install when there is none.
 pub fn open() -> Result<GpuDevice> {
+    check_backend_env()?;
     let instance = instance();
     let mut adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
     adapters.retain(|a| a.get_info().backend != wgpu::Backend::Noop);

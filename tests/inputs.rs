@@ -1,0 +1,248 @@
+//! Hostile inputs through the command line (issue 23, classes 2, 5 and 8): damaged samples,
+//! sizes beyond the machine, files that never end, bare numbers for quantities. Each is a
+//! clear error naming what is wrong, given before any work, never a crash.
+
+mod common;
+
+use std::path::PathBuf;
+
+use common::{cdlab, small_config};
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("cdlab-inputs-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A process a signal ended has no exit code: a failed allocation aborts (SIGABRT), which
+/// is what these tests must never see.
+fn exits_with_error(args: &[&str]) -> String {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args(args)
+        .output()
+        .expect("cdlab runs");
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(out.status.code(), Some(1), "{args:?} must fail cleanly: {text}");
+    assert!(!text.contains("panicked"), "{args:?}: {text}");
+    text
+}
+
+/// Sizes beyond the machine are refused by name before anything is allocated (the first
+/// and third aborted on a failed allocation, the fourth read /dev/zero without end).
+#[test]
+fn huge_sizes_are_refused_before_allocating() {
+    let base = scratch("huge");
+    let out = base.join("run");
+    let o = out.to_str().unwrap();
+    let text = exits_with_error(&["biaxial", "--disks", "10000000000", "--out", o, "--quiet"]);
+    assert!(
+        text.contains("sample.disks") && text.contains("100000000"),
+        "{text}"
+    );
+    let text = exits_with_error(&["prepare", "--disks", "10000000000", "-o", o]);
+    assert!(text.contains("sample.disks"), "{text}");
+    let png = base.join("a.png");
+    let text = exits_with_error(&[
+        "render",
+        o,
+        "--at",
+        "0",
+        "--height",
+        "4000000000",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(text.contains("--height") && text.contains("20000"), "{text}");
+    let text = exits_with_error(&["config", "--check", "/dev/zero"]);
+    assert!(text.contains("/dev/zero") && text.contains("1048576"), "{text}");
+    let text = exits_with_error(&["fc2d", "/dev/zero"]);
+    assert!(text.contains("/dev/zero"), "{text}");
+    assert!(!out.exists(), "a refused run must leave no output");
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// A sample too small for the strips is refused up front, naming `sample.disks` and the
+/// least disk count, before any deposition: it used to fail on `test.strip_thickness` after
+/// minutes of compaction, having created its record.
+#[test]
+fn too_few_disks_for_the_strips_is_refused_up_front() {
+    let base = scratch("few");
+    for n in ["100", "150", "200"] {
+        let out = base.join(n);
+        let text = exits_with_error(&[
+            "biaxial",
+            "--disks",
+            n,
+            "--backend",
+            "cpu",
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ]);
+        assert!(
+            text.contains("sample.disks") && text.contains("use more than"),
+            "{n}: {text}"
+        );
+        assert!(!out.exists(), "{n}: the refused test started: {}", out.display());
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// A prepared sample with one flipped bit, cut short, or in the old format without a
+/// checksum is refused by `biaxial --sample` with the file's name, before the test starts
+/// (a flipped bit in a position used to run the test with a 2.7% overlap).
+#[test]
+fn a_damaged_sample_is_refused_before_use() {
+    let base = scratch("sample");
+    let cfg = small_config(&base);
+    let sample = base.join("sample.bin");
+    let (ok, text) = cdlab(&[
+        "prepare",
+        "--config",
+        cfg.to_str().unwrap(),
+        "-o",
+        sample.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let good = std::fs::read(&sample).unwrap();
+    assert_eq!(&good[..8], b"CDLABSP2");
+    // A bit in the middle of the disk data (a position or a velocity), the last byte, and
+    // a cut in the middle.
+    let mut flipped = good.clone();
+    flipped[good.len() / 2] ^= 0x10;
+    let mut last = good.clone();
+    *last.last_mut().unwrap() ^= 1;
+    let cut = good[..good.len() - 100].to_vec();
+    let old = good[20..].to_vec(); // the bare checkpoint: the old format
+    for (name, bytes, expect) in [
+        ("flipped", flipped, "CRC-32"),
+        ("last", last, "CRC-32"),
+        ("cut", cut, "truncated"),
+        ("old", old, "cdlab prepare"),
+    ] {
+        let path = base.join(format!("{name}.bin"));
+        std::fs::write(&path, bytes).unwrap();
+        let out = base.join(format!("run-{name}"));
+        let text = exits_with_error(&[
+            "biaxial",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--sample",
+            path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ]);
+        assert!(
+            text.contains(&format!("{name}.bin")) && text.contains(expect),
+            "{name}: {text}"
+        );
+        assert!(!out.exists(), "{name}: a test started from a damaged sample");
+    }
+    // No temporary file is left beside the sample.
+    let left: Vec<_> = std::fs::read_dir(&base)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// Quantities on the command line need their unit: `--sigma3 8` was taken as 8 Pa and
+/// failed only after a long confinement, with a hint about strips.
+#[test]
+fn a_flag_quantity_without_unit_is_refused() {
+    let base = scratch("unit");
+    let out = base.join("run");
+    let text = exits_with_error(&["biaxial", "--sigma3", "8", "--out", out.to_str().unwrap()]);
+    assert!(
+        text.contains("--sigma3") && text.contains("needs a unit") && text.contains("8MPa"),
+        "{text}"
+    );
+    assert!(!out.exists());
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// Configuration values absurd for their quantity name their own key: a 1e-320 s step
+/// was blamed on solver.velocity_tol (derived from r_min / dt), and `sigma3 = 8` (8 Pa)
+/// was accepted.
+#[test]
+fn absurd_configuration_values_name_their_key() {
+    let base = scratch("absurd");
+    for (text, key) in [
+        ("[solver]\ndt = \"1e-320 s\"\n", "solver.dt"),
+        ("[test]\nsigma3 = 8\n", "test.sigma3"),
+        ("[test]\nsigma3 = \"1e400 MPa\"\n", "test.sigma3"),
+    ] {
+        let path = base.join("c.toml");
+        std::fs::write(&path, text).unwrap();
+        let out = exits_with_error(&["config", "--check", path.to_str().unwrap()]);
+        assert!(out.contains(key) && out.contains("c.toml"), "{text}: {out}");
+        if text.contains("1e400") {
+            assert!(!out.contains("inf"), "{out}");
+        }
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// A WGPU_BACKEND that names no backend is reported by name with the valid values, not
+/// as a missing driver.
+#[test]
+fn a_bad_wgpu_backend_is_named() {
+    let base = scratch("wgpu");
+    let cfg = small_config(&base);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args([
+            "biaxial",
+            "--config",
+            cfg.to_str().unwrap(),
+            "--backend",
+            "gpu",
+            "--out",
+            base.join("run").to_str().unwrap(),
+            "--quiet",
+        ])
+        .env("WGPU_BACKEND", "vulkn")
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("WGPU_BACKEND") && text.contains("vulkn") && text.contains("vulkan"),
+        "{text}"
+    );
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// A sweep's grid is checked before a dry run lists what it would start: frictions
+/// finite and >= 0, pressures with units.
+#[test]
+fn a_sweep_grid_is_validated_before_a_dry_run() {
+    let base = scratch("grid");
+    for (grid, key) in [
+        ("mu = [0.3, -1]\nsigma3 = [\"1 MPa\"]", "`mu` = -1"),
+        ("mu = [nan]\nsigma3 = [\"1 MPa\"]", "`mu` = NaN"),
+        ("mu = [0.3]\nsigma3 = [8]", "`sigma3`"),
+        ("mu = [0.3]\nsigma3 = [\"8\"]", "needs a unit"),
+        ("mu = [0.3]\nsigma3 = [\"-1 MPa\"]", "`sigma3`"),
+    ] {
+        let file = base.join("sweep.toml");
+        std::fs::write(
+            &file,
+            format!("out = \"{}\"\n{grid}\n", base.join("campaign").display()),
+        )
+        .unwrap();
+        let text = exits_with_error(&["sweep", file.to_str().unwrap(), "--dry-run"]);
+        assert!(
+            text.contains(key) && !text.contains("would start"),
+            "{grid}: {text}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}
