@@ -91,6 +91,11 @@ pub struct Summary {
     /// the run recorded fewer than two snapshots or the analysis could not run.
     #[serde(default)]
     pub shear_bands: Option<crate::analysis::bands::ShearBands>,
+    /// The `run_id` of the record (`run.mcap`) this summary was computed from: a summary
+    /// whose record was since replaced is recognised as stale. Absent in summaries written
+    /// before it, and in summaries built without a record.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub record_id: Option<String>,
 }
 
 /// How a run used local updates of deep contacts (`solver.deep_overlap`).
@@ -179,6 +184,7 @@ impl Summary {
             stress_drops: super::derived::stress_drops(rows, 0.05 * sigma3, super::derived::STRESS_DROP_BIN),
             stress_drop_bin_strain: Some(super::derived::STRESS_DROP_BIN),
             shear_bands: None,
+            record_id: None,
         }
     }
 
