@@ -561,7 +561,10 @@ fn resume(dir: &Path, backend: Option<&str>, progress: &Progress) -> Result<Resu
     if let Some(note) = fallback_note(&file, &rec, step, ck.state.phase) {
         eprintln!("{note}");
     }
-    if ck.state.phase == Phase::Done && rec.damaged.is_none() {
+    // A complete record read whole needs at most its summary; one cut short or damaged
+    // after its final checkpoint is written again whole from it (the lab has no step left
+    // to run) with its summary.
+    if ck.state.phase == Phase::Done && rec.truncated.is_none() {
         let Some(fault) = summary_fault(dir, &rec) else {
             return Err(Error::Other(format!(
                 "{}: this run is already complete",
