@@ -12,7 +12,7 @@
 use std::path::{Path, PathBuf};
 
 use mcap::McapError;
-use mcap::sans_io::{LinearReaderOptions, MessageReadEvent, MessageReader};
+use mcap::sans_io::LinearReaderOptions;
 
 use super::series::SeriesRow;
 use super::snapshot::{SNAPSHOT_SCHEMA, Snapshot};
@@ -86,11 +86,92 @@ fn record_limit(len: usize) -> usize {
     len.saturating_mul(64).clamp(16 << 20, 1 << 30)
 }
 
+/// Why reading stopped.
+#[derive(Debug)]
+enum Stop {
+    /// The file ends inside a record (a run killed while it wrote).
+    Cut(String),
+    /// A record failed a check.
+    Damaged(String),
+}
+
+impl std::fmt::Display for Stop {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Stop::Cut(s) | Stop::Damaged(s) => f.write_str(s),
+        }
+    }
+}
+
+impl From<McapError> for Stop {
+    fn from(e: McapError) -> Self {
+        match e {
+            McapError::UnexpectedEof => Stop::Cut(e.to_string()),
+            other => Stop::Damaged(other.to_string()),
+        }
+    }
+}
+
+/// Checks that the length-prefixed fields of a schema or channel record stay within it
+/// before the mcap crate parses it: its parser allocates a string of the length a prefix
+/// claims before reading it, so one damaged byte could ask for 4 GiB.
+fn check_prefixes(opcode: u8, data: &[u8]) -> std::result::Result<(), Stop> {
+    let mut rest = data;
+    let bad = || Stop::Damaged(format!("record {opcode:#04x} has a length beyond its end"));
+    let skip = |n: usize, rest: &mut &[u8]| -> std::result::Result<(), Stop> {
+        if rest.len() < n {
+            return Err(bad());
+        }
+        *rest = &rest[n..];
+        Ok(())
+    };
+    fn prefix(rest: &[u8]) -> Option<usize> {
+        Some(u32::from_le_bytes(rest.get(..4)?.try_into().ok()?) as usize)
+    }
+    let field = |rest: &mut &[u8]| -> std::result::Result<(), Stop> {
+        let n = prefix(rest).ok_or_else(bad)?;
+        skip(4, rest)?;
+        skip(n, rest)
+    };
+    use mcap::records::op;
+    match opcode {
+        op::SCHEMA => {
+            skip(2, &mut rest)?;
+            for _ in 0..3 {
+                field(&mut rest)?;
+            }
+        }
+        op::CHANNEL => {
+            skip(4, &mut rest)?;
+            field(&mut rest)?;
+            field(&mut rest)?;
+            let n = prefix(rest).ok_or_else(bad)?;
+            skip(4, &mut rest)?;
+            let mut map = rest.get(..n).ok_or_else(bad)?;
+            while !map.is_empty() {
+                field(&mut map)?;
+                field(&mut map)?;
+            }
+        }
+        _ => {}
+    }
+    Ok(())
+}
+
 /// The messages of an MCAP file in memory, in file order, each chunk's CRC checked before
-/// its messages come out; the first error ends the stream.
+/// its messages come out, every record's length capped; the first error ends the stream.
+/// Only schema, channel and message records are parsed (the others are not needed and
+/// some have unchecked length prefixes); the statistics record of a finished file gives
+/// its message count.
 struct Messages<'a> {
-    reader: MessageReader,
+    reader: mcap::sans_io::LinearReader,
+    channels: mcap::read::ChannelAccumulator<'static>,
     rest: &'a [u8],
+    /// Past the data section: only the statistics record is looked at.
+    past_data: bool,
+    done: bool,
+    /// The message count of the statistics record, once read.
+    count: Option<u64>,
 }
 
 impl<'a> Messages<'a> {
@@ -99,35 +180,96 @@ impl<'a> Messages<'a> {
             .with_prevalidate_chunk_crcs(true)
             .with_record_length_limit(record_limit(bytes.len()));
         Messages {
-            reader: MessageReader::new_with_options(options),
+            reader: mcap::sans_io::LinearReader::new_with_options(options),
+            channels: Default::default(),
             rest: bytes,
+            past_data: false,
+            done: false,
+            count: None,
         }
+    }
+
+    fn record(
+        &mut self,
+        opcode: u8,
+        data: &[u8],
+    ) -> std::result::Result<Option<mcap::Message<'static>>, Stop> {
+        use mcap::records::{Record, op};
+        if self.past_data {
+            if opcode == op::STATISTICS && data.len() >= 8 {
+                self.count = Some(u64::from_le_bytes(data[..8].try_into().expect("8 bytes")));
+            }
+            return Ok(None);
+        }
+        match opcode {
+            op::DATA_END => self.past_data = true,
+            op::SCHEMA | op::CHANNEL | op::MESSAGE => {
+                check_prefixes(opcode, data)?;
+                match mcap::parse_record(opcode, data)? {
+                    Record::Schema { header, data } => {
+                        self.channels
+                            .add_schema(header, std::borrow::Cow::Owned(data.into_owned()))?;
+                    }
+                    Record::Channel(c) => self.channels.add_channel(c)?,
+                    Record::Message { header, data } => {
+                        let channel = self
+                            .channels
+                            .get(header.channel_id)
+                            .ok_or(McapError::UnknownChannel(header.sequence, header.channel_id))?;
+                        return Ok(Some(mcap::Message {
+                            channel,
+                            sequence: header.sequence,
+                            log_time: header.log_time,
+                            publish_time: header.publish_time,
+                            data: std::borrow::Cow::Owned(data.into_owned()),
+                        }));
+                    }
+                    _ => {}
+                }
+            }
+            _ => {}
+        }
+        Ok(None)
     }
 }
 
 impl Iterator for Messages<'_> {
-    type Item = mcap::McapResult<mcap::Message<'static>>;
+    type Item = std::result::Result<mcap::Message<'static>, Stop>;
 
     fn next(&mut self) -> Option<Self::Item> {
+        use mcap::sans_io::LinearReadEvent;
+        if self.done {
+            return None;
+        }
         loop {
-            match self.reader.next_event()? {
-                Ok(MessageReadEvent::ReadRequest(need)) => {
+            let event = match self.reader.next_event()? {
+                Ok(e) => e,
+                Err(e) => {
+                    self.done = true;
+                    return Some(Err(e.into()));
+                }
+            };
+            match event {
+                LinearReadEvent::ReadRequest(need) => {
                     let n = need.min(self.rest.len());
                     self.reader.insert(n).copy_from_slice(&self.rest[..n]);
                     self.reader.notify_read(n);
                     self.rest = &self.rest[n..];
                 }
-                Ok(MessageReadEvent::Message(m)) => return Some(Ok(m)),
-                Err(e) => return Some(Err(e)),
+                LinearReadEvent::Record { opcode, data } => {
+                    let data = data.to_vec();
+                    match self.record(opcode, &data) {
+                        Ok(Some(m)) => return Some(Ok(m)),
+                        Ok(None) => {}
+                        Err(e) => {
+                            self.done = true;
+                            return Some(Err(e));
+                        }
+                    }
+                }
             }
         }
     }
-}
-
-/// Whether a reading error only means that the file ends early (a run killed while it
-/// wrote), rather than content that failed a check.
-fn cut_short(e: &McapError) -> bool {
-    matches!(e, McapError::UnexpectedEof)
 }
 
 /// Splits a checkpoint message into step and state, checking its CRC (layout v2); a v1
@@ -291,7 +433,8 @@ pub fn parse_run(bytes: &[u8]) -> Result<RunRecord> {
     // whose opcode was damaged, say) was skipped by the MCAP reader without an error.
     let mut next_seq: std::collections::HashMap<u16, u32> = Default::default();
     let mut n_read = 0u64;
-    for (n_messages, item) in Messages::new(bytes).enumerate() {
+    let mut messages = Messages::new(bytes);
+    for (n_messages, item) in messages.by_ref().enumerate() {
         let msg = match item {
             Ok(m) => m,
             Err(e) if n_messages == 0 => {
@@ -299,12 +442,12 @@ pub fn parse_run(bytes: &[u8]) -> Result<RunRecord> {
                     "not a cdlab run, or damaged before its first message (unreadable MCAP: {e})"
                 )));
             }
-            Err(e) if cut_short(&e) => {
+            Err(Stop::Cut(e)) => {
                 run.truncated = Some(format!("stopped after {n_messages} messages: {e}"));
                 break;
             }
-            Err(e) => {
-                stop(&mut run, n_messages, e.to_string());
+            Err(Stop::Damaged(e)) => {
+                stop(&mut run, n_messages, e);
                 break;
             }
         };
@@ -389,14 +532,10 @@ pub fn parse_run(bytes: &[u8]) -> Result<RunRecord> {
     // A complete file counts its messages in its summary: fewer read means records at the
     // end were skipped (all those read are intact, so the last checkpoint stands).
     if run.truncated.is_none()
-        && let Ok(Some(summary)) = mcap::Summary::read(bytes)
-        && let Some(stats) = summary.stats
-        && stats.message_count != n_read
+        && let Some(count) = messages.count
+        && count != n_read
     {
-        let why = format!(
-            "damaged: its summary counts {} messages, {n_read} were read intact",
-            stats.message_count
-        );
+        let why = format!("damaged: its summary counts {count} messages, {n_read} were read intact");
         run.truncated = Some(why.clone());
         run.damaged = Some(why);
     }
