@@ -234,3 +234,75 @@ fn bit_flips_and_cuts_resume_to_the_same_end_or_are_refused() {
     assert!(fell_back >= 5, "{fell_back} fell back");
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// A finished test's results never outlive their record, and are rebuilt from it: a lost,
+/// empty or damaged `summary.json` beside a complete record is written again by `cdlab
+/// summarize` and by `biaxial --resume`, equal to the first; a forced run over the test,
+/// killed early, leaves no old summary behind; and an old summary put back beside the new
+/// record is not counted by the report, being another record's.
+#[test]
+fn stale_or_lost_summaries_are_removed_refused_or_rebuilt() {
+    use cdlab::analysis::report::collect;
+    let base = scratch("stale");
+    let cfg = config(10);
+    let run = base.join("run");
+    let want = {
+        let _turn = turn();
+        fresh(&cfg, &run, sample()).unwrap();
+        outcome(&run)
+    };
+    let summary = run.join("summary.json");
+    let old = std::fs::read(&summary).unwrap();
+    assert_eq!(collect(std::slice::from_ref(&run)).0.len(), 1);
+
+    // Lost, then empty, then damaged: rebuilt each time, equal to the first.
+    std::fs::remove_file(&summary).unwrap();
+    let done = cdlab::cli::summarize::summarize(&run, false).unwrap();
+    assert!(matches!(done, cdlab::cli::summarize::Outcome::Rewritten(_)), "{done:?}");
+    assert_eq!(outcome(&run), want);
+    std::fs::write(&summary, b"").unwrap();
+    {
+        let _turn = turn();
+        resume(&run).unwrap();
+    }
+    assert_eq!(outcome(&run), want);
+    std::fs::write(&summary, &old[..old.len() / 2]).unwrap();
+    let (ok, text) = resume_cli(&run);
+    assert!(ok && text.contains("written again"), "{text}");
+    assert_eq!(outcome(&run), want);
+    // A sound summary: the run is complete, nothing to do.
+    let (ok, text) = resume_cli(&run);
+    assert!(!ok && text.contains("already complete"), "{text}");
+
+    // A forced run over it, killed once its new record is on disk.
+    let toml = base.join("run.toml");
+    std::fs::write(&toml, cfg.to_toml_string().unwrap()).unwrap();
+    let old_id = cdlab::record::read_run_id(&run).unwrap();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args(["biaxial", "--config", toml.to_str().unwrap(), "--out"])
+        .arg(&run)
+        .args(["--force", "--quiet"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    loop {
+        let replaced = cdlab::record::read_run_id(&run).is_ok_and(|id| id != old_id);
+        if replaced {
+            break;
+        }
+        assert!(child.try_wait().unwrap().is_none(), "the forced run ended first");
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(!summary.exists() && !run.join("summary.txt").exists());
+    let (points, missing) = collect(std::slice::from_ref(&run));
+    assert!(points.is_empty() && missing.len() == 1, "{missing:?}");
+    // The old summary put back: another record's, not counted.
+    std::fs::write(&summary, &old).unwrap();
+    let (points, missing) = collect(std::slice::from_ref(&run));
+    assert!(points.is_empty(), "a stale summary was counted");
+    assert!(missing[0].1.contains("another record"), "{missing:?}");
+    let _ = std::fs::remove_dir_all(&base);
+}
