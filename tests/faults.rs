@@ -258,7 +258,10 @@ fn stale_or_lost_summaries_are_removed_refused_or_rebuilt() {
     // Lost, then empty, then damaged: rebuilt each time, equal to the first.
     std::fs::remove_file(&summary).unwrap();
     let done = cdlab::cli::summarize::summarize(&run, false).unwrap();
-    assert!(matches!(done, cdlab::cli::summarize::Outcome::Rewritten(_)), "{done:?}");
+    assert!(
+        matches!(done, cdlab::cli::summarize::Outcome::Rewritten(_)),
+        "{done:?}"
+    );
     assert_eq!(outcome(&run), want);
     std::fs::write(&summary, b"").unwrap();
     {
