@@ -101,6 +101,10 @@ fn sample_bytes() -> Vec<u8> {
         since_checkpoint: 0,
         ends: Vec::new(),
         since_strips: 0,
+        since_series: 0,
+        since_guard: 0,
+        row_sums: None,
+        strain: None,
     };
     encode_sample(&state, &scene)
 }

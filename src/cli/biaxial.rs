@@ -11,7 +11,8 @@ use crate::measure::summary::Summary;
 use crate::protocol::biaxial::Lab;
 use crate::protocol::checkpoint::decode;
 use crate::protocol::{Phase, ProtocolParams, prepare};
-use crate::record::{Recorder, RunLock, read_run};
+use crate::record::atomic;
+use crate::record::{MCAP_FILE, RecordHead, Recorder, RunLock, RunRecord, new_run_id, read_run};
 
 use super::run::{Progress, Recording, open_backend};
 
@@ -136,6 +137,9 @@ pub fn run(args: &Args) -> Result<()> {
         let dir = config.output.dir.clone();
         let _lock = RunLock::acquire(&dir)?;
         check_out_dir(&dir, args.force)?;
+        // Gone before the new record replaces the old one: a forced run killed at any
+        // point never leaves the old test's results looking like its own.
+        clear_results(&dir)?;
         let summary = run_fresh(&config, &dir, sample, &progress_of(args));
         (dir.clone(), hint_resume(summary, &dir)?)
     };
@@ -289,19 +293,53 @@ pub fn run_fresh(
     };
     let backend = open_backend(config, scene.clone(), params.step)?;
     let lab = Lab::new(backend, params.clone(), &scene, compacted)?;
-    let obs = Recording::new(
-        Recorder::create(dir, config)?,
-        params.strain_end,
-        progress,
-        started,
-    );
+    let head = RecordHead {
+        run_id: new_run_id(),
+        backend: Some(crate::backend::Backend::name(&lab.backend)),
+    };
+    let mut recorder = Recorder::stage(dir, config, &head)?;
+    recorder.commit()?;
+    let obs = Recording::new(recorder, params.strain_end, progress, started);
     finish(config, dir, lab, obs, quiet)
 }
 
-/// Continues the run recorded in `dir` from its last checkpoint and writes its summary.
+/// The files in a run directory that hold a finished test's results.
+pub const RESULT_FILES: [&str; 2] = ["summary.json", "summary.txt"];
+
+/// Removes the results of a test from `dir`: `summary.json` first (it is what marks a test
+/// finished to `cdlab report` and `cdlab sweep`), then `summary.txt` and the figures drawn
+/// there (`*.png`, `*.svg`), each removal synced. Called before a new record replaces an
+/// old one, and before a resume continues an unfinished record (results beside it cannot
+/// be its own).
+pub fn clear_results(dir: &Path) -> Result<()> {
+    for name in RESULT_FILES {
+        atomic::remove_file(&dir.join(name))?;
+    }
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Ok(());
+    };
+    for e in entries.flatten() {
+        let p = e.path();
+        let figure = matches!(p.extension().and_then(|x| x.to_str()), Some("png" | "svg"));
+        if figure && p.is_file() {
+            atomic::remove_file(&p)?;
+        }
+    }
+    Ok(())
+}
+
+/// Continues the run recorded in `dir` from its last intact checkpoint and writes its
+/// summary. A record that is already complete gets its summary written again when the one
+/// beside it is missing, empty, damaged or another record's; with a sound summary it is an
+/// error saying the run is complete.
 pub fn run_resume(dir: &Path, backend: Option<&str>, progress: &Progress) -> Result<Summary> {
-    let (config, lab, obs) = resume(dir, backend, progress)?;
-    finish(&config, dir, lab, obs, progress.quiet())
+    match resume(dir, backend, progress)? {
+        Resumed::Run(run) => {
+            let (config, lab, obs) = *run;
+            finish(&config, dir, lab, obs, progress.quiet())
+        }
+        Resumed::Complete(summary) => Ok(*summary),
+    }
 }
 
 fn finish(
@@ -372,6 +410,7 @@ pub(super) fn summary_of(
         Ok(rec) => crate::analysis::bands::analyse_run(rec, None, None, &Default::default()),
         Err(e) => Err(Error::Other(e.to_string())),
     };
+    summary.record_id = record.as_ref().ok().and_then(|r| r.run_id.clone());
     summary.shear_bands = match bands {
         Ok(b) => Some(b),
         Err(e) => {
@@ -384,47 +423,184 @@ pub(super) fn summary_of(
     summary
 }
 
-/// Writes `summary.json` and `summary.txt` into `dir`.
+/// Writes `summary.txt` and then `summary.json` into `dir`, each to a temporary name,
+/// synced and renamed into place ([`atomic::write_file`]): `summary.json` marks the test
+/// finished, so it comes last and is never seen half-written.
 pub fn write_summary(dir: &Path, summary: &Summary) -> Result<()> {
     let json = serde_json::to_string_pretty(summary).map_err(|e| Error::Other(e.to_string()))?;
-    let p = dir.join("summary.json");
-    std::fs::write(&p, json).map_err(|e| Error::io(&p, e))?;
-    let p = dir.join("summary.txt");
-    std::fs::write(&p, summary.table()).map_err(|e| Error::io(&p, e))
+    atomic::write_file(&dir.join("summary.txt"), summary.table().as_bytes())?;
+    atomic::write_file(&dir.join("summary.json"), json.as_bytes())
 }
 
-type Resumed = (Config, Lab<Box<dyn crate::backend::Backend>>, Recording);
+/// An unfinished run reopened: its configuration, the lab at its checkpoint, and the
+/// recording that goes on from there.
+type Reopened = (Config, Lab<Box<dyn crate::backend::Backend>>, Recording);
 
-/// Reopens a run directory: reads its record, rewrites it up to the last checkpoint (rows
-/// and snapshots after it are dropped: the resumed run recomputes them exactly), and
-/// restores the lab from the checkpoint.
+/// What reopening a run directory gives.
+enum Resumed {
+    /// An unfinished run, ready to go on.
+    Run(Box<Reopened>),
+    /// A complete record whose summary was written again.
+    Complete(Box<Summary>),
+}
+
+/// Why the `summary.json` beside a complete record cannot stand, if it cannot: missing,
+/// empty or unreadable, or computed from another record (its `record_id`).
+pub fn summary_fault(dir: &Path, rec: &RunRecord) -> Option<String> {
+    let path = dir.join("summary.json");
+    let text = match std::fs::read_to_string(&path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Some("is missing".into()),
+        Err(e) => return Some(format!("cannot be read ({e})")),
+    };
+    if text.trim().is_empty() {
+        return Some("is empty".into());
+    }
+    let value: serde_json::Value = match serde_json::from_str(&text) {
+        Ok(v) => v,
+        Err(e) => return Some(format!("is damaged ({e})")),
+    };
+    if serde_json::from_value::<Summary>(value.clone()).is_err() {
+        return Some("is not a cdlab summary".into());
+    }
+    match (value.get("record_id").and_then(|v| v.as_str()), &rec.run_id) {
+        (Some(theirs), Some(ours)) if theirs != ours => Some(format!(
+            "belongs to another record (record_id {theirs}, the record's run_id is {ours})"
+        )),
+        _ => None,
+    }
+}
+
+/// The summary of the complete record `rec` of `dir`, computed again from it. What the
+/// record does not hold is taken from `old` (a former summary) when given: the backend's
+/// name and the wall time; otherwise the record's backend and its last row's wall time.
+pub fn rebuild_summary(dir: &Path, rec: &RunRecord, old: Option<&serde_json::Value>) -> Result<Summary> {
+    let name = dir.join(MCAP_FILE);
+    let named = |e: Error| Error::Other(format!("{}: {e}", name.display()));
+    let config = rec.config().map_err(named)?;
+    let Some((_, bytes)) = &rec.last_checkpoint else {
+        return Err(Error::Other(format!(
+            "{}: the record holds no intact checkpoint",
+            name.display()
+        )));
+    };
+    // The phase ends are in the checkpoint the run wrote as it finished.
+    let state = decode(bytes).map_err(named)?.state;
+    if state.phase != Phase::Done {
+        return Err(Error::Other(format!(
+            "{}: the record ends in phase {} (resume it with cdlab biaxial --resume)",
+            name.display(),
+            state.phase.name()
+        )));
+    }
+    let old_text = |k: &str| {
+        old.and_then(|o| o.get(k))
+            .and_then(|v| v.as_str())
+            .map(str::to_string)
+    };
+    let backend = old_text("backend")
+        .or_else(|| rec.backend.clone())
+        .unwrap_or_else(|| "unknown (not in the record)".into());
+    let last_wall = rec.series.last().map(|r| r.wall_s).filter(|w| w.is_finite());
+    let wall_s = old
+        .and_then(|o| o.get("wall_time_s"))
+        .and_then(|v| v.as_f64())
+        .or(last_wall)
+        .unwrap_or(0.0);
+    let record = Ok(rec.clone());
+    Ok(summary_of(
+        &config,
+        &rec.series,
+        &state.ends,
+        backend,
+        wall_s,
+        &record,
+        true,
+    ))
+}
+
+/// The stderr note of a resume that could not use the whole record: the file, why, and
+/// the checkpoint it continues from (step, and axial strain in the compression).
+fn fallback_note(file: &Path, rec: &RunRecord, step: u64, phase: Phase) -> Option<String> {
+    let why = rec.damaged.as_ref()?;
+    let strain = rec
+        .series
+        .iter()
+        .rfind(|r| r.step <= step)
+        .filter(|r| r.phase == "compression")
+        .map_or(String::new(), |r| format!(", axial strain {:.5}", r.strain_axial));
+    Some(format!(
+        "warning: {}: {why}; falling back to the last intact checkpoint before the damage: \
+         step {step} (phase {}{strain}); the run is recomputed from there",
+        file.display(),
+        phase.name()
+    ))
+}
+
+/// Reopens a run directory: reads its record, rewrites it up to the last intact checkpoint
+/// (rows and snapshots after it are dropped: the resumed run recomputes them exactly), and
+/// restores the lab from the checkpoint. The new record is written under a temporary name
+/// and replaces the old one only once it holds that checkpoint, synced
+/// ([`Recorder::commit`]): at every instant a complete record with the checkpoint is on
+/// disk. A complete record gets its summary rewritten when the one beside it cannot stand.
 fn resume(dir: &Path, backend: Option<&str>, progress: &Progress) -> Result<Resumed> {
     let started = Instant::now();
+    let file = dir.join(MCAP_FILE);
     let rec = read_run(dir)?;
-    let mut config = rec.config()?;
+    let mut config = rec
+        .config()
+        .map_err(|e| Error::Other(format!("{}: {e}", file.display())))?;
     if let Some(b) = backend {
         config.solver.backend = b.parse()?;
     }
     let Some((step, bytes)) = rec.last_checkpoint.clone() else {
+        let why = rec
+            .truncated
+            .as_deref()
+            .map_or(String::new(), |t| format!(" (the record {t})"));
         return Err(Error::Other(format!(
-            "{}: the record holds no checkpoint to resume from",
-            dir.display()
+            "{}: the record holds no intact checkpoint to resume from{why}: start the run \
+             again with --force",
+            file.display()
         )));
     };
-    let ck = decode(&bytes).map_err(|e| Error::Other(format!("{}: checkpoint: {e}", dir.display())))?;
-    if ck.state.phase == Phase::Done {
-        return Err(Error::Other(format!(
-            "{}: this run is already complete",
+    let ck = decode(&bytes).map_err(|e| Error::Other(format!("{}: checkpoint: {e}", file.display())))?;
+    if let Some(note) = fallback_note(&file, &rec, step, ck.state.phase) {
+        eprintln!("{note}");
+    }
+    // A complete record read whole needs at most its summary; one cut short or damaged
+    // after its final checkpoint is written again whole from it (the lab has no step left
+    // to run) with its summary.
+    if ck.state.phase == Phase::Done && rec.truncated.is_none() {
+        let Some(fault) = summary_fault(dir, &rec) else {
+            return Err(Error::Other(format!(
+                "{}: this run is already complete",
+                dir.display()
+            )));
+        };
+        let old = std::fs::read_to_string(dir.join("summary.json"))
+            .ok()
+            .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok());
+        let summary = rebuild_summary(dir, &rec, old.as_ref())?;
+        write_summary(dir, &summary)?;
+        eprintln!(
+            "{}: the record is complete but its summary.json {fault}: written again from the \
+             record",
             dir.display()
-        )));
+        );
+        return Ok(Resumed::Complete(Box::new(summary)));
     }
     let params = ck.state.params.clone();
     let backend = open_backend(&config, ck.scene.clone(), params.step)?;
     let time = ck.scene.time;
     let lab = Lab::resume(backend, ck)?;
-    // Only now, with everything read and checked, replace the files.
+    let head = RecordHead {
+        run_id: rec.run_id.clone().unwrap_or_else(new_run_id),
+        backend: Some(crate::backend::Backend::name(&lab.backend)),
+    };
+    // Only now, with everything read and checked, write the new record beside the old.
     let mut obs = Recording::new(
-        Recorder::create(dir, &config)?,
+        Recorder::stage(dir, &config, &head)?,
         params.strain_end,
         progress,
         started,
@@ -437,6 +613,9 @@ fn resume(dir: &Path, backend: Option<&str>, progress: &Progress) -> Result<Resu
     }
     obs.ends = lab.state.ends.clone();
     obs.recorder.checkpoint(step, time, &bytes)?;
+    // Results beside an unfinished record are not its own.
+    clear_results(dir)?;
+    obs.recorder.commit()?;
     if !progress.quiet() {
         eprintln!(
             "resuming {} from step {step} (t = {time:.3} s, phase {})",
@@ -444,5 +623,5 @@ fn resume(dir: &Path, backend: Option<&str>, progress: &Progress) -> Result<Resu
             lab.state.phase.name()
         );
     }
-    Ok((config, lab, obs))
+    Ok(Resumed::Run(Box::new((config, lab, obs))))
 }

@@ -48,12 +48,11 @@ pub fn run(args: &Args) -> Result<()> {
     let out = args.out.clone().unwrap_or_else(|| args.dirs[0].clone());
     std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
     let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Other(e.to_string()))?;
-    let p = out.join("report.json");
-    std::fs::write(&p, json).map_err(|e| Error::io(&p, e))?;
-    let p = out.join("report.csv");
-    std::fs::write(&p, report.csv()).map_err(|e| Error::io(&p, e))?;
-    let p = out.join("tests.csv");
-    std::fs::write(&p, report.tests_csv()).map_err(|e| Error::io(&p, e))?;
+    // Each file whole or not at all (a report killed midway leaves the previous one).
+    let write = crate::record::atomic::write_file;
+    write(&out.join("report.json"), json.as_bytes())?;
+    write(&out.join("report.csv"), report.csv().as_bytes())?;
+    write(&out.join("tests.csv"), report.tests_csv().as_bytes())?;
     // The tables are the report; a figure that cannot be drawn (every friction 0 has no
     // place on a log axis) is said, not fatal.
     let figures = [

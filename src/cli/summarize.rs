@@ -9,8 +9,6 @@ use std::path::{Path, PathBuf};
 
 use crate::analysis::report::NOT_RUN;
 use crate::error::{Error, Result};
-use crate::protocol::Phase;
-use crate::protocol::checkpoint::decode;
 use crate::record::{MCAP_FILE, read_run};
 
 /// Options of `cdlab summarize`.
@@ -52,10 +50,32 @@ pub fn run(args: &Args) -> Result<()> {
         }
     }
     for (dir, why) in &missing {
-        if why != NOT_RUN {
-            failed += 1;
-            println!("{}: not summarized: {why}", dir.display());
+        if why == NOT_RUN {
+            continue;
         }
+        // A record whose summary is missing, unreadable or another record's: rebuilt from
+        // the record when it is complete.
+        if dir.join(MCAP_FILE).is_file() {
+            match summarize(dir, args.dry_run) {
+                Ok(Outcome::Rewritten(keys)) => {
+                    rewritten += 1;
+                    let verb = if args.dry_run { "would change" } else { "rewritten" };
+                    println!("{}: {verb}: {}", dir.display(), keys.join(", "));
+                    continue;
+                }
+                Ok(Outcome::Unchanged) => {
+                    unchanged += 1;
+                    continue;
+                }
+                Err(e) => {
+                    failed += 1;
+                    println!("{}: not summarized: {e}", dir.display());
+                    continue;
+                }
+            }
+        }
+        failed += 1;
+        println!("{}: not summarized: {why}", dir.display());
     }
     let verb = if args.dry_run {
         "would be rewritten"
@@ -73,43 +93,43 @@ pub fn run(args: &Args) -> Result<()> {
 }
 
 /// Computes the summary of the finished test in `dir` from its record and writes it (unless
-/// `dry_run`) when it differs from the one there. A test without its record (an archived
-/// one) or not finished is an error naming why.
+/// `dry_run`) when it differs from the one there. A missing, empty or damaged summary, or
+/// one of another record, is rebuilt from the record. A test without its record (an
+/// archived one) or not finished is an error naming why.
 pub fn summarize(dir: &Path, dry_run: bool) -> Result<Outcome> {
     if !dir.join(MCAP_FILE).exists() {
         return Err(Error::Other(format!(
             "no record ({MCAP_FILE}): an archived test keeps the summary it was archived with"
         )));
     }
-    let old_path = dir.join("summary.json");
-    let old_text = std::fs::read_to_string(&old_path).map_err(|e| Error::io(&old_path, e))?;
-    let old: serde_json::Value =
-        serde_json::from_str(&old_text).map_err(|e| Error::Other(format!("{}: {e}", old_path.display())))?;
-    let record = read_run(dir);
-    let rec = record.as_ref().map_err(|e| Error::Other(e.to_string()))?;
-    let config = rec.config()?;
-    // The phase ends are in the checkpoint the run wrote as it finished.
-    let Some((_, bytes)) = &rec.last_checkpoint else {
-        return Err(Error::Other("the record holds no checkpoint".into()));
-    };
-    let state = decode(bytes)?.state;
-    if state.phase != Phase::Done {
+    let record = read_run(dir)?;
+    if let Some(why) = &record.damaged {
         return Err(Error::Other(format!(
-            "the record ends in phase {} (resume it with cdlab biaxial --resume)",
-            state.phase.name()
+            "{}: {why}: `cdlab biaxial --resume {}` recomputes the run from its last intact \
+             checkpoint",
+            dir.join(MCAP_FILE).display(),
+            dir.display()
         )));
     }
-    let kept = |key: &str| {
-        old.get(key)
-            .cloned()
-            .ok_or_else(|| Error::Other(format!("{}: no {key}", old_path.display())))
+    let fault = super::biaxial::summary_fault(dir, &record);
+    let old = match &fault {
+        None => {
+            let old_path = dir.join("summary.json");
+            let text = std::fs::read_to_string(&old_path).map_err(|e| Error::io(&old_path, e))?;
+            Some(
+                serde_json::from_str::<serde_json::Value>(&text)
+                    .map_err(|e| Error::Other(format!("{}: {e}", old_path.display())))?,
+            )
+        }
+        // The figures of another record's summary are not this one's.
+        Some(_) => None,
     };
-    let backend = kept("backend")?.as_str().unwrap_or_default().to_string();
-    let wall_s = kept("wall_time_s")?.as_f64().unwrap_or(0.0);
-    let summary =
-        super::biaxial::summary_of(&config, &rec.series, &state.ends, backend, wall_s, &record, true);
+    let summary = super::biaxial::rebuild_summary(dir, &record, old.as_ref())?;
     let new = serde_json::to_value(&summary).map_err(|e| Error::Other(e.to_string()))?;
-    let changed = changed_keys(&old, &new);
+    let changed = match (&old, &fault) {
+        (Some(old), None) => changed_keys(old, &new),
+        _ => vec![format!("all (summary.json {})", fault.unwrap_or_default())],
+    };
     // Which version wrote it is no change of the test's figures.
     if changed.iter().all(|k| k == "version") {
         return Ok(Outcome::Unchanged);

@@ -96,6 +96,11 @@ pub struct Summary {
     /// micromechanical columns (records written before them).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fabric: Option<FabricSummary>,
+    /// The `run_id` of the record (`run.mcap`) this summary was computed from: a summary
+    /// whose record was since replaced is recognised as stale. Absent in summaries written
+    /// before it, and in summaries built without a record.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub record_id: Option<String>,
 }
 
 /// The micromechanical state at four points of a test, from the series rows.
@@ -325,6 +330,7 @@ impl Summary {
             stress_drop_bin_strain: Some(super::derived::STRESS_DROP_BIN),
             shear_bands: None,
             fabric: FabricSummary::of_run(rows, st.strain_peak),
+            record_id: None,
         }
     }
 

@@ -1,5 +1,14 @@
 //! The driver of a biaxial test: compaction, confinement, compression, with series rows,
 //! snapshots and checkpoints handed to an [`Observer`].
+//!
+//! The control flow never depends on an output setting. The compression advances in
+//! windows of steps that end at every step where something happens to the physics or to
+//! the run's course: a strip refresh (every `strip_refresh_every` steps), a quasi-static
+//! check (every [`QUASI_STATIC_CHECK_EVERY`] steps) and the first step whose axial strain
+//! reaches `strain_end`, and also at every row of the series. Rows only read the state, so
+//! `output.series_every` (and the snapshot interval) change what is recorded, never the
+//! steps computed or where the test stops; a row that spans several windows averages its
+//! wall forces over all of them, as a single window would.
 
 use glam::DVec2;
 
@@ -10,6 +19,74 @@ use crate::backend::{Backend, Loading, Reductions};
 use crate::error::{Error, Result};
 use crate::measure::{Gauge, SeriesRow};
 use crate::model::{NOT_GLUED, Scene, WallDrive};
+use serde::{Deserialize, Serialize};
+
+/// Compression steps between two checks that the compression is still quasi-static
+/// (`equilibrium.runaway_kinetic_ratio`): fixed, so that where a run stops never depends on
+/// the series interval. Ten steps is the default series interval, at which the check ran
+/// before it was decoupled from the rows.
+pub const QUASI_STATIC_CHECK_EVERY: u32 = 10;
+
+/// What a row needs from the windows of steps since the last row besides the last one:
+/// the sums over their steps of what a row averages.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RowSums {
+    /// Steps summed.
+    pub steps: u32,
+    /// Wall force times steps, per wall (N/m).
+    pub wall_force_steps: Vec<DVec2>,
+    /// Solver iterations.
+    pub iterations_sum: u64,
+    /// Largest iteration count of a step.
+    pub iterations_max: u32,
+    /// Steps whose solver hit its cap.
+    pub capped_steps: u32,
+    /// Colors times steps.
+    pub colors_steps: f64,
+    /// Deep-contact updates.
+    pub deep_sum: u64,
+}
+
+impl RowSums {
+    /// Adds a window.
+    fn add(mut self, red: &Reductions) -> Self {
+        let n = red.steps as f64;
+        if self.wall_force_steps.len() < red.wall_force.len() {
+            self.wall_force_steps.resize(red.wall_force.len(), DVec2::ZERO);
+        }
+        for (a, f) in self.wall_force_steps.iter_mut().zip(&red.wall_force) {
+            *a += *f * n;
+        }
+        self.steps += red.steps;
+        self.iterations_sum += red.iterations_sum;
+        self.iterations_max = self.iterations_max.max(red.iterations_max);
+        self.capped_steps += red.capped_steps;
+        self.colors_steps += red.colors_mean * n;
+        self.deep_sum += red.deep_sum;
+        self
+    }
+}
+
+/// The reductions of the windows summed in `sums` followed by `last`, as one window: the
+/// averages over all their steps, the rest from `last`. Without earlier windows, `last`
+/// itself (the same bits as before rows could span windows).
+fn merged(sums: Option<&RowSums>, last: &Reductions) -> Reductions {
+    let Some(sums) = sums else {
+        return last.clone();
+    };
+    let all = sums.clone().add(last);
+    let steps = all.steps.max(1) as f64;
+    Reductions {
+        steps: all.steps,
+        wall_force: all.wall_force_steps.iter().map(|f| *f / steps).collect(),
+        iterations_sum: all.iterations_sum,
+        iterations_max: all.iterations_max,
+        capped_steps: all.capped_steps,
+        colors_mean: all.colors_steps / steps,
+        deep_sum: all.deep_sum,
+        ..last.clone()
+    }
+}
 
 /// A biaxial test in progress on a backend.
 pub struct Lab<B: Backend> {
@@ -53,6 +130,10 @@ impl<B: Backend> Lab<B> {
             since_checkpoint: 0,
             ends: Vec::new(),
             since_strips: 0,
+            since_series: 0,
+            since_guard: 0,
+            row_sums: None,
+            strain: None,
             params,
         };
         let mut lab = Lab {
@@ -100,17 +181,19 @@ impl<B: Backend> Lab<B> {
     }
 
     /// Runs one window of steps of the current phase and handles its outcome (a series row,
-    /// maybe a phase change, a snapshot, a checkpoint).
+    /// maybe a phase change, a snapshot, a checkpoint). In compression the window ends at
+    /// the next row, strip refresh, quasi-static check or the end strain, whichever comes
+    /// first (see the module documentation).
     pub fn advance(&mut self, obs: &mut dyn Observer) -> Result<()> {
         let p = self.state.params.clone();
+        self.refresh_strips()?;
         let steps = match self.state.phase {
-            Phase::Compression => p.series_every,
+            Phase::Compression => self.compression_window()?,
             _ => p.equilibrium.window,
         };
-        self.refresh_strips()?;
         let red = self.backend.run(steps, &self.state.loading)?;
-        self.state.since_checkpoint += steps;
-        self.state.since_strips += steps;
+        self.state.since_checkpoint = self.state.since_checkpoint.saturating_add(steps);
+        self.state.since_strips = self.state.since_strips.saturating_add(steps);
         match self.state.phase {
             Phase::Compaction => {
                 let h = self.state.gauge.height(&red);
@@ -138,18 +221,37 @@ impl<B: Backend> Lab<B> {
                 }
             }
             Phase::Compression => {
-                let row = self.row(&red, p.sigma3, p.axial_velocity);
-                obs.series(&row)?;
-                self.check_quasi_static(&red, &row)?;
-                if p.snapshot_every > 0.0 && row.strain_axial >= self.state.next_snapshot {
-                    let scene = self.backend.scene()?;
-                    let contacts = self.backend.contacts()?;
-                    obs.snapshot(row.strain_axial, &scene, &contacts, &self.reference)?;
-                    while self.state.next_snapshot <= row.strain_axial {
-                        self.state.next_snapshot += p.snapshot_every;
+                let s = &mut self.state;
+                s.since_series = s.since_series.saturating_add(steps);
+                s.since_guard = s.since_guard.saturating_add(steps);
+                let whole = merged(s.row_sums.as_ref(), &red);
+                let row = self.row(&whole, p.sigma3, p.axial_velocity);
+                self.state.strain = Some(row.strain_axial);
+                let reached = row.strain_axial >= p.strain_end;
+                let guard = if self.state.since_guard >= QUASI_STATIC_CHECK_EVERY {
+                    self.state.since_guard = 0;
+                    self.check_quasi_static(&red, &row)
+                } else {
+                    Ok(())
+                };
+                // The last row of a run, however it ends, is always written.
+                if self.state.since_series >= p.series_every || reached || guard.is_err() {
+                    obs.series(&row)?;
+                    self.state.since_series = 0;
+                    self.state.row_sums = None;
+                    guard?;
+                    if p.snapshot_every > 0.0 && row.strain_axial >= self.state.next_snapshot {
+                        let scene = self.backend.scene()?;
+                        let contacts = self.backend.contacts()?;
+                        obs.snapshot(row.strain_axial, &scene, &contacts, &self.reference)?;
+                        while self.state.next_snapshot <= row.strain_axial {
+                            self.state.next_snapshot += p.snapshot_every;
+                        }
                     }
+                } else {
+                    self.state.row_sums = Some(self.state.row_sums.take().unwrap_or_default().add(&red));
                 }
-                if row.strain_axial >= p.strain_end {
+                if reached {
                     let kinetic = self.kinetic_ratio(&red, p.sigma3);
                     self.end_phase(&red, true, 0.0, kinetic, obs)?;
                     self.state.phase = Phase::Done;
@@ -161,6 +263,37 @@ impl<B: Backend> Lab<B> {
             self.checkpoint(obs)?;
         }
         Ok(())
+    }
+
+    /// The steps of the next compression window: up to the next row, strip refresh or
+    /// quasi-static check, and short of the step predicted to reach the end strain (the
+    /// top wall moves `axial_velocity * dt` per step), so that the windows then go one step
+    /// at a time and the test stops at the first step that reaches it.
+    fn compression_window(&mut self) -> Result<u32> {
+        let s = &self.state;
+        let p = &s.params;
+        let mut w = p.series_every.saturating_sub(s.since_series);
+        w = w.min(QUASI_STATIC_CHECK_EVERY.saturating_sub(s.since_guard));
+        if p.strip_refresh_every > 0 && !s.loading.strip.is_empty() {
+            w = w.min(p.strip_refresh_every.saturating_sub(s.since_strips));
+        }
+        let strain = match s.strain {
+            Some(e) => e,
+            None => {
+                let scene = self.backend.scene()?;
+                let h = scene.walls[walls::TOP].point.y - scene.walls[walls::BOTTOM].point.y;
+                (self.state.gauge.h0 - h) / self.state.gauge.h0
+            }
+        };
+        let p = &self.state.params;
+        let per_step = p.axial_velocity * p.step.dt / self.state.gauge.h0;
+        let left = ((p.strain_end - strain) / per_step).ceil();
+        // NaN (a degenerate gauge) leaves the other bounds in charge.
+        if left.is_finite() {
+            let short = if left > 1.0 { left - 1.0 } else { 1.0 };
+            w = w.min(short.min(u32::MAX as f64) as u32);
+        }
+        Ok(w.max(1))
     }
 
     /// Recomputes which disks form the strips once `strip_refresh_every` steps have passed
@@ -367,6 +500,10 @@ impl<B: Backend> Lab<B> {
         self.state.phase = Phase::Compression;
         self.state.phase_start = s.time;
         self.state.next_snapshot = 0.0;
+        self.state.since_series = 0;
+        self.state.since_guard = 0;
+        self.state.row_sums = None;
+        self.state.strain = Some(0.0);
         Ok(())
     }
 
@@ -374,9 +511,11 @@ impl<B: Backend> Lab<B> {
     fn checkpoint(&mut self, obs: &mut dyn Observer) -> Result<u64> {
         let scene = self.backend.scene()?;
         let warm = self.backend.contacts()?;
+        // Reset before encoding: a resumed run counts to its next checkpoint as the
+        // uninterrupted run does.
+        self.state.since_checkpoint = 0;
         let bytes = encode(&self.state, &scene, &self.reference, &warm);
         obs.checkpoint(scene.step, &bytes)?;
-        self.state.since_checkpoint = 0;
         Ok(scene.step)
     }
 }

@@ -114,11 +114,14 @@ pub struct ProtocolParams {
     pub strain_end: f64,
     /// Equilibrium criteria for compaction and confinement.
     pub equilibrium: Equilibrium,
-    /// Steps between two rows of the time series during compression.
+    /// Steps between two rows of the time series during compression. An output setting
+    /// only: where the compression stops, when the strips are refreshed and when the run is
+    /// checked never depend on it ([`biaxial::Lab::advance`]).
     pub series_every: u32,
     /// Axial strain between two snapshots (0 disables them).
     pub snapshot_every: f64,
-    /// Steps between two checkpoints (rounded up to whole series intervals).
+    /// Steps between two checkpoints (taken at the end of the first window of steps that
+    /// reaches it; a checkpoint changes nothing in the run).
     pub checkpoint_every: u32,
 }
 
@@ -358,6 +361,22 @@ pub struct LabState {
     /// Steps since the strips were last recomputed.
     #[serde(default)]
     pub since_strips: u32,
+    /// Compression steps since the last row of the series.
+    #[serde(default)]
+    pub since_series: u32,
+    /// Compression steps since the last quasi-static check
+    /// ([`biaxial::QUASI_STATIC_CHECK_EVERY`]).
+    #[serde(default)]
+    pub since_guard: u32,
+    /// The sums of the compression windows since the last row, when a row spans several
+    /// windows (a strip refresh or a check fell inside it): the row averages over all of
+    /// them. Kept in checkpoints so a resumed run writes the same rows.
+    #[serde(default)]
+    pub row_sums: Option<biaxial::RowSums>,
+    /// Axial strain at the end of the last compression window (`None` before it, and in
+    /// checkpoints written before it was kept: then it is measured from the scene).
+    #[serde(default)]
+    pub strain: Option<f64>,
 }
 
 /// Wall indices of the biaxial scene.

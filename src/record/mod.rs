@@ -6,14 +6,22 @@
 //! | `/config` | `json` | `cdlab.Config` (`jsonschema`) | once, at log time 0: `{"version", "config"}` |
 //! | `/series` | `json` | `cdlab.SeriesRow` (`jsonschema`) | one [`SeriesRow`] per measurement |
 //! | `/snapshot` | `cdlab-bin` | `cdlab.Snapshot.v1` (`cdlab-bin`, layout text) | a [`Snapshot`] |
-//! | `/checkpoint` | `cdlab-bin` | `cdlab.Checkpoint.v1` (`cdlab-bin`, layout text) | u64 LE step + opaque state |
+//! | `/checkpoint` | `cdlab-bin` | `cdlab.Checkpoint.v2` (`cdlab-bin`, layout text) | u64 LE step + opaque state + u32 LE CRC-32 |
+//!
+//! The `/config` message also holds `run_id`, the run's identity that `summary.json` repeats
+//! as `record_id`, and `backend` when known (records written before them lack both).
 //!
 //! Log times are simulated time in nanoseconds, so Foxglove's time axis is the run's clock.
-//! Chunks are zstd-compressed and small, and the writer ends a chunk and flushes the file at
-//! every snapshot and checkpoint: a run killed with `kill -9` leaves a file without summary
-//! or footer whose complete chunks [`read_run`] still reads (it stops at the first incomplete
-//! record and says so in [`RunRecord::truncated`]).
+//! Chunks are zstd-compressed and small, each with the CRC-32 of its content, and the writer
+//! ends a chunk and flushes the file at every snapshot and checkpoint: a run killed with
+//! `kill -9` leaves a file without summary or footer whose complete chunks [`read_run`] still
+//! reads. The reader checks each chunk's CRC before it hands out any of its messages, and
+//! each checkpoint's own CRC; it stops at the first incomplete or damaged record and says so
+//! in [`RunRecord::truncated`] (and [`RunRecord::damaged`] when a check failed), so the last
+//! checkpoint it returns is the last intact one. How the files are replaced without a
+//! window in which none is complete: [`atomic`].
 
+pub mod atomic;
 mod lock;
 mod reader;
 mod series;
@@ -25,10 +33,10 @@ mod writer;
 mod tests;
 
 pub use lock::{LOCK_FILE, RunLock};
-pub use reader::{RunRecord, read_config, read_run, read_series};
+pub use reader::{RunRecord, parse_run, read_config, read_run, read_run_id, read_series};
 pub use series::{SERIES_FIELDS, SeriesRow, csv_header, parse_csv, series_json_schema};
 pub use snapshot::{ContactClass, ContactRecord, DiskRecord, SNAPSHOT_SCHEMA, Snapshot};
-pub use writer::Recorder;
+pub use writer::{RecordHead, Recorder, new_run_id};
 
 /// The configuration of a test kept by `cdlab archive` in place of its record
 /// ([`read_config`] reads it when the directory holds no record).
@@ -56,8 +64,11 @@ pub const TOPIC_CHECKPOINT: &str = "/checkpoint";
 pub const CONFIG_SCHEMA: &str = "cdlab.Config";
 /// Schema name of a series row.
 pub const SERIES_SCHEMA: &str = "cdlab.SeriesRow";
-/// Schema name of the checkpoint layout.
-pub const CHECKPOINT_SCHEMA: &str = "cdlab.Checkpoint.v1";
+/// Schema name of the checkpoint layout: step, state and the CRC-32 of both.
+pub const CHECKPOINT_SCHEMA: &str = "cdlab.Checkpoint.v2";
+/// Schema name of the checkpoints of records written before they carried a CRC (read, not
+/// written).
+pub const CHECKPOINT_SCHEMA_V1: &str = "cdlab.Checkpoint.v1";
 /// Message (and custom schema) encoding of the binary channels.
 pub const BIN_ENCODING: &str = "cdlab-bin";
 

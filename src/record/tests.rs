@@ -476,3 +476,156 @@ fn archived_test_gives_its_series_and_says_it_has_no_record() {
     let e = read_run(&tmp.0).unwrap_err().to_string();
     assert!(e.contains("archived test") && e.contains("--curves"), "{e}");
 }
+
+/// Every single-bit flip in a record, wherever it lands, gives either an error naming the
+/// file or a record whose rows are a prefix of those written and whose checkpoint is one
+/// of those written, byte for byte: damaged content is never handed out. A flip inside the
+/// last checkpoint's chunk falls back to the checkpoint before it, flagged as damage.
+#[test]
+fn bit_flips_never_hand_out_damaged_content() {
+    let tmp = TempDir::new("bitflip");
+    let (marks, first, full) = write_run(&tmp.0);
+    let bytes = std::fs::read(tmp.0.join(MCAP_FILE)).unwrap();
+    let written: Vec<(u64, Vec<u8>)> = marks
+        .iter()
+        .map(|&(_, step)| {
+            let k = step / 10;
+            (step, (0..1000u32).map(|b| (b * 7 + k as u32) as u8).collect())
+        })
+        .collect();
+    assert_eq!(written.last(), full.last_checkpoint.as_ref());
+    // The last checkpoint's chunk lies between the flushes of the last two checkpoints.
+    let (lo, hi) = (
+        marks[marks.len() - 2].0 as usize,
+        marks[marks.len() - 1].0 as usize,
+    );
+    let mut offsets: Vec<usize> = (lo..hi).step_by(5).collect();
+    let mut s = 0x2545f4914f6cdd1du64;
+    for _ in 0..300 {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        offsets.push((s % bytes.len() as u64) as usize);
+    }
+    let path = tmp.0.join("flipped.mcap");
+    let mut fell_back = 0;
+    for (n, &at) in offsets.iter().enumerate() {
+        let mut b = bytes.clone();
+        b[at] ^= 1 << (n % 8);
+        std::fs::write(&path, &b).unwrap();
+        let run = match read_run(&path) {
+            Ok(run) => run,
+            Err(e) => {
+                assert!(e.to_string().contains("flipped.mcap"), "{e}");
+                assert!((at as u64) < first, "flip at {at}: {e}");
+                continue;
+            }
+        };
+        assert_eq!(run.series[..], full.series[..run.series.len()], "flip at {at}");
+        assert_eq!(
+            run.snapshots[..],
+            full.snapshots[..run.snapshots.len()],
+            "flip at {at}"
+        );
+        if let Some(ck) = &run.last_checkpoint {
+            assert!(written.contains(ck), "flip at {at}: a checkpoint never written");
+        }
+        if (lo..hi).contains(&at) && run.last_checkpoint != full.last_checkpoint {
+            fell_back += 1;
+            assert_eq!(
+                run.last_checkpoint.as_ref().map(|c| c.0),
+                written.get(written.len() - 2).map(|c| c.0),
+                "flip at {at} in {lo}..{hi}: {:?} {:?}",
+                run.truncated,
+                run.damaged
+            );
+            assert!(
+                run.damaged.is_some() || run.truncated.is_some(),
+                "flip at {at} in {lo}..{hi}: {:?} {:?} {:?}",
+                run.last_checkpoint.as_ref().map(|c| c.0),
+                run.truncated,
+                run.damaged
+            );
+        }
+    }
+    // Most flips in the last checkpoint's chunk hit its compressed content.
+    assert!(
+        fell_back > (hi - lo) / 10,
+        "{fell_back} of {} flips fell back",
+        (hi - lo) / 5
+    );
+}
+
+/// A checkpoint message whose CRC does not match is recognised; an intact one, and one of
+/// the layout without CRC (older records), are read.
+#[test]
+fn checkpoint_crc_is_checked() {
+    let tmp = TempDir::new("ckcrc");
+    let mut rec = Recorder::create(&tmp.0, &Config::default()).unwrap();
+    rec.checkpoint(7, 0.5, b"first state").unwrap();
+    rec.checkpoint(9, 0.6, b"second state").unwrap();
+    rec.finish().unwrap();
+    let run = read_run(&tmp.0).unwrap();
+    assert_eq!(run.last_checkpoint, Some((9, b"second state".to_vec())));
+    assert!(run.damaged.is_none() && run.run_id.as_deref().is_some_and(|id| id.len() == 32));
+    let mut data = 9u64.to_le_bytes().to_vec();
+    data.extend_from_slice(b"state");
+    let crc = crc32fast::hash(&data);
+    data.extend_from_slice(&crc.to_le_bytes());
+    assert_eq!(
+        super::reader::checkpoint_message(&data, false),
+        Ok((9, b"state".to_vec()))
+    );
+    for k in 0..data.len() * 8 {
+        let mut d = data.clone();
+        d[k / 8] ^= 1 << (k % 8);
+        assert!(super::reader::checkpoint_message(&d, false).is_err(), "bit {k}");
+    }
+    assert_eq!(
+        super::reader::checkpoint_message(&data[..13], true),
+        Ok((9, b"state".to_vec()))
+    );
+    assert!(super::reader::checkpoint_message(&data[..11], false).is_err());
+}
+
+/// A staged recorder leaves the files of the real names alone until it commits, then
+/// replaces them whole; an atomic write replaces a file whole or not at all.
+#[test]
+fn staged_record_replaces_the_old_only_at_commit() {
+    let tmp = TempDir::new("staged");
+    let (_, _, full) = write_run(&tmp.0);
+    let before = std::fs::read(tmp.0.join(MCAP_FILE)).unwrap();
+    let head = RecordHead {
+        run_id: "0123".into(),
+        backend: Some("test".into()),
+    };
+    let mut rec = Recorder::stage(&tmp.0, &Config::default(), &head).unwrap();
+    rec.series(&row(0)).unwrap();
+    rec.checkpoint(0, 0.0, b"new").unwrap();
+    assert_eq!(before, std::fs::read(tmp.0.join(MCAP_FILE)).unwrap());
+    assert_eq!(read_run(&tmp.0).unwrap().series, full.series);
+    rec.commit().unwrap();
+    assert!(!tmp.0.join("run.mcap.tmp").exists() && !tmp.0.join("series.csv.tmp").exists());
+    rec.series(&row(1)).unwrap();
+    rec.checkpoint(10, 0.1, b"newer").unwrap();
+    // Read while the recorder is still open: no footer, the chunks so far.
+    let run = read_run(&tmp.0).unwrap();
+    assert_eq!(run.series, vec![row(0), row(1)]);
+    assert_eq!(run.last_checkpoint, Some((10, b"newer".to_vec())));
+    assert_eq!(
+        (run.run_id.as_deref(), run.backend.as_deref()),
+        (Some("0123"), Some("test"))
+    );
+    rec.finish().unwrap();
+    let csv = std::fs::read_to_string(tmp.0.join(CSV_FILE)).unwrap();
+    assert_eq!(csv.lines().count(), 3);
+
+    let f = tmp.0.join("summary.json");
+    atomic::write_file(&f, b"old").unwrap();
+    atomic::write_file(&f, b"new").unwrap();
+    assert_eq!(std::fs::read(&f).unwrap(), b"new");
+    assert!(!tmp.0.join("summary.json.tmp").exists());
+    atomic::remove_file(&f).unwrap();
+    atomic::remove_file(&f).unwrap();
+    assert!(!f.exists());
+}

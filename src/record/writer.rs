@@ -2,12 +2,13 @@
 
 use std::collections::BTreeMap;
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use mcap::records::MessageHeader;
 use mcap::{McapError, WriteOptions, Writer};
 
+use super::atomic::{FaultFile, rename, sync_dir, tmp_path};
 use super::series::{SeriesRow, csv_header, series_json_schema};
 use super::snapshot::{SNAPSHOT_SCHEMA, Snapshot, layout_description};
 use super::*;
@@ -19,8 +20,9 @@ use crate::error::{Error, Result};
 const CHUNK_SIZE: u64 = 64 * 1024;
 
 /// Describes the checkpoint payload (stored as the schema data).
-const CHECKPOINT_LAYOUT: &str = "cdlab.Checkpoint.v1, little-endian: u64 step, then the \
-     state bytes of the protocol's resume format (opaque to the record).";
+const CHECKPOINT_LAYOUT: &str = "cdlab.Checkpoint.v2, little-endian: u64 step, then the \
+     state bytes of the protocol's resume format (opaque to the record), then the u32 \
+     CRC-32 (IEEE) of the step and state bytes.";
 
 /// JSON schema of the `/config` message.
 const CONFIG_JSON_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"cdlab.Config","type":"object","properties":{"version":{"type":"string","description":"cdlab version that wrote the run"},"config":{"type":"object","description":"the run configuration, SI units"}},"required":["version","config"]}"#;
@@ -32,32 +34,91 @@ struct Channels {
     checkpoint: u16,
 }
 
+impl Seek for FaultFile {
+    fn seek(&mut self, pos: SeekFrom) -> std::io::Result<u64> {
+        self.0.seek(pos)
+    }
+}
+
+/// What the `/config` message says besides the configuration: which run the record
+/// belongs to (kept by a resume, so a summary can name its record) and the backend that
+/// wrote it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RecordHead {
+    /// The run's identity ([`new_run_id`]); `summary.json` repeats it as `record_id`.
+    pub run_id: String,
+    /// The backend that writes this part of the run, if known.
+    pub backend: Option<String>,
+}
+
+/// A fresh run identity: 128 bits from the clock, the process and the standard library's
+/// per-process random hash keys, as 32 hex digits. Unique enough to tell two runs of one
+/// directory apart; it is not a secret.
+pub fn new_run_id() -> String {
+    use std::hash::{BuildHasher, Hasher};
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos());
+    let word = |salt: u64| {
+        let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+        h.write_u128(now);
+        h.write_u32(std::process::id());
+        h.write_u64(salt);
+        h.finish()
+    };
+    format!("{:016x}{:016x}", word(1), word(2))
+}
+
 /// Records one run: the MCAP file (all channels) and the CSV of the series.
+///
+/// A recorder starts on temporary names ([`Recorder::stage`]) and moves its files into
+/// place with [`Recorder::commit`]: a resume copies the old record's content up to its
+/// checkpoint into the new file before it replaces the old one, so a kill or a full disk
+/// at any instant leaves a record with that checkpoint under the real name. After the
+/// commit the files grow in place; a run killed then leaves its complete chunks, which
+/// [`super::read_run`] reads.
 pub struct Recorder {
-    mcap: Writer<BufWriter<File>>,
+    mcap: Writer<BufWriter<FaultFile>>,
     /// A second handle on the MCAP file, to `sync_data` after a checkpoint: the MCAP writer
     /// owns the buffered one and has no accessor for it.
     sync: File,
-    csv: BufWriter<File>,
+    csv: BufWriter<FaultFile>,
+    csv_sync: File,
     channels: Channels,
     /// Per-channel sequence numbers (series, snapshot, checkpoint).
     seq: [u32; 3],
     mcap_path: PathBuf,
     csv_path: PathBuf,
+    /// Whether the files are still under their temporary names.
+    staged: bool,
 }
 
 impl Recorder {
-    /// Creates `dir` if needed and starts `run.mcap` and `series.csv` there, replacing any
-    /// previous files of those names. Writes the configuration and flushes it at once, so
-    /// that even a run killed in its first step leaves a file that names its configuration.
+    /// Creates `dir` if needed and starts `run.mcap` and `series.csv` there with a new run
+    /// identity, replacing any previous files of those names only once the new ones hold
+    /// the configuration (see [`Recorder::stage`] and [`Recorder::commit`]).
     pub fn create(dir: impl AsRef<Path>, config: &Config) -> Result<Self> {
+        let head = RecordHead {
+            run_id: new_run_id(),
+            backend: None,
+        };
+        let mut rec = Self::stage(dir, config, &head)?;
+        rec.commit()?;
+        Ok(rec)
+    }
+
+    /// Starts the record in `dir` (created if needed) under temporary names
+    /// (`run.mcap.tmp`, `series.csv.tmp`), with the configuration written and flushed:
+    /// the files of those names in `dir` are untouched until [`Recorder::commit`].
+    pub fn stage(dir: impl AsRef<Path>, config: &Config, head: &RecordHead) -> Result<Self> {
         let dir = dir.as_ref();
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let mcap_path = dir.join(MCAP_FILE);
         let csv_path = dir.join(CSV_FILE);
-        let file = File::create(&mcap_path).map_err(|e| Error::io(&mcap_path, e))?;
-        let sync = file.try_clone().map_err(|e| Error::io(&mcap_path, e))?;
-        let mcap_err = |e| mcap_error(&mcap_path, e);
+        let mcap_tmp = tmp_path(&mcap_path);
+        let file = FaultFile::create(&mcap_tmp).map_err(|e| Error::io(&mcap_tmp, e))?;
+        let sync = file.0.try_clone().map_err(|e| Error::io(&mcap_tmp, e))?;
+        let mcap_err = |e| mcap_error(&mcap_tmp, e);
         let options = WriteOptions::new()
             .compression(Some(mcap::Compression::Zstd))
             .chunk_size(Some(CHUNK_SIZE))
@@ -96,10 +157,14 @@ impl Recorder {
             .add_channel(ckpt_schema, TOPIC_CHECKPOINT, BIN_ENCODING, &no_meta)
             .map_err(mcap_err)?;
 
-        let payload = serde_json::json!({
+        let mut payload = serde_json::json!({
             "version": env!("CARGO_PKG_VERSION"),
             "config": config,
+            "run_id": head.run_id,
         });
+        if let Some(b) = &head.backend {
+            payload["backend"] = serde_json::Value::from(b.as_str());
+        }
         let header = MessageHeader {
             channel_id: config_ch,
             sequence: 0,
@@ -110,16 +175,19 @@ impl Recorder {
             .map_err(mcap_err)?;
         mcap.flush().map_err(mcap_err)?;
 
-        let csv_file = File::create(&csv_path).map_err(|e| Error::io(&csv_path, e))?;
+        let csv_tmp = tmp_path(&csv_path);
+        let csv_file = FaultFile::create(&csv_tmp).map_err(|e| Error::io(&csv_tmp, e))?;
+        let csv_sync = csv_file.0.try_clone().map_err(|e| Error::io(&csv_tmp, e))?;
         let mut csv = BufWriter::new(csv_file);
         writeln!(csv, "{}", csv_header())
             .and_then(|_| csv.flush())
-            .map_err(|e| Error::io(&csv_path, e))?;
+            .map_err(|e| Error::io(&csv_tmp, e))?;
 
         Ok(Recorder {
             mcap,
             sync,
             csv,
+            csv_sync,
             channels: Channels {
                 series,
                 snapshot,
@@ -128,7 +196,48 @@ impl Recorder {
             seq: [0; 3],
             mcap_path,
             csv_path,
+            staged: true,
         })
+    }
+
+    /// Ends the current chunk, syncs both files and renames them over `run.mcap` and
+    /// `series.csv` (the record first: a CSV is a copy that a resume writes again), then
+    /// syncs the directory. Later writes go on growing the renamed files. Does nothing
+    /// once committed.
+    pub fn commit(&mut self) -> Result<()> {
+        if !self.staged {
+            return Ok(());
+        }
+        let (mcap_tmp, csv_tmp) = (tmp_path(&self.mcap_path), tmp_path(&self.csv_path));
+        self.mcap.flush().map_err(|e| mcap_error(&mcap_tmp, e))?;
+        self.sync.sync_all().map_err(|e| Error::io(&mcap_tmp, e))?;
+        self.csv
+            .flush()
+            .and_then(|_| self.csv_sync.sync_all())
+            .map_err(|e| Error::io(&csv_tmp, e))?;
+        rename(&mcap_tmp, &self.mcap_path)?;
+        rename(&csv_tmp, &self.csv_path)?;
+        sync_dir(&self.mcap_path)?;
+        self.staged = false;
+        Ok(())
+    }
+
+    /// The path the MCAP file is written under now (its temporary name before the commit).
+    fn mcap_now(&self) -> PathBuf {
+        if self.staged {
+            tmp_path(&self.mcap_path)
+        } else {
+            self.mcap_path.clone()
+        }
+    }
+
+    /// The path the CSV file is written under now.
+    fn csv_now(&self) -> PathBuf {
+        if self.staged {
+            tmp_path(&self.csv_path)
+        } else {
+            self.csv_path.clone()
+        }
     }
 
     /// Path of the MCAP file.
@@ -152,7 +261,7 @@ impl Recorder {
         self.seq[which] = self.seq[which].wrapping_add(1);
         self.mcap
             .write_to_known_channel(&header, data)
-            .map_err(|e| mcap_error(&self.mcap_path, e))
+            .map_err(|e| mcap_error(&self.mcap_now(), e))
     }
 
     /// Appends a measurement row to `/series` and to the CSV. The CSV line is flushed at once
@@ -163,7 +272,7 @@ impl Recorder {
         self.write(0, self.channels.series, row.time_s, &json)?;
         writeln!(self.csv, "{}", row.csv_line())
             .and_then(|_| self.csv.flush())
-            .map_err(|e| Error::io(&self.csv_path, e))
+            .map_err(|e| Error::io(self.csv_now(), e))
     }
 
     /// Writes a snapshot and ends the chunk, so that the snapshot survives a crash.
@@ -173,32 +282,40 @@ impl Recorder {
         self.flush()
     }
 
-    /// Writes a checkpoint (`state`: the caller's resume format), ends the chunk, flushes
-    /// and syncs the file: after this returns, a crash cannot lose the checkpoint.
+    /// Writes a checkpoint (`state`: the caller's resume format) with its CRC-32, ends the
+    /// chunk, flushes and syncs the file: after this returns, a crash cannot lose the
+    /// checkpoint, and a damaged copy of it is recognised ([`super::read_run`]).
     pub fn checkpoint(&mut self, step: u64, time_s: f64, state: &[u8]) -> Result<()> {
-        let mut bytes = Vec::with_capacity(8 + state.len());
+        let mut bytes = Vec::with_capacity(12 + state.len());
         bytes.extend_from_slice(&step.to_le_bytes());
         bytes.extend_from_slice(state);
+        let crc = crc32fast::hash(&bytes);
+        bytes.extend_from_slice(&crc.to_le_bytes());
         self.write(2, self.channels.checkpoint, time_s, &bytes)?;
         self.flush()?;
-        self.sync.sync_data().map_err(|e| Error::io(&self.mcap_path, e))
+        self.sync.sync_data().map_err(|e| Error::io(self.mcap_now(), e))
     }
 
     /// Ends the current chunk and pushes everything written so far to the operating system.
     pub fn flush(&mut self) -> Result<()> {
-        self.mcap.flush().map_err(|e| mcap_error(&self.mcap_path, e))?;
-        self.csv.flush().map_err(|e| Error::io(&self.csv_path, e))
+        self.mcap.flush().map_err(|e| mcap_error(&self.mcap_now(), e))?;
+        self.csv.flush().map_err(|e| Error::io(self.csv_now(), e))
     }
 
     /// Writes the MCAP summary and footer (indexes for fast seeking in Foxglove) and closes
     /// both files. A recorder dropped without `finish` also writes them, but cannot report
     /// an error.
+    /// A staged recorder is committed first.
     pub fn finish(mut self) -> Result<()> {
+        self.commit()?;
         self.mcap.finish().map_err(|e| mcap_error(&self.mcap_path, e))?;
         let mut inner = self.mcap.into_inner();
         inner.flush().map_err(|e| Error::io(&self.mcap_path, e))?;
         self.sync.sync_data().map_err(|e| Error::io(&self.mcap_path, e))?;
-        self.csv.flush().map_err(|e| Error::io(&self.csv_path, e))
+        self.csv
+            .flush()
+            .and_then(|_| self.csv_sync.sync_data())
+            .map_err(|e| Error::io(&self.csv_path, e))
     }
 }
 

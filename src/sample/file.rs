@@ -253,6 +253,10 @@ mod tests {
             since_checkpoint: 0,
             ends: Vec::new(),
             since_strips: 0,
+            since_series: 0,
+            since_guard: 0,
+            row_sums: None,
+            strain: None,
         };
         (state, scene)
     }

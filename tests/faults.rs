@@ -1,0 +1,311 @@
+//! Fault injection on the records of a small biaxial test (docs/reliability.md): a full
+//! disk at any write, bit flips and cuts at random places of a record, and the output
+//! intervals, none of which may change a run's result or leave it without a usable record.
+
+mod record_support;
+
+use std::path::Path;
+use std::sync::{Mutex, MutexGuard, OnceLock};
+
+use cdlab::config::Config;
+use cdlab::model::Scene;
+use cdlab::record::atomic::fault::{self, Plan};
+use cdlab::record::{MCAP_FILE, read_run};
+use record_support::*;
+
+/// The fault hooks are global to the process: the tests that write records take turns.
+static FAULTS: Mutex<()> = Mutex::new(());
+
+/// A test's turn with the hooks; no plan is left behind however the test ends.
+struct Turn(#[allow(dead_code)] MutexGuard<'static, ()>);
+
+impl Drop for Turn {
+    fn drop(&mut self) {
+        fault::set(Plan::None);
+    }
+}
+
+fn turn() -> Turn {
+    let guard = FAULTS.lock().unwrap_or_else(|e| e.into_inner());
+    fault::set(Plan::None);
+    Turn(guard)
+}
+
+/// The compacted sample, made once for all tests of this file.
+fn sample() -> &'static Scene {
+    static SCENE: OnceLock<Scene> = OnceLock::new();
+    SCENE.get_or_init(|| compacted(&config(10)))
+}
+
+/// A deterministic generator (xorshift64) for the fault positions.
+struct Rng(u64);
+
+impl Rng {
+    fn below(&mut self, n: u64) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0 % n.max(1)
+    }
+}
+
+/// Output settings change what is recorded, never the physics: runs with a row every
+/// step and every 1000 steps end at the same step, the first one whose axial strain reaches
+/// the end strain, with the same final state bit for bit, and both record that last row.
+#[test]
+fn series_interval_does_not_change_the_physics() {
+    let _turn = turn();
+    let base = scratch("series-every");
+    let mut ends = Vec::new();
+    for every in [1u32, 1000] {
+        let cfg = config(every);
+        let dir = base.join(format!("every{every}"));
+        fresh(&cfg, &dir, sample()).unwrap();
+        let rec = read_run(&dir).unwrap();
+        let (step, bytes) = rec.last_checkpoint.clone().unwrap();
+        let ck = cdlab::protocol::checkpoint::decode(&bytes).unwrap();
+        assert_eq!(ck.state.phase, cdlab::protocol::Phase::Done);
+        let last = rec.series.last().unwrap();
+        assert_eq!(last.step, step, "series_every {every}: the final row is written");
+        assert!(last.strain_axial >= 0.003, "{}", last.strain_axial);
+        if every == 1 {
+            // A row at every step: the one before the last is still short of the end.
+            let before = &rec.series[rec.series.len() - 2];
+            assert_eq!(before.step + 1, step);
+            assert!(before.strain_axial < 0.003, "{}", before.strain_axial);
+        } else {
+            let compression = rec.series.iter().filter(|r| r.phase == "compression").count();
+            assert!(
+                compression <= 3,
+                "{compression} compression rows at 1000 steps a row"
+            );
+        }
+        ends.push((step, format!("{:?}", ck.scene), format!("{:?}", ck.warm)));
+    }
+    assert_eq!(ends[0].0, ends[1].0, "final steps");
+    assert!(ends[0].1 == ends[1].1, "final scenes differ");
+    assert!(ends[0].2 == ends[1].2, "final contact impulses differ");
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// The uninterrupted run into `dir` and the number of fault points it passes.
+fn reference(dir: &Path, cfg: &Config) -> (Outcome, u64) {
+    fault::set(Plan::DiskFull(u64::MAX));
+    fresh(cfg, dir, sample()).unwrap();
+    let points = fault::count();
+    fault::set(Plan::None);
+    (outcome(dir), points)
+}
+
+/// The step of the last intact checkpoint of the record in `dir`, if any.
+fn checkpoint_step(dir: &Path) -> Option<u64> {
+    read_run(dir).ok()?.last_checkpoint.map(|c| c.0)
+}
+
+/// The disk fills up at the n-th write of a run (that write half done, every later one
+/// failing with ENOSPC), for n spread over the whole run; then the disk fills up again at
+/// the m-th write of the resume (inside its copy of the record, or later). The record keeps
+/// its checkpoint through both (the resume used to truncate it first), and a last resume
+/// ends exactly as the uninterrupted run. Only a run that failed before its first
+/// checkpoint has nothing to resume, and then the resume says so naming the file.
+#[test]
+fn a_full_disk_at_any_write_loses_no_checkpoint_and_resumes_to_the_same_end() {
+    let _turn = turn();
+    let base = scratch("enospc");
+    let cfg = config(10);
+    let (want, points) = reference(&base.join("reference"), &cfg);
+    assert!(points > 50, "{points} fault points");
+    let mut rng = Rng(0x5eed_0001);
+    let mut ns: Vec<u64> = vec![1, 2, 3, 5, 8, points - 2, points - 1, points];
+    ns.extend((0..10).map(|_| 1 + rng.below(points)));
+    let mut resumed = 0;
+    for (i, &n) in ns.iter().enumerate() {
+        let dir = base.join(format!("n{n}"));
+        fault::set(Plan::DiskFull(n));
+        let run = fresh(&cfg, &dir, sample());
+        fault::set(Plan::None);
+        // The rows carry the wall clock, so the number of writes varies by a few between
+        // runs; a fault at the last renames leaves no write to fail.
+        let Err(err) = run else {
+            assert!(n + 8 > points, "n = {n} of {points}: the run ignored a full disk");
+            assert_eq!(outcome(&dir), want, "n = {n}");
+            resumed += 1;
+            continue;
+        };
+        assert!(err.to_string().contains("os error 28"), "n = {n}: {err}");
+        let kept = checkpoint_step(&dir);
+        let mut done = false;
+        // The resume itself meets a full disk, at a write of its copy or later.
+        if kept.is_some() {
+            fault::set(Plan::DiskFull(1 + (i as u64 * 7) % 40));
+            // A resume with few writes left to do (a summary) may finish before it.
+            done = resume(&dir).is_ok();
+            fault::set(Plan::None);
+            let after = checkpoint_step(&dir);
+            assert!(
+                after >= kept,
+                "n = {n}: the failed resume lost its checkpoint: {kept:?} -> {after:?}"
+            );
+        }
+        match if done { Ok(()) } else { resume(&dir) } {
+            Ok(()) => {
+                resumed += 1;
+                assert_eq!(outcome(&dir), want, "n = {n}");
+            }
+            Err(e) => {
+                assert_eq!(kept, None, "n = {n}: a checkpoint was there: {e}");
+                let text = e.to_string();
+                assert!(text.contains(MCAP_FILE), "n = {n}: {text}");
+            }
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    // The first few writes come before the first checkpoint; the others must all resume.
+    assert!(resumed >= 10, "{resumed} of {} ended as the reference", ns.len());
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// `cdlab biaxial --resume DIR --quiet` on the command line.
+fn resume_cli(dir: &Path) -> (bool, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args(["biaxial", "--resume", dir.to_str().unwrap(), "--quiet"])
+        .output()
+        .unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.success(), text)
+}
+
+/// A record damaged at random places, a flipped bit or the file cut short: the resume
+/// either ends exactly as the undamaged run, having said that it fell back to an earlier
+/// checkpoint when the damage hid a later one, or refuses naming the file. It never ends
+/// with other results.
+#[test]
+fn bit_flips_and_cuts_resume_to_the_same_end_or_are_refused() {
+    let base = scratch("flips");
+    let cfg = config(10);
+    let want = {
+        let _turn = turn();
+        let (want, _) = reference(&base.join("reference"), &cfg);
+        want
+    };
+    let bytes = std::fs::read(base.join("reference").join(MCAP_FILE)).unwrap();
+    let n = bytes.len() as u64;
+    let mut rng = Rng(0x5eed_0002);
+    let (mut same, mut fell_back, mut refused) = (0, 0, 0);
+    for k in 0..50 {
+        let dir = base.join(format!("case{k}"));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut damaged = bytes.clone();
+        let at = rng.below(n) as usize;
+        let what = if k % 4 == 3 {
+            damaged.truncate(at);
+            format!("cut at byte {at} of {n}")
+        } else {
+            damaged[at] ^= 1 << rng.below(8);
+            format!("bit flipped in byte {at} of {n}")
+        };
+        let file = dir.join(MCAP_FILE);
+        std::fs::write(&file, &damaged).unwrap();
+        let read = read_run(&dir);
+        let (ok, text) = resume_cli(&dir);
+        if ok {
+            assert_eq!(outcome(&dir), want, "{what}: {text}");
+            same += 1;
+            if read.is_ok_and(|r| r.damaged.is_some()) {
+                fell_back += 1;
+                assert!(
+                    text.contains("falling back") && text.contains(file.to_str().unwrap()),
+                    "{what}: the fall-back is not said: {text}"
+                );
+            }
+        } else {
+            refused += 1;
+            assert!(text.contains(file.to_str().unwrap()), "{what}: {text}");
+            assert!(!dir.join("summary.json").exists(), "{what}");
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    // Damage lands mostly in the body of the record, after its first checkpoint.
+    assert!(same >= 35, "{same} ended as the reference, {refused} refused");
+    assert!(fell_back >= 5, "{fell_back} fell back");
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// A finished test's results never outlive their record, and are rebuilt from it: a lost,
+/// empty or damaged `summary.json` beside a complete record is written again by `cdlab
+/// summarize` and by `biaxial --resume`, equal to the first; a forced run over the test,
+/// killed early, leaves no old summary behind; and an old summary put back beside the new
+/// record is not counted by the report, being another record's.
+#[test]
+fn stale_or_lost_summaries_are_removed_refused_or_rebuilt() {
+    use cdlab::analysis::report::collect;
+    let base = scratch("stale");
+    let cfg = config(10);
+    let run = base.join("run");
+    let want = {
+        let _turn = turn();
+        fresh(&cfg, &run, sample()).unwrap();
+        outcome(&run)
+    };
+    let summary = run.join("summary.json");
+    let old = std::fs::read(&summary).unwrap();
+    assert_eq!(collect(std::slice::from_ref(&run)).0.len(), 1);
+
+    // Lost, then empty, then damaged: rebuilt each time, equal to the first.
+    std::fs::remove_file(&summary).unwrap();
+    let done = cdlab::cli::summarize::summarize(&run, false).unwrap();
+    assert!(
+        matches!(done, cdlab::cli::summarize::Outcome::Rewritten(_)),
+        "{done:?}"
+    );
+    assert_eq!(outcome(&run), want);
+    std::fs::write(&summary, b"").unwrap();
+    {
+        let _turn = turn();
+        resume(&run).unwrap();
+    }
+    assert_eq!(outcome(&run), want);
+    std::fs::write(&summary, &old[..old.len() / 2]).unwrap();
+    let (ok, text) = resume_cli(&run);
+    assert!(ok && text.contains("written again"), "{text}");
+    assert_eq!(outcome(&run), want);
+    // A sound summary: the run is complete, nothing to do.
+    let (ok, text) = resume_cli(&run);
+    assert!(!ok && text.contains("already complete"), "{text}");
+
+    // A forced run over it, killed once its new record is on disk.
+    let toml = base.join("run.toml");
+    std::fs::write(&toml, cfg.to_toml_string().unwrap()).unwrap();
+    let old_id = cdlab::record::read_run_id(&run).unwrap();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args(["biaxial", "--config", toml.to_str().unwrap(), "--out"])
+        .arg(&run)
+        .args(["--force", "--quiet"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    loop {
+        let replaced = cdlab::record::read_run_id(&run).is_ok_and(|id| id != old_id);
+        if replaced {
+            break;
+        }
+        assert!(child.try_wait().unwrap().is_none(), "the forced run ended first");
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(!summary.exists() && !run.join("summary.txt").exists());
+    let (points, missing) = collect(std::slice::from_ref(&run));
+    assert!(points.is_empty() && missing.len() == 1, "{missing:?}");
+    // The old summary put back: another record's, not counted.
+    std::fs::write(&summary, &old).unwrap();
+    let (points, missing) = collect(std::slice::from_ref(&run));
+    assert!(points.is_empty(), "a stale summary was counted");
+    assert!(missing[0].1.contains("another record"), "{missing:?}");
+    let _ = std::fs::remove_dir_all(&base);
+}
