@@ -3,7 +3,8 @@
 //! The shader test needs no adapter. The others run on any adapter wgpu finds
 //! (`Backends::all()`; set `WGPU_BACKEND=vulkan` to pick Mesa's lavapipe on a machine
 //! without a GPU) and skip with a visible `SKIPPED (no GPU adapter)` line otherwise,
-//! unless `CDLAB_REQUIRE_GPU=1` (CI), in which case a missing adapter fails the test.
+//! unless `CDLAB_REQUIRE_GPU` is true (`1`, `true`, `yes`, `on`: CI), in which case a
+//! missing adapter fails the test. Any other GPU error fails the test in every case.
 
 use std::path::Path;
 
