@@ -117,8 +117,9 @@ fn perfectly_inelastic_head_on_collision_moves_both_at_the_mean_velocity() {
             );
             assert_eq!(s.disks.vel[k].y, 0.0);
         }
-        // Momentum is conserved to round-off.
-        assert!((momentum(&s) - p0).length() < 1e-9 * p0.length());
+        // Momentum is conserved to round-off: the contact's impulse is added to one disk and
+        // taken from the other, a few ulps of the momentum at most.
+        assert!((momentum(&s) - p0).length() <= 4.0 * f64::EPSILON * p0.length());
     }
 }
 
@@ -216,7 +217,7 @@ fn kinetic_energy_never_increases_without_external_work() {
         e.step(&mut s).unwrap();
         let now = s.disks.kinetic_energy();
         // Allow the solver's relative tolerance (1e-12) on the impulses, nothing more.
-        assert!(now <= ke * (1.0 + 1e-9), "step {step}: {ke} -> {now} J/m");
+        assert!(now <= ke * (1.0 + 1e-12), "step {step}: {ke} -> {now} J/m");
         ke = now;
     }
     assert!(ke < 0.9 * ke0, "collisions must dissipate: {ke0} -> {ke} J/m");
