@@ -451,3 +451,51 @@ fn gpu_work_per_step_follows_the_step_structure() {
         k.iterations as f64 / k.steps as f64,
     );
 }
+
+/// Every capacity that can overflow grows, and the step redone after the growth gives the
+/// CPU's contacts: a lattice of 100 disks whose alert distance (8 m, radius 1 m) makes every
+/// disk a candidate partner of about 45 others, far beyond the starting capacities (12
+/// slots per disk, 4 contacts per disk + 256 + 16 per wall, 64 colors, 32 coloring rounds).
+/// The grid's cells do not grow: the kernel enlarges the cells to fit the capacity instead.
+#[test]
+fn gpu_grows_contacts_slots_colors_and_rounds_and_matches_the_cpu() {
+    let s = lattice(10, 21);
+    let mut p = gpu_params(Method::ColoredGs);
+    p.alert = 8.0;
+    p.solver.tol = 1e-4;
+    p.solver.max_iter = 50;
+    let Some(mut g) = gpu_or_skip("growth", &s, p) else {
+        return;
+    };
+    let c0 = g.capacity();
+    g.run(1, &Loading::default()).unwrap();
+    let c1 = g.capacity();
+    let gpu = pairs(g.contacts().unwrap().iter().map(|c| (c.i, c.j)));
+    let mut cpu = CpuEngine::new(p).unwrap();
+    let mut sc = s.clone();
+    cpu.step(&mut sc).unwrap();
+    let cpu = pairs(cpu.contacts().iter().map(|c| (c.i, c.disk_j)));
+    eprintln!(
+        "capacities {c0:?} -> {c1:?}; {} contacts, {} steps redone",
+        gpu.len(),
+        g.counters().redone
+    );
+    assert_eq!(gpu, cpu, "the GPU's candidate pairs after growth");
+    assert!(
+        gpu.len() as u32 > c0.contacts,
+        "the scene does not overflow the contacts"
+    );
+    assert!(
+        c1.contacts >= gpu.len() as u32 && c1.contacts > c0.contacts,
+        "{c0:?} -> {c1:?}"
+    );
+    assert!(c1.k_slots > c0.k_slots, "slots {c0:?} -> {c1:?}");
+    assert!(c1.colors > c0.colors, "colors {c0:?} -> {c1:?}");
+    assert!(c1.rounds > c0.rounds, "rounds {c0:?} -> {c1:?}");
+    assert!(g.counters().redone >= 1);
+    // A second step reuses the grown buffers: nothing redone.
+    let redone = g.counters().redone;
+    g.run(1, &Loading::default()).unwrap();
+    assert_eq!(g.capacity(), c1);
+    assert_eq!(g.counters().redone, redone, "a second step needed another growth");
+}
