@@ -69,7 +69,11 @@ struct Contact {
     rn: f32, rt: f32, deep: u32, _p1: f32,
 }
 
-@group(0) @binding(0) var<uniform> sim: Sim;
+// The parameters are read-only storage, not uniform buffers: Mesa lavapipe 22.x specializes
+// a shader to the values of the uniform buffers its branches depend on, compiles it again
+// at every dispatch and never frees the copies: the host memory of a GPU run grew without
+// bound (tests/gpu_memory.rs keeps it flat). Storage buffers are never specialized.
+@group(0) @binding(0) var<storage, read> sim: Sim;
 @group(0) @binding(1) var<storage, read_write> disks: array<Disk>;
 @group(0) @binding(2) var<storage, read_write> walls: array<Wall>;
 // Generalized velocities (vx, vy, spin, 0), five regions of n_bodies: 0 state (end of
@@ -82,7 +86,7 @@ struct Contact {
 // Previous step's contacts for the warm start: offsets per disk (n_disks + 1), then
 // records (disk_j, rn bits, rt bits, color) in key order.
 @group(0) @binding(7) var<storage, read_write> prev: array<u32>;
-@group(1) @binding(0) var<uniform> args: Args;
+@group(1) @binding(0) var<storage, read> args: Args;
 
 fn ld(k: u32) -> u32 { return atomicLoad(&ints[k]); }
 fn st(k: u32, v: u32) { atomicStore(&ints[k], v); }

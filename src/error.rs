@@ -37,6 +37,11 @@ pub enum Error {
     /// A GPU adapter or device problem.
     #[error("GPU: {0}")]
     Gpu(String),
+    /// No GPU adapter at all: the machine has no driver wgpu can use. Kept apart from
+    /// [`Error::Gpu`] so that a caller can tell "no GPU here" (a test may skip) from a GPU
+    /// that fails (a shader rejected, a buffer over a limit: always an error).
+    #[error("GPU: {0}")]
+    NoAdapter(String),
     /// Input/output error with the path involved.
     #[error("{path}: {source}")]
     Io {

@@ -211,21 +211,47 @@ fn adapter_listing_prints_no_wayland_error_without_a_runtime_dir() {
 
 /// Output into a pipe whose reader has gone (`cdlab config --print-default | head -1`)
 /// ended in a panic ("failed printing to stdout: Broken pipe", exit code 101); cdlab now
-/// ends quietly, as other Unix tools do. The reader is closed before the child writes.
+/// ends quietly, as other Unix tools do: killed by SIGPIPE at its first write, nothing on
+/// stderr. The pipe's read end is closed before cdlab starts, so its first write meets a
+/// closed pipe whatever the timing (closing it after the spawn let a fast child write its
+/// whole output into the pipe's buffer first and pass without meeting a closed pipe).
 #[cfg(unix)]
 #[test]
 fn printing_into_a_closed_pipe_does_not_panic() {
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+    use std::os::fd::FromRawFd;
+    use std::os::unix::process::ExitStatusExt;
+    // With a reader, the command prints something: the closed pipe below is written to.
+    let open = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
         .args(["config", "--print-default"])
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
+        .output()
         .expect("cdlab runs");
-    drop(child.stdout.take());
-    let out = child.wait_with_output().expect("cdlab ends");
+    assert!(open.status.success() && !open.stdout.is_empty());
+
+    let mut fds = [0i32; 2];
+    // SAFETY: pipe() fills the two descriptors of a new pipe; both are owned below.
+    assert_eq!(unsafe { libc::pipe(fds.as_mut_ptr()) }, 0);
+    // SAFETY: fds[0] and fds[1] are open descriptors that nothing else owns.
+    let (reader, writer) = unsafe {
+        (
+            std::os::fd::OwnedFd::from_raw_fd(fds[0]),
+            std::os::fd::OwnedFd::from_raw_fd(fds[1]),
+        )
+    };
+    drop(reader);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args(["config", "--print-default"])
+        .stdout(std::process::Stdio::from(writer))
+        .stderr(std::process::Stdio::piped())
+        .output()
+        .expect("cdlab runs");
     let text = String::from_utf8_lossy(&out.stderr);
-    assert!(!text.contains("panicked"), "stderr: {text}");
-    assert_ne!(out.status.code(), Some(101), "stderr: {text}");
+    assert_eq!(
+        out.status.signal(),
+        Some(libc::SIGPIPE),
+        "expected an end by SIGPIPE, got {}; stderr: {text}",
+        out.status
+    );
+    assert!(text.is_empty(), "stderr: {text}");
 }
 
 /// SIGTERM (what a scheduler sends at a job's time limit) stops a run at a checkpoint with

@@ -726,7 +726,8 @@ fn render_command_draws_the_nearest_snapshot_and_the_curves() {
     // The two snapshots nearest 0.09 hold the same positions: the shear field is zero
     // everywhere, without a band, and still drawn.
     for field in ["displacement", "rotation", "velocity", "forces", "shear"] {
-        for ext in ["png", "svg"] {
+        // SVG first: the PNG's check compares its size with the SVG's.
+        for ext in ["svg", "png"] {
             let out = dir.join(format!("{field}.{ext}"));
             let (ok, text) = cdlab(&[
                 "render",
@@ -741,20 +742,47 @@ fn render_command_draws_the_nearest_snapshot_and_the_curves() {
             assert!(ok, "{text}");
             // 0.09 is nearest the snapshot at 0.1, and the command says so.
             assert!(text.contains("axial strain 0.10000"), "{text}");
-            let len = std::fs::metadata(&out).unwrap().len();
-            assert!(len > 1000, "{} is {len} bytes", out.display());
+            check_snapshot_file(&out, field);
         }
     }
     let curves = dir.join("curves");
     let (ok, text) = cdlab(&["render", run_s, "--curves", "-o", curves.to_str().unwrap()]);
     assert!(ok, "{text}");
-    for f in [
-        "stress_strain.png",
-        "stress_strain.svg",
-        "contacts.png",
-        "contacts.svg",
+    // The curves of the record's series: 101 compression rows, one point each.
+    let doc_text = std::fs::read_to_string(curves.join("stress_strain.svg")).unwrap();
+    let doc = roxmltree::Document::parse(&doc_text).expect("well-formed SVG");
+    let longest = |doc: &roxmltree::Document, c: RGBColor| {
+        svg_elements(doc, "polyline", Some(("stroke", &hex(c))))
+            .iter()
+            .map(|n| points(n).len())
+            .max()
+            .unwrap_or(0)
+    };
+    assert_eq!(longest(&doc, LINE_COLORS[0]), 101, "sigma_1 curve");
+    assert_eq!(longest(&doc, LINE_COLORS[1]), 101, "volumetric strain curve");
+    let texts = svg_texts(&doc);
+    for want in [
+        "axial stress σ₁ (MPa)",
+        "axial strain ε_z (-)",
+        "volumetric strain",
     ] {
-        assert!(curves.join(f).metadata().is_ok_and(|m| m.len() > 1000), "{f}");
+        assert!(texts.iter().any(|t| t.contains(want)), "{want:?} in {texts:?}");
+    }
+    let doc_text = std::fs::read_to_string(curves.join("contacts.svg")).unwrap();
+    let doc = roxmltree::Document::parse(&doc_text).expect("well-formed SVG");
+    let curves_101 = svg_elements(&doc, "polyline", None)
+        .iter()
+        .filter(|n| points(n).len() == 101)
+        .count();
+    assert_eq!(curves_101, 3, "contact counts: three curves of 101 rows");
+    for f in ["stress_strain.png", "contacts.png"] {
+        let img = Img::decode(&std::fs::read(curves.join(f)).unwrap());
+        assert!(
+            img.count(LINE_COLORS[0]) > 500,
+            "{f}: the first curve's color covers {} pixels",
+            img.count(LINE_COLORS[0])
+        );
+        assert!(img.dark_in_rows(img.h - 35, img.h) > 100, "{f}: no x-axis title");
     }
     let fig = dir.join("x.png");
     let fig = fig.to_str().unwrap();
@@ -928,6 +956,55 @@ fn archived_test_draws_its_curves_and_explains_the_rest() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A snapshot figure written by `cdlab render` (the synthetic grid at axial strain 0.1):
+/// the SVG is well formed and says what it shows, of which snapshot and how many disks;
+/// the PNG has the SVG's size and dark text in its title rows.
+fn check_snapshot_file(out: &Path, field: &str) {
+    let title = match field {
+        "displacement" => "displacement since the start of compression",
+        "rotation" => "rotation since",
+        "velocity" => "velocity field",
+        "forces" => "force network",
+        _ => "local shear strain since axial strain",
+    };
+    let svg_path = out.with_extension("svg");
+    if out.extension().is_some_and(|e| e == "svg") {
+        let svg = std::fs::read_to_string(out).unwrap();
+        let doc = roxmltree::Document::parse(&svg).expect("well-formed SVG");
+        let texts = svg_texts(&doc);
+        for want in [title, "axial strain 0.10000", &format!("{} disks", NX * NY)] {
+            assert!(
+                texts.iter().any(|t| t.contains(want)),
+                "{}: {want:?} in {texts:?}",
+                out.display()
+            );
+        }
+    } else {
+        let img = Img::decode(&std::fs::read(out).unwrap());
+        assert!(img.dark_in_rows(0, 30) > 50, "{}: no title", out.display());
+        assert!(img.distinct_colors() > 10, "{}: a blank page", out.display());
+        // Both formats come from one drawing code: the same size.
+        let svg = std::fs::read_to_string(&svg_path).expect("the SVG is written first");
+        let doc = roxmltree::Document::parse(&svg).unwrap();
+        let root = doc.root_element();
+        let size = |a: &str| root.attribute(a).and_then(|v| v.parse::<u32>().ok());
+        assert_eq!(
+            (size("width"), size("height")),
+            (Some(img.w), Some(img.h)),
+            "{}",
+            out.display()
+        );
+    }
+}
+
+/// The texts of an SVG, trimmed.
+fn svg_texts(doc: &roxmltree::Document) -> Vec<String> {
+    svg_elements(doc, "text", None)
+        .iter()
+        .filter_map(|n| n.text().map(|t| t.trim().to_string()))
+        .collect()
+}
+
 #[test]
 fn report_command_writes_its_figures() {
     let dir = scratch("report");
@@ -945,11 +1022,34 @@ fn report_command_writes_its_figures() {
     }
     let (ok, text) = cdlab(&["report", dir.to_str().unwrap()]);
     assert!(ok, "{text}");
-    for f in ["envelope.png", "envelope.svg", "mu_macro.png", "mu_macro.svg"] {
-        assert!(
-            dir.join(f).metadata().is_ok_and(|m| m.len() > 1000),
-            "{f}: {text}"
+    // Three frictions, two pressures each: per friction two filled peak markers and the
+    // legend's, two open residual markers.
+    let svg = std::fs::read_to_string(dir.join("envelope.svg")).unwrap();
+    let doc = roxmltree::Document::parse(&svg).expect("well-formed SVG");
+    for k in 0..3 {
+        let c = hex(friction_color(k, 3));
+        assert_eq!(
+            svg_elements(&doc, "circle", Some(("fill", &c))).len(),
+            3,
+            "friction {k}: peak markers"
         );
+        let open = svg_elements(&doc, "circle", Some(("stroke", &c)))
+            .into_iter()
+            .filter(|n| n.attribute("fill") == Some("none"))
+            .count();
+        assert_eq!(open, 2, "friction {k}: residual markers");
     }
+    let img = Img::decode(&std::fs::read(dir.join("envelope.png")).unwrap());
+    for k in 0..3 {
+        let n = img.count(friction_color(k, 3));
+        assert!(n > 100, "envelope.png, friction {k}: {n} pixels of its color");
+    }
+    // mu_macro: one peak point per friction plus the legend's marker.
+    let svg = std::fs::read_to_string(dir.join("mu_macro.svg")).unwrap();
+    let doc = roxmltree::Document::parse(&svg).expect("well-formed SVG");
+    let peaks = svg_elements(&doc, "circle", Some(("fill", &hex(LINE_COLORS[0])))).len();
+    assert_eq!(peaks, 4, "mu_macro peak markers: 3 frictions and the legend");
+    let img = Img::decode(&std::fs::read(dir.join("mu_macro.png")).unwrap());
+    assert!(img.count(LINE_COLORS[0]) > 100, "mu_macro.png: no peak color");
     let _ = std::fs::remove_dir_all(&dir);
 }

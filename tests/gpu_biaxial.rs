@@ -55,27 +55,66 @@ fn short_biaxial_run_gives_the_same_macroscopic_curve_on_both_backends() {
         curves.push(compression(&obs.rows));
     }
     let (c, g) = (&curves[0], &curves[1]);
-    assert!(c.len() > 10 && g.len() > 10, "{} and {} rows", c.len(), g.len());
-    let mean = |rows: &[SeriesRow]| rows.iter().map(|r| r.sigma1_pa).sum::<f64>() / rows.len() as f64;
-    let (mc, mg) = (mean(c), mean(g));
-    // Band: 10% of the mean axial stress. The two paths solve in f64 and f32 with different
-    // colorings, so contacts slip at different instants; on a 300-disk sample sigma1
-    // fluctuates by about 10% from row to row, its mean over the run much less.
-    assert!(
-        (mc - mg).abs() < 0.1 * mc,
-        "mean sigma1 CPU {mc:.4e} Pa, GPU {mg:.4e} Pa"
-    );
-    // Volume change at the end: within 0.002 (about a third of its value at this strain).
-    let (vc, vg) = (
-        c.last().unwrap().volumetric_strain,
-        g.last().unwrap().volumetric_strain,
-    );
-    assert!((vc - vg).abs() < 2e-3, "final dV/V0 CPU {vc:.4}, GPU {vg:.4}");
+    assert!(c.len() > 40, "{} rows", c.len());
+    // The natural spread of this test: the same CPU run from the compacted sample with one
+    // disk moved by one ulp (1e-15 m). The dynamics are chaotic: contacts open and close at
+    // other instants and the row-by-row curves part within a few rows, so no comparison of
+    // two backends can be tighter than this.
+    let mut nudged = compacted.clone();
+    nudged.disks.pos[0].x = nudged.disks.pos[0].x.next_up();
+    let mut lab = Lab::new(
+        Box::new(CpuBackend::new(nudged.clone(), p.step).unwrap()) as Box<dyn Backend>,
+        p.clone(),
+        &nudged,
+        true,
+    )
+    .unwrap();
+    let mut obs = Collect::default();
+    lab.run(&mut obs).unwrap();
+    let spread = curve_gap(c, &compression(&obs.rows));
+    let gap = curve_gap(c, g);
     println!(
-        "mean sigma1 CPU {:.3} MPa, GPU {:.3} MPa; final dV/V0 CPU {vc:.4}, GPU {vg:.4}",
-        mc / 1e6,
-        mg / 1e6
+        "CPU vs CPU with one disk moved by 1 ulp: {spread:?}; CPU vs GPU: {gap:?} \
+         ([RMS row sigma1, 16-row window sigma1, mean sigma1] relative, max row dV/V0)"
     );
+    // Bands, from a trajectory-divergence study of this test (300 disks, strain 0.006, 63
+    // rows of compression): twelve CPU runs, each with one disk (0, 25, ..., 275) moved by
+    // one ulp, against the unperturbed run. Largest (and smallest) gaps over the twelve:
+    //   RMS over rows of the relative sigma1 difference   0.051 (0.032)
+    //   16-row windows of sigma1, largest relative gap     0.054 (0.004)
+    //   mean sigma1 over the run, relative                 0.014 (0.001)
+    //   largest row difference of dV/V0                    3.9e-4 (1.2e-4)
+    // The GPU run (f32, colored Gauss-Seidel, convergence checked every 8 iterations) gave
+    // 0.046, 0.043, 0.015 and 3.0e-4: inside the CPU's own spread, so f32 and the coloring
+    // add nothing visible over chaos on this test. Bands: 1.5 times the largest CPU gap
+    // (room for the spread of other samples of the ensemble). The former bands (10% on the
+    // mean sigma1, 2e-3 on the final dV/V0) were 7 and 5 times wider.
+    let band = [0.075, 0.08, 0.021, 6e-4];
+    let names = [
+        "RMS row sigma1",
+        "16-row window sigma1",
+        "mean sigma1",
+        "row dV/V0",
+    ];
+    for k in 0..4 {
+        assert!(
+            spread[k] < band[k],
+            "{}: the CPU's 1-ulp spread {:.3e} exceeds the band {:.1e} set from it: the study \
+             above is out of date",
+            names[k],
+            spread[k],
+            band[k]
+        );
+        assert!(
+            gap[k] < band[k],
+            "{}: CPU vs GPU gap {:.3e} exceeds the band {:.1e} (the CPU's own 1-ulp spread: \
+             {:.3e})",
+            names[k],
+            gap[k],
+            band[k],
+            spread[k]
+        );
+    }
 }
 
 /// The state downloaded from the GPU is the state uploaded, to f32 round-off.
@@ -88,14 +127,78 @@ fn scene_round_trips_through_the_gpu() {
     };
     gpu.set_scene(&scene).unwrap();
     let back = gpu.scene().unwrap();
-    // Upload stores f32 coordinates relative to the sample centre: at 30 m from it one f32
-    // ulp is 2e-6 m, so a round trip may move a disk by a few ulps, never by 1e-4 m.
-    let worst = (0..scene.disks.len())
-        .map(|k| (scene.disks.pos[k] - back.disks.pos[k]).length())
+    // Upload stores each coordinate as an f32 relative to the sample centre c (the middle
+    // of the disks' bounding box, src/gpu/backend.rs): rounding to the nearest f32 moves x - c
+    // by at most 2^-24 |x - c| (half an ulp), and adding c back in f64 adds at most one f64
+    // ulp of x. At 30 m from the centre that is 1.8e-6 m; the former bound was 1e-4 m.
+    let d = &scene.disks;
+    let lo = d
+        .pos
+        .iter()
+        .fold(glam::DVec2::splat(f64::INFINITY), |a, p| a.min(*p));
+    let hi = d
+        .pos
+        .iter()
+        .fold(glam::DVec2::splat(f64::NEG_INFINITY), |a, p| a.max(*p));
+    let c = 0.5 * (lo + hi);
+    let bound = |x: f64, c: f64| (x - c).abs() * 2f64.powi(-24) + x.abs() * f64::EPSILON;
+    let mut worst = 0.0f64;
+    let mut check = |what: String, a: glam::DVec2, b: glam::DVec2| {
+        for (x, y, c) in [(a.x, b.x, c.x), (a.y, b.y, c.y)] {
+            assert!(
+                (x - y).abs() <= bound(x, c),
+                "{what}: {x} m came back as {y} m, beyond half an f32 ulp of {} m",
+                x - c
+            );
+            worst = worst.max((x - y).abs());
+        }
+    };
+    for k in 0..d.len() {
+        check(format!("disk {k}"), d.pos[k], back.disks.pos[k]);
+    }
+    for w in 0..scene.walls.len() {
+        check(format!("wall {w}"), scene.walls[w].point, back.walls[w].point);
+    }
+    // The walls are compared too, and something was rounded (the check saw f32 values).
+    assert!(
+        worst > 0.0,
+        "no coordinate changed: the round trip was not through f32"
+    );
+    println!("worst round-trip error {worst:.2e} m");
+}
+
+/// Differences between two curves of the same test (row by row): RMS over rows of the
+/// relative sigma_1 difference, the largest relative difference of sigma_1 summed over
+/// windows of 16 rows, the relative difference of the mean sigma_1 over the run, and the
+/// largest volumetric-strain difference of a row.
+fn curve_gap(a: &[SeriesRow], b: &[SeriesRow]) -> [f64; 4] {
+    // Rows are paired by their index in the compression: the confinement before it lasts a
+    // different number of steps in each run, the compression's rows come at the same
+    // strains (the top wall moves at a set velocity).
+    assert_eq!(a.len(), b.len(), "rows of the compression");
+    let n = a.len();
+    for k in 0..n {
+        let ds = (a[k].strain_axial - b[k].strain_axial).abs();
+        assert!(
+            ds < 1e-5,
+            "row {k}: strains {} and {}",
+            a[k].strain_axial,
+            b[k].strain_axial
+        );
+    }
+    let rel: Vec<f64> = (0..n)
+        .map(|k| (b[k].sigma1_pa - a[k].sigma1_pa) / a[k].sigma1_pa)
+        .collect();
+    let rms = (rel.iter().map(|r| r * r).sum::<f64>() / n as f64).sqrt();
+    let window = |rows: &[SeriesRow], k: usize| rows[k..k + 16].iter().map(|r| r.sigma1_pa).sum::<f64>();
+    let win = (0..=n - 16)
+        .step_by(16)
+        .map(|k| ((window(b, k) - window(a, k)) / window(a, k)).abs())
         .fold(0.0, f64::max);
-    assert!(worst < 1e-4, "worst position error {worst:e} m");
-    let worst_wall = (0..scene.walls.len())
-        .map(|w| (scene.walls[w].point - back.walls[w].point).length())
+    let total = |r: &[SeriesRow]| r.iter().map(|r| r.sigma1_pa).sum::<f64>();
+    let mean_rel = ((total(b) - total(a)) / total(a)).abs();
+    let ev = (0..n)
+        .map(|k| (b[k].volumetric_strain - a[k].volumetric_strain).abs())
         .fold(0.0, f64::max);
-    assert!(worst_wall < 1e-4, "worst wall error {worst_wall:e} m");
+    [rms, win, mean_rel, ev]
 }

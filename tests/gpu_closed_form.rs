@@ -1,6 +1,8 @@
 //! Closed-form cases on the GPU path (docs/validation.md, "Cross-checks between the two
-//! backends": collisions, rolling, statics and a glued-wall case),
-//! with f32 tolerances. Skips visibly without an adapter (see `gpu_support::gpu_or_skip`).
+//! backends": collisions, rolling, statics and a glued-wall case, and GPU twins of the
+//! slipping incline, the sliding-then-rolling disk, the elastic swap and the conservation
+//! checks), with f32 tolerances. Skips visibly without an adapter (see
+//! `gpu_support::gpu_or_skip`).
 
 mod common;
 #[path = "gpu_support/mod.rs"]
@@ -295,4 +297,148 @@ fn gpu_deep_loaded_contact_leaves_the_step_satisfying_its_law() {
             cpu[k].y
         );
     }
+}
+
+/// GPU twin of rolling.rs's slipping incline, with the wall friction apart from the disk
+/// friction: on a 45-degree incline with mu_wall = 0.2 (mu_disk = 0.8, unused by the floor)
+/// the disk slips: a = g (sin a - mu_wall cos a), angular acceleration
+/// -2 mu_wall g cos a / r (Coulomb friction at the contact point, I = m r^2 / 2).
+#[test]
+fn gpu_disk_on_a_steep_incline_slips_with_the_wall_friction() {
+    let (r, steps) = (0.8, 200u32);
+    let a = std::f64::consts::FRAC_PI_4;
+    let mut s = scene(0.8);
+    s.material.mu_wall = 0.2;
+    s.walls.push(floor());
+    s.gravity = G * DVec2::new(a.sin(), -a.cos());
+    s.disks.push(DVec2::new(0.0, r), r, RHO).unwrap();
+    let Some(mut g) = gpu_or_skip("slipping incline", &s, gpu_params(Method::ColoredGs)) else {
+        return;
+    };
+    g.run(steps, &Loading::default()).unwrap();
+    let out = g.scene().unwrap();
+    let t = steps as f64 * g.params().dt;
+    let (acc, alpha) = (out.disks.vel[0].x / t, out.disks.spin[0] / t);
+    let expected = G * (a.sin() - 0.2 * a.cos());
+    let expected_alpha = -2.0 * 0.2 * G * a.cos() / r;
+    // As the rolling incline above: f32 velocity summed over 200 steps, 1e-4 relative.
+    assert!(
+        (acc - expected).abs() < 1e-4 * expected,
+        "a = {acc}, expected {expected} m/s^2"
+    );
+    assert!(
+        (alpha - expected_alpha).abs() < 1e-4 * expected_alpha.abs(),
+        "alpha = {alpha}, expected {expected_alpha} rad/s^2"
+    );
+}
+
+/// GPU twin of rolling.rs's sliding-then-rolling disk: thrown at v0 = 3 m/s with backspin
+/// w0 = 4 rad/s on a floor with mu 0.4, the slip v + r w decays at 3 mu g and rolling starts
+/// at t* = (v0 + r w0) / (3 mu g) = 0.595 s; afterwards v = (2 v0 - r w0) / 3 = 4/3 m/s and
+/// w = -v / r. Checked at 1.5 t*, well into the rolling.
+#[test]
+fn gpu_sliding_spinning_disk_ends_rolling_at_the_predicted_velocity() {
+    let (mu, r, v0, w0) = (0.4, 0.5, 3.0, 4.0);
+    let mut s = scene(mu);
+    s.walls.push(floor());
+    s.gravity = DVec2::new(0.0, -G);
+    s.disks.push(DVec2::new(0.0, r), r, RHO).unwrap();
+    s.disks.vel[0] = DVec2::new(v0, 0.0);
+    s.disks.spin[0] = w0;
+    let p = gpu_params(Method::ColoredGs);
+    let Some(mut g) = gpu_or_skip("sliding then rolling", &s, p) else {
+        return;
+    };
+    let t_roll = (v0 + r * w0) / (3.0 * mu * G);
+    let v_final = (2.0 * v0 - r * w0) / 3.0;
+    g.run((1.5 * t_roll / p.dt) as u32, &Loading::default()).unwrap();
+    let out = g.scene().unwrap();
+    let (v, w) = (out.disks.vel[0].x, out.disks.spin[0]);
+    // f32: the slip decays by the same 1.7e-2 m/s per step for 1190 steps; each step rounds
+    // v and w to an f32 ulp (2.4e-7 at 3 m/s), so 1190 roundings leave at most 3e-4 m/s,
+    // and once rolling the slip is held at 0 by the sticking contact.
+    assert!((v - v_final).abs() < 3e-4, "v = {v}, expected {v_final} m/s");
+    assert!(
+        (w + v_final / r).abs() < 3e-4 / r,
+        "w = {w}, expected {} rad/s",
+        -v_final / r
+    );
+    assert!((v + r * w).abs() < 1e-5, "still slipping at {} m/s", v + r * w);
+}
+
+/// GPU twin of collisions.rs's elastic swap: equal disks at 2 and -1 m/s, e_n = 1, swap
+/// their velocities (closed form of a head-on elastic collision of equal masses).
+#[test]
+fn gpu_elastic_head_on_collision_swaps_velocities() {
+    for method in [Method::ColoredGs, Method::Jacobi] {
+        let mut s = scene(0.0);
+        s.material.e_n = 1.0;
+        s.disks.push(DVec2::new(-1.0, 0.0), 1.0, RHO).unwrap();
+        s.disks.push(DVec2::new(1.0, 0.0), 1.0, RHO).unwrap();
+        s.disks.vel[0] = DVec2::new(2.0, 0.0);
+        s.disks.vel[1] = DVec2::new(-1.0, 0.0);
+        let Some(mut g) = gpu_or_skip("elastic swap", &s, gpu_params(method)) else {
+            return;
+        };
+        g.run(1, &Loading::default()).unwrap();
+        let out = g.scene().unwrap();
+        // As the inelastic case: f32 ulps plus the solver's 1e-6 relative stop.
+        for (k, want) in [(0, -1.0), (1, 2.0)] {
+            let v = out.disks.vel[k];
+            assert!(
+                (v.x - want).abs() < 1e-5,
+                "{method:?}: v{k} = {v}, expected {want}"
+            );
+            assert_eq!(v.y, 0.0);
+        }
+    }
+}
+
+/// GPU twins of collisions.rs's conservation checks: a free cloud of 144 disks (no wall, no
+/// gravity) keeps its linear momentum, and a cloud in a fixed box with restitution 0 never
+/// gains kinetic energy, both to f32 round-off.
+#[test]
+fn gpu_cloud_conserves_momentum_and_never_gains_energy() {
+    let mut s = cloud(12, 12, 10.0, 7);
+    s.material.mu_disk = 0.5;
+    let mut p = gpu_params(Method::ColoredGs);
+    p.solver.tol = 1e-5;
+    p.solver.max_iter = 200;
+    let Some(mut g) = gpu_or_skip("free cloud", &s, p) else {
+        return;
+    };
+    let scale: f64 = (0..s.disks.len())
+        .map(|k| s.disks.mass[k] * s.disks.vel[k].length())
+        .sum();
+    let p0 = momentum(&s);
+    g.run(300, &Loading::default()).unwrap();
+    let out = g.scene().unwrap();
+    let dp = (momentum(&out) - p0).length();
+    // Every impulse is applied pairwise, so the drift is f32 rounding only: each velocity
+    // update rounds to half an f32 ulp (2^-24 relative) with errors of either sign that
+    // mostly cancel (the drift seen is a fraction of an ulp of sum m |v| over these 300
+    // steps). Bound: 10 ulps of sum m |v|; a one-sided impulse (a missing reaction) would
+    // move the momentum by whole impulses, orders of magnitude more.
+    let bound = 10.0 * 2f64.powi(-24) * scale;
+    assert!(dp <= bound, "dp = {dp:e} kg m/s per m, bound {bound:e}");
+
+    let mut s = cloud(10, 10, 5.0, 11);
+    add_box(&mut s, -1.5, 22.0, -1.5, 22.0);
+    s.material.mu_disk = 0.4;
+    let mut g = gpu_or_skip("cloud in a box", &s, p).unwrap();
+    let mut ke = s.disks.kinetic_energy();
+    let ke0 = ke;
+    for step in 0..100 {
+        g.run(3, &Loading::default()).unwrap();
+        let now = g.scene().unwrap().disks.kinetic_energy();
+        // Collisions with e = 0 dissipate; f32 velocities may add their rounding: v rounded
+        // by 2^-24 relative moves v^2 by 2^-23, so at most 4 x 2^-24 of the energy.
+        assert!(
+            now <= ke * (1.0 + 4.0 * 2f64.powi(-24)),
+            "steps {}: {ke} -> {now} J/m",
+            3 * step
+        );
+        ke = now;
+    }
+    assert!(ke < 0.9 * ke0, "collisions must dissipate: {ke0} -> {ke} J/m");
 }

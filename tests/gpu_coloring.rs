@@ -6,7 +6,8 @@
 //! 50,000-disk bench). A hexagonal packing of equal disks gives the largest contact graph
 //! for the fewest disks (three contacts owned per disk), so it is the cheapest trigger.
 //!
-//! Skips visibly without an adapter, fails with `CDLAB_REQUIRE_GPU=1`.
+//! Skips visibly without an adapter, fails with `CDLAB_REQUIRE_GPU=1` (or true, yes, on);
+//! any other GPU error fails.
 
 mod common;
 #[path = "gpu_support/mod.rs"]

@@ -3,7 +3,8 @@
 //! error scope and outside one. Each error names the adapter and the way out
 //! (`--backend cpu`).
 //!
-//! Skips visibly without an adapter, fails with `CDLAB_REQUIRE_GPU=1`.
+//! Skips visibly without an adapter, fails with `CDLAB_REQUIRE_GPU=1` (or true, yes, on);
+//! any other GPU error fails.
 
 mod common;
 #[path = "gpu_support/mod.rs"]
@@ -79,4 +80,44 @@ fn gpu_errors_come_back_as_cdlab_errors_naming_the_adapter() {
         })
     })
     .expect("a 256-byte buffer is valid");
+}
+
+/// Only a missing adapter may be reported as a skip: every other GPU error fails the test,
+/// whether a GPU is required or not, and a missing adapter fails it when one is required.
+#[test]
+fn only_a_missing_adapter_is_a_skip() {
+    use std::panic::{AssertUnwindSafe, catch_unwind};
+    let no_adapter = || Err::<(), _>(cdlab::Error::NoAdapter("no adapter".into()));
+    let failing = || Err::<(), _>(cdlab::Error::Gpu("shader rejected by the driver".into()));
+    assert_eq!(decide("t", no_adapter(), false), None);
+    assert_eq!(decide("t", Ok(7), false), Some(7));
+    assert_eq!(decide("t", Ok(7), true), Some(7));
+    for (what, require, opened) in [
+        ("missing adapter, required", true, no_adapter()),
+        ("failing GPU, not required", false, failing()),
+        ("failing GPU, required", true, failing()),
+    ] {
+        let r = catch_unwind(AssertUnwindSafe(|| decide("t", opened, require)));
+        assert!(r.is_err(), "{what}: must fail the test, not skip it");
+    }
+    // The device's own "no adapter" comes back as the distinct variant, not as Error::Gpu.
+    let e = cdlab::Error::NoAdapter(cdlab::gpu::device::NO_ADAPTER.into());
+    assert!(e.to_string().starts_with("GPU: no GPU adapter"), "{e}");
+}
+
+/// `CDLAB_REQUIRE_GPU` takes the usual spellings of true and false; anything else is an
+/// error rather than a silent "no".
+#[test]
+fn require_gpu_accepts_the_usual_true_and_false_values() {
+    for v in ["1", "true", "TRUE", "True", "yes", "YES", "on", "On", " 1 "] {
+        assert!(parse_require(Some(v)), "{v:?} must mean true");
+    }
+    for v in ["0", "false", "FALSE", "no", "No", "off", "OFF", ""] {
+        assert!(!parse_require(Some(v)), "{v:?} must mean false");
+    }
+    assert!(!parse_require(None), "unset must mean false");
+    for v in ["2", "ture", "y e s", "required"] {
+        let r = std::panic::catch_unwind(|| parse_require(Some(v)));
+        assert!(r.is_err(), "{v:?} must be refused, not read as false");
+    }
 }

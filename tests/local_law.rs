@@ -81,3 +81,82 @@ fn coupled_block_solution_satisfies_signorini_and_coulomb() {
         "each case must be exercised: {hits:?}"
     );
 }
+
+/// Friction exactly 0: no tangential impulse at all, and the normal impulse closes the
+/// contact alone, R_n = -u_free_n / W_nn (Signorini with a frictionless cone), for the
+/// diagonal and the coupled block alike (with mu = 0 the coupled slide has u_n = 0 and
+/// R_t = 0, so W_nn R_n + u_free_n = 0).
+#[test]
+fn zero_friction_gives_no_tangential_impulse() {
+    let mut rng = Rng(11);
+    for _ in 0..2000 {
+        let (a, b) = (rng.range(0.1, 10.0), rng.range(0.1, 10.0));
+        let c = rng.range(-0.9, 0.9) * (a * b).sqrt();
+        let uf = [rng.range(-5.0, -0.01), rng.range(-5.0, 5.0)];
+        let (rn, rt) = solve_diagonal(a, b, uf[0], uf[1], 0.0);
+        assert_eq!(rt, 0.0);
+        assert_eq!(rn, -uf[0] / a);
+        let (rn, rt) = solve_block(a, b, c, uf[0], uf[1], 0.0);
+        assert_eq!(rt, 0.0, "block {a} {b} {c} {uf:?}");
+        assert!(
+            (rn + uf[0] / a).abs() <= 1e-12 * rn,
+            "block: {rn}, expected {}",
+            -uf[0] / a
+        );
+    }
+}
+
+/// Friction above 2 (a rough-walled test uses up to 10): the same laws, with sticking and
+/// sliding both exercised.
+#[test]
+fn friction_above_two_satisfies_signorini_and_coulomb() {
+    let mut rng = Rng(12);
+    let mut hits = [[0; 3]; 2];
+    for _ in 0..20_000 {
+        let (a, b) = (rng.range(0.1, 10.0), rng.range(0.1, 30.0));
+        let c = rng.range(-0.9, 0.9) * (a * b).sqrt();
+        // Tangential free velocities up to 200 times the normal one, so that even mu = 10
+        // slides.
+        let uf = [rng.range(-5.0, 5.0), rng.range(-1000.0, 1000.0)];
+        let mu = rng.range(2.0, 10.0);
+        let (rn, rt) = solve_diagonal(a, b, uf[0], uf[1], mu);
+        hits[0][check([[a, 0.0], [0.0, b]], uf, mu, [rn, rt])] += 1;
+        let (rn, rt) = solve_block(a, b, c, uf[0], uf[1], mu);
+        hits[1][check([[a, c], [c, b]], uf, mu, [rn, rt])] += 1;
+    }
+    assert!(
+        hits.iter().flatten().all(|&h| h > 500),
+        "each case must be exercised: {hits:?}"
+    );
+}
+
+/// W_tt = 0: a tangential impulse moves nothing (no tangential mobility), so the law
+/// leaves it at 0 whatever the tangential velocity, and the normal impulse is unchanged.
+#[test]
+fn no_tangential_mobility_gives_no_tangential_impulse() {
+    for (ufn, uft, mu) in [(-4.0, -3.0, 0.5), (-4.0, 7.0, 2.5), (1.0, 3.0, 0.3)] {
+        let (rn, rt) = solve_diagonal(2.0, 0.0, ufn, uft, mu);
+        assert_eq!(rt, 0.0, "{ufn} {uft} {mu}");
+        assert_eq!(rn, if ufn < 0.0 { -ufn / 2.0 } else { 0.0 });
+    }
+}
+
+/// A singular block (W_nt^2 = W_nn W_tt: a body that moves only along one oblique axis)
+/// has no sticking solution to solve for (the stick branch needs det > 0); the law must
+/// still find the slide that satisfies Signorini and Coulomb, in both directions.
+#[test]
+fn singular_block_slides_by_the_law() {
+    let mut rng = Rng(13);
+    let mut hits = [0; 3];
+    for _ in 0..5000 {
+        let (a, b) = (rng.range(0.1, 10.0), rng.range(0.1, 10.0));
+        let c = (a * b).sqrt() * if rng.uniform() < 0.5 { 1.0 } else { -1.0 };
+        let uf = [rng.range(-5.0, -0.01), rng.range(-5.0, 5.0)];
+        // Below 1/(slope of the axis) the slide's normal equation stays solvable.
+        let mu = rng.range(0.0, 0.9) * (a / b).sqrt();
+        let (rn, rt) = solve_block(a, b, c, uf[0], uf[1], mu);
+        assert!(rn > 0.0, "an approaching contact pushes: {rn}");
+        hits[check([[a, c], [c, b]], uf, mu, [rn, rt])] += 1;
+    }
+    assert!(hits[2] > 1000, "sliding must be exercised: {hits:?}");
+}

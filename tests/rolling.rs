@@ -103,3 +103,36 @@ fn sliding_spinning_disk_on_a_floor_ends_rolling_at_the_predicted_velocity() {
         s.disks.spin[0]
     );
 }
+
+/// Wall friction and disk friction are separate coefficients: on a 45-degree incline (the
+/// floor is a wall) a disk slips with a = g (sin a - mu_wall cos a) whatever mu_disk is, and
+/// rolls at (2/3) g sin a when mu_wall alone allows it (tan a = 1 <= 3 mu_wall). Swapping the
+/// two coefficients swaps the outcomes, so the floor reads mu_wall, not mu_disk.
+#[test]
+fn a_wall_uses_the_wall_friction_not_the_disk_friction() {
+    let (r, a) = (0.8, std::f64::consts::FRAC_PI_4);
+    let run = |mu_disk: f64, mu_wall: f64| {
+        let mut s = scene(mu_disk);
+        s.material.mu_wall = mu_wall;
+        s.walls.push(floor());
+        s.gravity = G * DVec2::new(a.sin(), -a.cos());
+        s.disks.push(DVec2::new(0.0, r), r, RHO).unwrap();
+        let mut e = engine(Method::Gs);
+        for _ in 0..200 {
+            e.step(&mut s).unwrap();
+        }
+        s.disks.vel[0].x / (200.0 * e.params.dt)
+    };
+    let slip = run(0.8, 0.2);
+    let expected = G * (a.sin() - 0.2 * a.cos());
+    assert!(
+        (slip - expected).abs() < 1e-9 * expected,
+        "mu_wall 0.2: a = {slip}, expected {expected} m/s^2 (slipping)"
+    );
+    let roll = run(0.2, 0.8);
+    let expected = 2.0 / 3.0 * G * a.sin();
+    assert!(
+        (roll - expected).abs() < 1e-9 * expected,
+        "mu_wall 0.8: a = {roll}, expected {expected} m/s^2 (rolling)"
+    );
+}

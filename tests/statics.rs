@@ -21,7 +21,11 @@ fn normal_force(_s: &Scene, e: &cdlab::engine::CpuEngine, i: usize, j: usize) ->
 }
 
 fn column(gravity: bool, method: Method) {
-    let (n, r, force) = (5usize, 1.0, 2.0e6);
+    column_of(5, gravity, method);
+}
+
+fn column_of(n: usize, gravity: bool, method: Method) {
+    let (r, force) = (1.0, 2.0e6);
     let mut s = scene(0.3);
     if gravity {
         s.gravity = DVec2::new(0.0, -G);
@@ -94,6 +98,16 @@ fn loaded_column_under_gravity_adds_the_weights_above() {
     column(true, Method::ColoredGs);
 }
 
+/// Jacobi (every contact updated from the same iterate, relaxed) on a column of 30 disks,
+/// 31 contacts in one chain: a determinate problem whose forces the hand calculation fixes
+/// (top force plus the weights above each contact), the same as Gauss-Seidel reaches. A
+/// chain is Jacobi's slow case (information travels one contact per iteration).
+#[test]
+fn jacobi_on_a_long_loaded_column_reaches_the_statically_determined_forces() {
+    column_of(30, true, Method::Jacobi);
+    column_of(30, true, Method::Gs);
+}
+
 #[test]
 fn frictionless_pyramid_in_a_box_matches_the_hand_calculation() {
     // Two disks of radius 1 on the floor touching each other and the side walls, a third
@@ -112,12 +126,22 @@ fn frictionless_pyramid_in_a_box_matches_the_hand_calculation() {
         e.step(&mut s).unwrap();
     }
     let (floor, left, right) = (3, 5, 6);
-    // Hand calculation: each upper contact carries N = W / (2 cos 30) = W / sqrt(3); its
-    // horizontal part N sin 30 = W / (2 sqrt 3) goes to the side wall; the floor carries
-    // the bottom disk's weight plus N cos 30 = W / 2; the bottom disks press not at all on
-    // each other.
+    // Hand calculation. Seven contact forces, six equations of equilibrium (two per disk):
+    // the problem is statically indeterminate, and the force N_01 between the two bottom
+    // disks can take any value >= 0 (pressing them together more loads the side walls by as
+    // much). What statics fixes, and only that, is asserted:
+    // - top disk: its two contacts, 60 degrees apart about the vertical, carry
+    //   N = W / (2 cos 30) = W / sqrt(3) each (its horizontal balance makes them equal);
+    // - bottom disk, vertical: the floor carries its weight plus N cos 30 = W / 2, so 1.5 W;
+    // - bottom disk, horizontal: its side wall carries N sin 30 + N_01 = W / (2 sqrt 3) +
+    //   N_01, so both walls carry the same force, at least W / (2 sqrt 3);
+    // - every normal force is >= 0 (contacts only push), and each disk's contact forces
+    //   and weight sum to zero as vectors.
     let tol = 1e-6 * w;
     let n_top = w / 3f64.sqrt();
+    let n_01 = normal_force(&s, &e, 0, 1);
+    assert!(n_01 >= -tol, "bottom disks pull each other with {n_01} N/m");
+    let mut side_forces = Vec::new();
     for (bottom, side) in [(0, left), (1, right)] {
         let got = normal_force(&s, &e, 2, bottom);
         assert!(
@@ -131,17 +155,112 @@ fn frictionless_pyramid_in_a_box_matches_the_hand_calculation() {
             1.5 * w
         );
         let got = normal_force(&s, &e, bottom, side);
-        let expected = w / (2.0 * 3f64.sqrt());
+        let expected = w / (2.0 * 3f64.sqrt()) + n_01;
         assert!(
             (got - expected).abs() < tol,
-            "wall at {bottom}: {got}, expected {expected} N/m"
+            "wall at {bottom}: {got}, expected W/(2 sqrt 3) + N_01 = {expected} N/m"
+        );
+        side_forces.push(got);
+    }
+    assert!(
+        (side_forces[0] - side_forces[1]).abs() < tol,
+        "side walls {side_forces:?} N/m: the box is not in horizontal equilibrium"
+    );
+    assert_each_disk_balanced(&s, &e, tol);
+}
+
+/// Each disk's contact forces (impulse / dt along the normal, which points from j to i; no
+/// friction, so no tangential part) and its weight sum to zero; every normal force pushes.
+fn assert_each_disk_balanced(s: &Scene, e: &cdlab::engine::CpuEngine, tol: f64) {
+    let dt = e.params.dt;
+    for k in 0..s.disks.len() {
+        let mut sum = s.disks.mass[k] * s.gravity;
+        for c in e.contacts() {
+            if c.i as usize == k {
+                sum += c.n * c.rn / dt;
+            } else if c.j as usize == k {
+                sum -= c.n * c.rn / dt;
+            }
+            assert!(c.rn >= 0.0, "contact {}-{}: normal impulse {}", c.i, c.j, c.rn);
+            assert_eq!(c.rt, 0.0, "friction 0: no tangential impulse");
+        }
+        assert!(sum.length() < tol, "disk {k}: forces sum to {sum} N/m");
+    }
+}
+
+/// Two layers in a box, larger than the pyramid: four disks of radius 1 on the floor in a
+/// row from wall to wall (centres x = -3, -1, 1, 3), two more in the outer pockets (x = -2
+/// and 2, 60 degrees above their supports, not touching each other or the walls); gravity,
+/// no friction. Hand calculation (W = weight of a disk, N_a the force between the two left
+/// bottom disks, left undetermined by statics like the pyramid's N_01):
+/// - each upper disk rests on two contacts of W / sqrt(3);
+/// - each bottom disk carries one upper contact: the floor under it carries 1.5 W;
+/// - horizontal balance of the bottom disks from the left: wall = W/(2 sqrt 3) + N_a; the
+///   middle contact = N_a + W/(2 sqrt 3); the same from the right with N_c, and the middle
+///   disks' balances give N_a = N_c. So the two walls carry the same force and the middle
+///   contact exceeds each outer one by exactly W / (2 sqrt 3): it is never unloaded.
+#[test]
+fn two_layers_in_a_box_match_the_hand_calculation() {
+    let mut s = scene(0.0);
+    s.gravity = DVec2::new(0.0, -G);
+    add_box(&mut s, -4.0, 4.0, 0.0, 100.0);
+    for x in [-3.0, -1.0, 1.0, 3.0] {
+        s.disks.push(DVec2::new(x, 1.0), 1.0, RHO).unwrap();
+    }
+    for x in [-2.0, 2.0] {
+        s.disks.push(DVec2::new(x, 1.0 + 3f64.sqrt()), 1.0, RHO).unwrap();
+    }
+    let w = s.disks.mass[0] * G;
+    let mut e = engine(Method::Gs);
+    for _ in 0..10 {
+        e.step(&mut s).unwrap();
+    }
+    // Bodies: disks 0-5, then the walls of add_box (floor, top, left, right).
+    let (floor, left, right) = (6, 8, 9);
+    let tol = 1e-6 * w;
+    let near = |got: f64, expected: f64, what: &str| {
+        assert!(
+            (got - expected).abs() < tol,
+            "{what}: {got} N/m, expected {expected} N/m"
+        )
+    };
+    let n_up = w / 3f64.sqrt();
+    let h = w / (2.0 * 3f64.sqrt());
+    for (upper, supports) in [(4, [0, 1]), (5, [2, 3])] {
+        for b in supports {
+            near(
+                normal_force(&s, &e, upper, b),
+                n_up,
+                &format!("upper {upper} on {b}"),
+            );
+        }
+    }
+    for b in 0..4 {
+        near(
+            normal_force(&s, &e, b, floor),
+            1.5 * w,
+            &format!("floor under {b}"),
         );
     }
-    let got = normal_force(&s, &e, 0, 1);
-    assert!(
-        got.abs() < tol,
-        "bottom disks press each other with {got} N/m, expected 0"
+    let (n_a, n_b, n_c) = (
+        normal_force(&s, &e, 0, 1),
+        normal_force(&s, &e, 1, 2),
+        normal_force(&s, &e, 2, 3),
     );
+    near(normal_force(&s, &e, 0, left), h + n_a, "left wall");
+    near(normal_force(&s, &e, 3, right), h + n_c, "right wall");
+    near(n_b, n_a + h, "middle contact");
+    near(n_a, n_c, "outer contacts");
+    assert!(n_b >= h - tol, "middle contact {n_b} N/m, at least {h} N/m");
+    // The upper disks touch neither each other nor the walls.
+    for c in e.contacts() {
+        let pair = (c.i as usize, c.disk_j as usize);
+        assert!(
+            !matches!(pair, (4, 5) | (5, 4) | (4, 8) | (5, 9)),
+            "unexpected contact {pair:?}"
+        );
+    }
+    assert_each_disk_balanced(&s, &e, tol);
 }
 
 /// A column of disks on the floor under gravity whose two lowest disks overlap by 1% of

@@ -111,6 +111,10 @@ pub struct Saturation {
     pub rms: f64,
 }
 
+/// Levenberg-Marquardt iterations allowed to [`saturation`] (a dozen suffice on the
+/// campaign's data; a fit still moving after this many is reported as not converged).
+pub const ITERATIONS: usize = 500;
+
 fn solve3(m: [[f64; 3]; 3], r: [f64; 3]) -> Option<[f64; 3]> {
     let inv = invert3(m)?;
     Some([0, 1, 2].map(|i| (0..3).map(|j| inv[i][j] * r[j]).sum()))
@@ -134,14 +138,27 @@ fn invert3(m: [[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
 
 /// Fits `y = a - b exp(-c x)` by Levenberg-Marquardt from a start taken from the data
 /// (a = largest y, b = a - smallest y, c = 1 / mean x). Returns `None` when the data cannot
-/// determine three parameters (fewer than three points, or no convergence).
+/// determine three parameters: fewer than three points, fewer than three distinct x (a
+/// curve of three parameters through two abscissae is not unique), a constant y (then b = 0
+/// and c is anything), a non-finite value, no convergence within the iteration budget, or
+/// a solution where the parameters are not determined (singular normal matrix, as when c
+/// runs off to infinity on step-like data).
 pub fn saturation(x: &[f64], y: &[f64]) -> Option<Saturation> {
     let n = x.len();
-    if n < 3 || x.len() != y.len() {
+    if n < 3 || x.len() != y.len() || x.iter().chain(y).any(|v| !v.is_finite()) {
+        return None;
+    }
+    let mut distinct = x.to_vec();
+    distinct.sort_by(f64::total_cmp);
+    distinct.dedup();
+    if distinct.len() < 3 {
         return None;
     }
     let ymax = y.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
     let ymin = y.iter().cloned().fold(f64::INFINITY, f64::min);
+    if ymax == ymin {
+        return None;
+    }
     let mx = x.iter().sum::<f64>() / n as f64;
     let mut p = [ymax, (ymax - ymin).max(1e-6), 1.0 / mx.max(1e-6)];
     let rss = |p: &[f64; 3]| -> f64 {
@@ -152,7 +169,8 @@ pub fn saturation(x: &[f64], y: &[f64]) -> Option<Saturation> {
     };
     let mut lambda = 1e-3;
     let mut cur = rss(&p);
-    for _ in 0..500 {
+    let mut converged = false;
+    for _ in 0..ITERATIONS {
         let mut jtj = [[0.0; 3]; 3];
         let mut jtr = [0.0; 3];
         for (&xi, &yi) in x.iter().zip(y) {
@@ -182,14 +200,30 @@ pub fn saturation(x: &[f64], y: &[f64]) -> Option<Saturation> {
             cur = next;
             lambda = (lambda / 10.0).max(1e-12);
             if done {
+                converged = true;
                 break;
             }
         } else {
             lambda *= 10.0;
             if lambda > 1e12 {
+                // No step, however short, lowers the residual: a minimum to round-off.
+                converged = true;
                 break;
             }
         }
+    }
+    if !converged {
+        return None;
+    }
+    // A rate so large that the curve is a step at the data's x (or so small that it is
+    // flat): the data no longer see c, which any larger (smaller) value fits as well.
+    let xmax = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let sensitivity = x
+        .iter()
+        .map(|&xi| (p[1] * xi * (-p[2] * xi).exp()).abs())
+        .fold(0.0, f64::max);
+    if sensitivity.is_nan() || sensitivity <= 1e-9 * p[1].abs() * xmax {
+        return None;
     }
     // Covariance sigma^2 (J^T J)^-1 at the solution.
     let mut jtj = [[0.0; 3]; 3];
@@ -202,12 +236,12 @@ pub fn saturation(x: &[f64], y: &[f64]) -> Option<Saturation> {
             }
         }
     }
-    let se = match (n > 3, invert3(jtj)) {
-        (true, Some(inv)) => {
-            let s2 = cur / (n - 3) as f64;
-            [0, 1, 2].map(|i| (s2 * inv[i][i]).sqrt())
-        }
-        _ => [f64::NAN; 3],
+    let inv = invert3(jtj)?;
+    let se = if n > 3 {
+        let s2 = cur / (n - 3) as f64;
+        [0, 1, 2].map(|i| (s2 * inv[i][i]).sqrt())
+    } else {
+        [f64::NAN; 3]
     };
     p.iter().all(|v| v.is_finite()).then_some(Saturation {
         a: p[0],
@@ -251,6 +285,56 @@ mod tests {
             (l.slope - 0.6).abs() < 1e-12 && (l.intercept - 0.2).abs() < 1e-12,
             "{l:?}"
         );
+    }
+
+    /// Degenerate data give `None`, never parameters the data do not determine.
+    #[test]
+    fn saturation_fit_refuses_degenerate_data() {
+        let x4 = [1.0, 2.0, 3.0, 4.0];
+        let cases: [(&str, Vec<f64>, Vec<f64>); 6] = [
+            // Three parameters need three points.
+            ("two points", vec![1.0, 2.0], vec![0.5, 0.7]),
+            ("no point", vec![], vec![]),
+            // All x equal: one abscissa fixes a - b exp(-c x) at one value only.
+            ("all x equal", vec![2.0; 5], vec![0.5, 0.6, 0.7, 0.6, 0.5]),
+            // Two distinct x: a curve of three parameters through two abscissae is not unique.
+            (
+                "two distinct x",
+                vec![1.0, 1.0, 2.0, 2.0],
+                vec![0.5, 0.5, 0.7, 0.7],
+            ),
+            // Constant y: b = 0 and c is anything.
+            ("constant y", x4.to_vec(), vec![0.6; 4]),
+            // Step-like data from x = 0: 1 - exp(-c x) fits them better as c grows without
+            // bound; no finite c is the fit.
+            (
+                "step at 0",
+                vec![0.0, 1.0, 2.0, 3.0, 4.0],
+                vec![0.0, 1.0, 1.0, 1.0, 1.0],
+            ),
+        ];
+        for (what, x, y) in cases {
+            assert_eq!(saturation(&x, &y), None, "{what}");
+        }
+        assert_eq!(saturation(&[1.0, f64::NAN, 3.0], &[0.1, 0.2, 0.3]), None, "NaN");
+        assert_eq!(saturation(&x4, &[0.1, 0.2, 0.3]), None, "lengths differ");
+    }
+
+    /// Data on a straight line have no best saturation curve: a - b exp(-c x) tends to the
+    /// line a - b + b c x only as c -> 0 with a, b -> infinity, so the iterations never
+    /// settle, and the fit says so with `None` instead of returning where it stopped.
+    #[test]
+    fn saturation_fit_that_does_not_converge_is_none() {
+        let x = [1.0, 2.0, 3.0, 4.0];
+        for y in [[1.0, 2.0, 3.0, 4.0], [4.0, 3.0, 2.0, 1.0]] {
+            assert_eq!(saturation(&x, &y), None, "line {y:?}");
+        }
+        // Three points of a true saturation curve still fit exactly (n = 3 is enough).
+        let x3: [f64; 3] = [0.1, 1.0, 5.0];
+        let y3: Vec<f64> = x3.iter().map(|m| 0.9 - 0.7 * (-3.0 * m).exp()).collect();
+        let f = saturation(&x3, &y3).expect("three points of the curve");
+        assert!((f.a - 0.9).abs() < 1e-6 && (f.c - 3.0).abs() < 1e-4, "{f:?}");
+        assert!(f.se.iter().all(|s| s.is_nan()), "no standard error from 3 points");
     }
 
     #[test]

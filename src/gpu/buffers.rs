@@ -395,13 +395,13 @@ impl Buffers {
             sim: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("sim"),
                 size: size_of::<SimParams>() as u64,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
             args: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("args"),
                 size: args_slots(cap) as u64 * ARGS_STRIDE,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
             disks: storage(device, "disks", sizes[0].1, none),

@@ -193,7 +193,7 @@ pub fn list_adapters() -> Vec<AdapterSummary> {
 }
 
 /// Opens the best adapter: hardware first, software with a warning on stderr, and
-/// [`Error::Gpu`] naming the packages to install when there is none.
+/// [`Error::NoAdapter`] naming the packages to install when there is none.
 pub fn open() -> Result<GpuDevice> {
     check_backend_env()?;
     let instance = instance();
@@ -203,7 +203,7 @@ pub fn open() -> Result<GpuDevice> {
     let adapter = adapters
         .into_iter()
         .next()
-        .ok_or_else(|| Error::Gpu(NO_ADAPTER.to_string()))?;
+        .ok_or_else(|| Error::NoAdapter(NO_ADAPTER.to_string()))?;
     let info = adapter.get_info();
     if info.device_type == wgpu::DeviceType::Cpu {
         eprintln!(

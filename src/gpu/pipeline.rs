@@ -83,7 +83,10 @@ impl Pipelines {
 
     fn create(device: &wgpu::Device) -> Result<Self> {
         let storage = wgpu::BufferBindingType::Storage { read_only: false };
-        let mut entries = vec![entry(0, wgpu::BufferBindingType::Uniform, false)];
+        // The parameters and the per-dispatch arguments are read-only storage, not uniform
+        // buffers: see the note at `sim` in shaders/common.wgsl (a driver leak).
+        let params = wgpu::BufferBindingType::Storage { read_only: true };
+        let mut entries = vec![entry(0, params, false)];
         entries.extend((1..=7).map(|b| entry(b, storage, false)));
         let group0 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("cdlab group 0"),
@@ -91,7 +94,7 @@ impl Pipelines {
         });
         let group1 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("cdlab group 1"),
-            entries: &[entry(0, wgpu::BufferBindingType::Uniform, true)],
+            entries: &[entry(0, params, true)],
         });
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("cdlab"),

@@ -184,8 +184,13 @@ pub fn assert_same_outcome(a: &std::path::Path, b: &std::path::Path) {
 }
 
 /// Runs `cdlab ARGS`; once the CSV file `series` holds `rows` lines (the run is then under
-/// way, its signal handler installed) calls `meanwhile`, then sends it `signal`, and
-/// returns what it printed and how it ended.
+/// way, its signal handler installed) stops it (SIGSTOP), calls `meanwhile`, sends it
+/// `signal` and lets it go on (SIGCONT), then returns what it printed and how it ended.
+///
+/// No step of the run can pass between the rows appearing and the signal, however long
+/// `meanwhile` takes and however fast or loaded the machine: the process is frozen, and the
+/// signal is handled when it wakes. The only timing left is the 300 s guard, which fails the
+/// test if the rows never come.
 #[cfg(unix)]
 pub fn signal_after_rows(
     args: &[&str],
@@ -194,12 +199,13 @@ pub fn signal_after_rows(
     meanwhile: impl FnOnce(),
     signal: i32,
 ) -> std::process::Output {
-    let child = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
         .args(args)
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
         .expect("cdlab runs");
+    let pid = child.id() as i32;
     let lines = || std::fs::read_to_string(series).map_or(0, |s| s.lines().count());
     let t0 = std::time::Instant::now();
     while lines() < rows {
@@ -208,10 +214,25 @@ pub fn signal_after_rows(
             "{} holds no {rows} rows after 300 s",
             series.display()
         );
-        std::thread::sleep(std::time::Duration::from_millis(5));
+        if let Some(status) = child.try_wait().expect("cdlab can be waited for") {
+            panic!(
+                "cdlab ended ({status}) before {} held {rows} rows",
+                series.display()
+            );
+        }
+        std::thread::sleep(std::time::Duration::from_millis(1));
     }
-    meanwhile();
     // SAFETY: kill() with a valid pid and signal number has no memory effects here.
-    assert_eq!(unsafe { libc::kill(child.id() as i32, signal) }, 0);
+    assert_eq!(unsafe { libc::kill(pid, libc::SIGSTOP) }, 0);
+    // A stopped child is not "exited": waitpid(WNOHANG) without WUNTRACED reports nothing.
+    assert!(
+        child.try_wait().expect("cdlab can be waited for").is_none(),
+        "cdlab ended before it could be stopped"
+    );
+    meanwhile();
+    // SAFETY: as above.
+    assert_eq!(unsafe { libc::kill(pid, signal) }, 0);
+    // SAFETY: as above.
+    assert_eq!(unsafe { libc::kill(pid, libc::SIGCONT) }, 0);
     child.wait_with_output().expect("cdlab ends")
 }

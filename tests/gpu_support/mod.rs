@@ -9,12 +9,40 @@ use glam::DVec2;
 
 use crate::common::*;
 
-/// A GPU backend on `scene`, or `None` with a visible SKIPPED line when no adapter exists.
-/// With `CDLAB_REQUIRE_GPU=1` a missing adapter panics instead (CI sets it).
-pub fn gpu_or_skip(test: &str, scene: &Scene, params: StepParams) -> Option<GpuBackend> {
-    match GpuBackend::new(scene.clone(), params) {
+/// Whether `CDLAB_REQUIRE_GPU` asks for a GPU: unset or empty, `0`, `false`, `no`, `off`
+/// mean no; `1`, `true`, `yes`, `on` mean yes (any case, surrounding blanks ignored).
+/// Any other value panics naming the variable: a typo must not turn CI's check off.
+pub fn require_gpu() -> bool {
+    parse_require(std::env::var("CDLAB_REQUIRE_GPU").ok().as_deref())
+}
+
+/// [`require_gpu`] on a given value of the variable.
+pub fn parse_require(value: Option<&str>) -> bool {
+    let v = value.unwrap_or("").trim().to_ascii_lowercase();
+    match v.as_str() {
+        "" | "0" | "false" | "no" | "off" => false,
+        "1" | "true" | "yes" | "on" => true,
+        other => panic!(
+            "CDLAB_REQUIRE_GPU = {other:?}: expected 1, true, yes, on (require a GPU adapter) \
+             or 0, false, no, off"
+        ),
+    }
+}
+
+/// What a test does with the result of opening the GPU: `Some` on success; `None` with a
+/// visible SKIPPED line when there is no adapter at all and no GPU is required; a panic
+/// for every other GPU error (a shader the driver rejects, a buffer over the adapter's
+/// limits, a failing device), required or not, and for a missing adapter when
+/// `CDLAB_REQUIRE_GPU` is true (CI sets it).
+pub fn skip_only_without_adapter<T>(test: &str, opened: cdlab::Result<T>) -> Option<T> {
+    decide(test, opened, require_gpu())
+}
+
+/// [`skip_only_without_adapter`] with the requirement given.
+pub fn decide<T>(test: &str, opened: cdlab::Result<T>, require: bool) -> Option<T> {
+    match opened {
         Ok(b) => Some(b),
-        Err(cdlab::Error::Gpu(msg)) if std::env::var("CDLAB_REQUIRE_GPU").as_deref() != Ok("1") => {
+        Err(cdlab::Error::NoAdapter(msg)) if !require => {
             // Written to the process's stderr directly, past the test harness's capture, so
             // the skip shows in a plain `cargo test`.
             let line = format!("SKIPPED (no GPU adapter): {test}: {msg}\n");
@@ -25,17 +53,14 @@ pub fn gpu_or_skip(test: &str, scene: &Scene, params: StepParams) -> Option<GpuB
     }
 }
 
-/// An opened device, or `None` with a visible SKIPPED line (same rule as [`gpu_or_skip`]).
+/// A GPU backend on `scene` (see [`skip_only_without_adapter`] for when it skips).
+pub fn gpu_or_skip(test: &str, scene: &Scene, params: StepParams) -> Option<GpuBackend> {
+    skip_only_without_adapter(test, GpuBackend::new(scene.clone(), params))
+}
+
+/// An opened device (same rule as [`gpu_or_skip`]).
 pub fn device_or_skip(test: &str) -> Option<cdlab::gpu::device::GpuDevice> {
-    match cdlab::gpu::device::open() {
-        Ok(d) => Some(d),
-        Err(cdlab::Error::Gpu(msg)) if std::env::var("CDLAB_REQUIRE_GPU").as_deref() != Ok("1") => {
-            let line = format!("SKIPPED (no GPU adapter): {test}: {msg}\n");
-            let _ = std::io::Write::write_all(&mut std::io::stderr(), line.as_bytes());
-            None
-        }
-        Err(e) => panic!("{test}: {e}"),
-    }
+    skip_only_without_adapter(test, cdlab::gpu::device::open())
 }
 
 /// Tight solver settings for the GPU: f32 impulses stop changing at a relative 1e-7, so a
