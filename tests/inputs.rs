@@ -46,6 +46,9 @@ fn huge_sizes_are_refused_before_allocating() {
     );
     let text = exits_with_error(&["prepare", "--disks", "10000000000", "-o", o]);
     assert!(text.contains("sample.disks"), "{text}");
+    // The benchmark builds its samples too: the same bound, named by its flag.
+    let text = exits_with_error(&["bench", "--disks", "10000000000", "--steps", "1"]);
+    assert!(text.contains("--disks") && text.contains("100000000"), "{text}");
     let png = base.join("a.png");
     let text = exits_with_error(&[
         "render",

@@ -103,6 +103,9 @@ pub fn run(args: &Args) -> Result<()> {
             "every size must be >= 50",
         ));
     }
+    for &n in &args.disks {
+        crate::config::validate::check_disk_count("--disks", n)?;
+    }
     if args.steps == 0 {
         return Err(Error::invalid("--steps", 0, "must be >= 1"));
     }
@@ -137,8 +140,14 @@ pub fn run(args: &Args) -> Result<()> {
                             }
                         }
                     }
-                    Err(e) => {
+                    // Only a missing adapter is a skip: any other GPU error is a failure.
+                    Err(e @ Error::NoAdapter(_)) => {
                         eprintln!("gpu, {n} disks: skipped: {e}");
+                        continue;
+                    }
+                    Err(e) => {
+                        eprintln!("gpu, {n} disks: FAILED: {e}");
+                        failures.push(format!("gpu, {n} disks: {e}"));
                         continue;
                     }
                 },

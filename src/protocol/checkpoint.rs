@@ -137,7 +137,13 @@ pub fn decode(bytes: &[u8]) -> Result<Checkpoint> {
     if r.take(8)? != MAGIC {
         return Err(Error::Other("not a cdlab checkpoint (bad magic)".into()));
     }
-    let n = r.count("state")?;
+    // The state is a byte string: its length is bounded by the bytes left, not by the
+    // 8-byte elements `count` assumes (a small sample's state is more than an eighth of it).
+    let n = r.u()?;
+    if n > r.0.len() as u64 {
+        return Err(Error::Other(format!("checkpoint: corrupt state length {n}")));
+    }
+    let n = n as usize;
     let state: LabState =
         serde_json::from_slice(r.take(n)?).map_err(|e| Error::Other(format!("checkpoint state: {e}")))?;
     let nd = r.count("disk")?;

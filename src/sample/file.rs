@@ -232,9 +232,7 @@ impl Drop for SampleLock {
 mod tests {
     use super::*;
 
-    /// A 64-disk sample: small enough to flip every bit of its file. (The checkpoint
-    /// decoder bounds its state's JSON length by an eighth of the bytes left, so a sample of
-    /// a handful of disks would not decode at all.)
+    /// A 64-disk sample: small enough to flip every bit of its file.
     pub(super) fn tiny() -> (LabState, Scene) {
         let mut params = crate::config::Config::default().protocol();
         params.disks = 64;
