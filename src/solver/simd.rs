@@ -123,6 +123,7 @@ pub(super) unsafe fn sweep_quads<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx
 ///
 /// # Safety
 /// As [`super::lanes::sweep_color_chunk`].
+#[inline] // Its only caller is in another module: keep it in the color sweep's loop.
 pub(super) unsafe fn sweep_pairs<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx, acc: &mut (f64, f64)) {
     let mut pairs = rows.chunks_exact_mut(2);
     for pair in &mut pairs {
