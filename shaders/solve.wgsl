@@ -118,7 +118,7 @@ fn jacobi_commit(@builtin(global_invocation_id) gid: vec3<u32>) {
     contacts[k].rt = floats[sim.f_fresh + 2u * k + 1u];
 }
 
-// The velocity test (CPU twin: solver::sweep::VelocityTest): the iterate before the last
+// The velocity test (CPU twin: solver::convergence::VelocityTest): the iterate before the last
 // iteration of a batch goes to region 4.
 @compute @workgroup_size(64)
 fn save_iterate(@builtin(global_invocation_id) gid: vec3<u32>) {

@@ -92,5 +92,8 @@ fn a_time_step_below_f64_range_is_refused_naming_it() {
     let e = Config::from_toml_str("[solver]\ndt = \"1e-320 s\"\n")
         .expect_err("a subnormal time step must be refused");
     let text = e.to_string();
-    assert!(text.contains("solver.dt"), "the error does not name solver.dt: {text}");
+    assert!(
+        text.contains("solver.dt"),
+        "the error does not name solver.dt: {text}"
+    );
 }

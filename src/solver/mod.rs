@@ -3,9 +3,19 @@
 //! docs/method.md, "Convergence".
 
 pub mod color;
+mod convergence;
+mod ctx;
+mod gauss_seidel;
+mod jacobi;
+mod lanes;
 pub mod law;
+mod quads;
+mod rows;
+#[cfg(target_arch = "x86_64")]
+mod simd;
 pub mod sweep;
 mod team;
+mod update;
 
 use crate::error::{Error, Result, check_positive};
 

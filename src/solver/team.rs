@@ -8,12 +8,17 @@
 //!
 //! The result is bit-identical to the sequential sweep: contacts of one color share no
 //! movable body, so their updates commute, and the convergence sums are the per-chunk
-//! partial sums added in chunk order, exactly as [`super::sweep`] adds them.
+//! partial sums added in chunk order, exactly as the sweep on one thread
+//! ([`super::gauss_seidel`]) adds them. Why the members may write the velocities at the
+//! same time: [`super::ctx`].
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use super::SolverParams;
-use super::sweep::{CHUNK, Ctx, Row, proper_colors, sweep_chunk, sweep_color_chunk};
+use super::ctx::Ctx;
+use super::lanes::{proper_colors, sweep_color_chunk};
+use super::rows::Row;
+use super::update::{CHUNK, sweep_chunk};
 
 /// A reusable barrier that spins briefly, then sleeps: the waits between colors are
 /// short (a few microseconds of work per color and thread on a 5000-disk sample), but on
@@ -82,7 +87,7 @@ unsafe impl Sync for Shared {}
 struct Layout {
     chunks: Vec<(usize, usize)>,
     first: Vec<usize>,
-    /// The last color is a serial group (see [`super::color::color_contacts`]).
+    /// The last color is a serial group (see [`super::color::color`]).
     serial_last: bool,
 }
 

@@ -1,0 +1,207 @@
+//! The Gauss-Seidel driver of a step: builds the rows, leaves out open candidates, colors,
+//! sweeps until the convergence tests stop it (on the calling thread or on a thread team),
+//! gives deep contacts their local updates and stores the impulses (docs/method.md,
+//! "Nonlinear Gauss-Seidel").
+
+use glam::DVec3;
+
+use super::color::{Coloring, Node, color};
+use super::convergence::VelocityTest;
+use super::ctx::Ctx;
+use super::lanes::{avx, proper_colors, sweep_color_chunk};
+use super::quads::{pack_quads, unpack_quads};
+use super::rows::{self, BodyProps, FULL, Row, contact_of, opening, park, store};
+use super::update::{CHUNK, sweep_chunk, update};
+use super::{Method, SolveStats, SolverParams, team};
+use crate::contact::Contact;
+
+/// One Gauss-Seidel sweep over `rows` in order, where consecutive `ranges` are colors
+/// (a single range for plain order), on the calling thread. Returns the chunked sums
+/// (change^2, impulse^2); [`team`] sweeps colors on several threads with the same
+/// chunks and the same order of summation. `colors` ranges from the first are colors
+/// proper (rows that share no movable body); the others are swept row by row.
+fn sweep(rows: &mut [Row], ranges: &[u32], colors: usize, ctx: Ctx) -> (f64, f64) {
+    let mut total = (0.0, 0.0);
+    for (c, w) in ranges.windows(2).enumerate() {
+        let part = &mut rows[w[0] as usize..w[1] as usize];
+        for ch in part.chunks_mut(CHUNK) {
+            // SAFETY: one thread; indices checked by `rows::build`; rows of a color share no
+            // movable body.
+            let (d, r) = if c < colors {
+                unsafe { sweep_color_chunk(ch, ctx) }
+            } else {
+                unsafe { sweep_chunk(ch, ctx) }
+            };
+            total.0 += d;
+            total.1 += r;
+        }
+    }
+    total
+}
+
+/// Scratch buffers of the Gauss-Seidel sweeps, kept between steps so that a step
+/// allocates nothing once sizes settle.
+#[derive(Clone, Debug, Default)]
+pub struct Workspace {
+    rows: Vec<Row>,
+    props: Vec<BodyProps>,
+    sorted: Vec<Row>,
+    coloring: Coloring,
+    /// Contact index of each swept row when some rows are parked.
+    active: Vec<u32>,
+    /// Rows left out of the sweeps ([`SolverParams::open_skip`]).
+    parked: Vec<Row>,
+    /// The velocity test's copy of the last iterate.
+    iterate: Vec<DVec3>,
+}
+
+impl Workspace {
+    /// The coloring of the last colored solve (empty ranges after another method).
+    pub fn coloring(&self) -> &Coloring {
+        &self.coloring
+    }
+
+    /// Forgets the coloring of the last solve, as a solve by another method must.
+    pub(super) fn clear_coloring(&mut self) {
+        self.coloring.ranges.clear();
+        self.coloring.order.clear();
+        self.coloring.serial_last = false;
+    }
+}
+
+/// Solves the contact problem by Gauss-Seidel: plain Gauss-Seidel sweeps the contacts in
+/// their order, colored Gauss-Seidel colors them first ([`color`]) and sweeps the colors
+/// in order, on a thread team when the problem is large enough. Unlike Jacobi it needs no
+/// free velocities: `gv` carries every change from one update to the next.
+pub(super) fn solve(
+    params: &SolverParams,
+    contacts: &mut [Contact],
+    gv: &mut [DVec3],
+    work: &mut Workspace,
+) -> SolveStats {
+    work.clear_coloring();
+    let n_bodies = gv.len();
+    rows::build(contacts, n_bodies, &mut work.rows, &mut work.props);
+    let parking = params.open_skip > 0.0;
+    if parking {
+        park(
+            &mut work.rows,
+            gv,
+            params.open_skip,
+            &mut work.active,
+            &mut work.parked,
+        );
+    }
+    let whole = [0, work.rows.len() as u32];
+    let colored = params.method == Method::ColoredGs;
+    if colored {
+        let props = &work.props;
+        let nodes = work.rows.iter().map(|r| {
+            let serial = r.j == FULL;
+            Node {
+                i: r.i,
+                j: r.j,
+                moves_i: !serial && props[r.i as usize].movable != 0.0,
+                moves_j: !serial && props[r.j as usize].movable != 0.0,
+                serial,
+            }
+        });
+        color(nodes, n_bodies, &mut work.coloring);
+        work.sorted.clear();
+        work.sorted
+            .extend(work.coloring.order.iter().map(|&k| work.rows[k as usize]));
+    }
+    let proper_colors = if colored {
+        proper_colors(&work.coloring.ranges, work.coloring.serial_last)
+    } else {
+        0
+    };
+    let (rows, ranges, serial_last) = if colored {
+        let c = &work.coloring;
+        (&mut work.sorted, &c.ranges[..], c.serial_last)
+    } else {
+        (&mut work.rows, &whole[..], false)
+    };
+    let quads = colored && avx();
+    if quads {
+        pack_quads(rows, ranges, proper_colors);
+    }
+    let ctx = Ctx {
+        gv: gv.as_mut_ptr(),
+        props: work.props.as_ptr(),
+        contacts: contacts.as_mut_ptr(),
+        relax: 1.0,
+        quads,
+    };
+    let mut stats = SolveStats {
+        colors: if colored { (ranges.len() - 1) as u32 } else { 0 },
+        ..Default::default()
+    };
+    let threads = params.team_size();
+    // SAFETY: no sweep runs yet.
+    let start = unsafe { std::slice::from_raw_parts(ctx.gv, n_bodies) };
+    let mut velocity = VelocityTest::new(params, start, &mut work.iterate);
+    let props = &work.props[..];
+    let mut done = |it: u32, d2: f64, r2: f64| {
+        if stats.record(it, d2, r2, params) {
+            return true;
+        }
+        // SAFETY: called between sweeps, when no thread writes the velocities.
+        let gv = unsafe { std::slice::from_raw_parts(ctx.gv, n_bodies) };
+        stats.converged = velocity.settled(it, gv, props);
+        stats.converged
+    };
+    if colored && threads > 1 && contacts.len() >= params.parallel_min {
+        team::sweep_iterations(rows, ranges, serial_last, ctx, threads, params, done);
+    } else {
+        for it in 1..=params.max_iter {
+            let ctx = Ctx {
+                relax: params.relax_at(it),
+                ..ctx
+            };
+            let (d2, r2) = sweep(rows, ranges, proper_colors, ctx);
+            if done(it, d2, r2) {
+                break;
+            }
+        }
+    }
+    if quads {
+        unpack_quads(rows, ranges, proper_colors);
+    }
+    let order = colored.then_some(&work.coloring.order[..]);
+    let active = parking.then_some(&work.active[..]);
+    if params.deep_updates() {
+        let deep: Vec<usize> = (0..rows.len())
+            .filter(|&m| {
+                let r = &rows[m];
+                r.j != FULL && r.rn > 0.0 && contacts[contact_of(m, order, active)].gap < -params.deep_gap
+            })
+            .collect();
+        stats.deep = deep.len() as u32;
+        let ctx = Ctx { relax: 1.0, ..ctx };
+        for _ in 0..params.deep_sweeps {
+            for &m in &deep {
+                // SAFETY: no other sweep runs; the row's bodies are in range (checked in rows::build).
+                unsafe {
+                    update::<false>(&mut rows[m], ctx);
+                }
+            }
+        }
+    }
+    store(rows, order, active, contacts);
+    if parking && work.parked.iter().any(|r| opening(r, gv) < 0.0) {
+        // A parked contact would close: solve again with every contact, from the
+        // impulses and velocities reached, so that none is missed.
+        let every = SolverParams {
+            open_skip: 0.0,
+            ..*params
+        };
+        let again = solve(&every, contacts, gv, work);
+        return SolveStats {
+            iterations: stats.iterations + again.iterations,
+            unparked: true,
+            ..again
+        };
+    }
+    stats
+}

@@ -1,0 +1,49 @@
+//! Relaxed Jacobi (docs/method.md, "Jacobi").
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::law;
+use super::{SolveStats, SolverParams};
+use crate::contact::Contact;
+
+/// Relaxed Jacobi: every contact is solved from the velocities of the previous iteration,
+/// the impulses are relaxed, and the velocities are rebuilt from the free velocities by a
+/// sequential gather (deterministic, no float atomics).
+pub(super) fn solve(
+    params: &SolverParams,
+    contacts: &mut [Contact],
+    gv0: &[DVec3],
+    gv: &mut [DVec3],
+) -> SolveStats {
+    let omega = params.relax;
+    let mut stats = SolveStats::default();
+    let mut fresh = vec![(0.0, 0.0); contacts.len()];
+    for it in 1..=params.max_iter {
+        let solve_one = |(c, out): (&Contact, &mut (f64, f64))| {
+            let (un, ut) = c.relative_velocity(gv);
+            let ufn = un - c.wnn * c.rn - c.wnt * c.rt + c.bias_n;
+            let uft = ut - c.wnt * c.rn - c.wtt * c.rt + c.bias_t;
+            let (rn, rt) = law::solve(c.wnn, c.wtt, c.wnt, ufn, uft, c.mu);
+            *out = (c.rn + omega * (rn - c.rn), c.rt + omega * (rt - c.rt));
+        };
+        if params.parallel && contacts.len() >= params.parallel_min {
+            contacts.par_iter().zip(fresh.par_iter_mut()).for_each(solve_one);
+        } else {
+            contacts.iter().zip(fresh.iter_mut()).for_each(solve_one);
+        }
+        let (mut d2, mut r2) = (0.0, 0.0);
+        gv.copy_from_slice(gv0);
+        for (c, &(rn, rt)) in contacts.iter_mut().zip(&fresh) {
+            d2 += (rn - c.rn).powi(2) + (rt - c.rt).powi(2);
+            r2 += rn * rn + rt * rt;
+            c.rn = rn;
+            c.rt = rt;
+            c.apply(gv, rn, rt);
+        }
+        if stats.record_change(it, d2, r2, params.tol) {
+            break;
+        }
+    }
+    stats
+}

@@ -1,0 +1,267 @@
+//! How wide the colored sweeps update a color: the rows of a color share no movable body,
+//! so on x86_64 several of them are updated at once in the lanes of vector registers
+//! ([`super::simd`]), with the scalar update's result bit for bit: four at a time in AVX
+//! registers when the processor has AVX and the rows are packed ([`super::quads`]), two
+//! at a time in SSE2 registers (part of the baseline) otherwise. Elsewhere, row by row.
+
+use super::ctx::Ctx;
+use super::rows::Row;
+#[cfg(target_arch = "x86_64")]
+use super::simd;
+#[cfg(not(target_arch = "x86_64"))]
+use super::update::sweep_chunk;
+
+/// Whether the colored sweeps run four rows at a time: on x86_64 with AVX (checked once at
+/// run time), unless `CDLAB_NO_AVX=1` asks for the pairs (to time or compare them).
+pub(super) fn avx() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::sync::OnceLock;
+        static AVX: OnceLock<bool> = OnceLock::new();
+        *AVX.get_or_init(|| {
+            std::arch::is_x86_feature_detected!("avx")
+                && std::env::var_os("CDLAB_NO_AVX").is_none_or(|v| v != "1")
+        })
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    false
+}
+
+/// How the colored sweeps of this process update a color: "AVX, 4 contacts at a time",
+/// "SSE2, 2 contacts at a time" or "1 contact at a time" (named in the CPU backend's
+/// description, so that timings from different processors can be read side by side).
+pub fn colored_lanes() -> &'static str {
+    if avx() {
+        "AVX, 4 contacts at a time"
+    } else if cfg!(target_arch = "x86_64") {
+        "SSE2, 2 contacts at a time"
+    } else {
+        "1 contact at a time"
+    }
+}
+
+/// How many of the color `ranges` (`ranges[c]..ranges[c+1]`) from the first are colors
+/// proper, whose rows share no movable body: all but the serial group, when there is one
+/// (its rows share their force-driven wall).
+pub(super) fn proper_colors(ranges: &[u32], serial_last: bool) -> usize {
+    ranges
+        .len()
+        .saturating_sub(1)
+        .saturating_sub(usize::from(serial_last))
+}
+
+/// [`super::update::sweep_chunk`] for a chunk of one color (rows that share no movable
+/// body and hold no [`FULL`](super::rows::FULL) row), with the same operations in the same
+/// order as [`super::update::update`], so bit for bit the same result: when the rows are
+/// packed ([`Ctx::quads`]), four at a time, then two, then the last row alone: the sweeps
+/// are most of a step, and wider updates are what made them cheaper (docs/benchmarks.md,
+/// "Vector sweeps").
+///
+/// # Safety
+/// As [`super::update::update`], for every row of the chunk; no two rows share a movable
+/// body; with `ctx.quads`, the chunk starts a packed quad (it is a chunk of
+/// [`super::quads::pack_quads`]'s layout) and the processor has AVX.
+pub(super) unsafe fn sweep_color_chunk(chunk: &mut [Row], ctx: Ctx) -> (f64, f64) {
+    // SAFETY: forwarded from the caller.
+    #[cfg(not(target_arch = "x86_64"))]
+    return unsafe { sweep_chunk(chunk, ctx) };
+    #[cfg(target_arch = "x86_64")]
+    unsafe {
+        if ctx.relax == 1.0 {
+            sweep_lanes::<false>(chunk, ctx)
+        } else {
+            sweep_lanes::<true>(chunk, ctx)
+        }
+    }
+}
+
+/// [`sweep_color_chunk`] for one kind of update: the packed quads, then pairs, then the
+/// last row.
+///
+/// # Safety
+/// As [`sweep_color_chunk`].
+#[cfg(target_arch = "x86_64")]
+unsafe fn sweep_lanes<const RELAXED: bool>(chunk: &mut [Row], ctx: Ctx) -> (f64, f64) {
+    let mut acc = (0.0, 0.0);
+    let n4 = if ctx.quads { chunk.len() / 4 * 4 } else { 0 };
+    let (head, tail) = chunk.split_at_mut(n4);
+    // SAFETY: forwarded from the caller, who packed the rows and checked AVX for quads.
+    unsafe {
+        if n4 > 0 {
+            simd::sweep_quads::<RELAXED>(head, ctx, &mut acc);
+        }
+        simd::sweep_pairs::<RELAXED>(tail, ctx, &mut acc);
+    }
+    acc
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+
+    use super::*;
+    use crate::solver::quads::{pack_quads, unpack_quads};
+    use crate::solver::rows::BodyProps;
+    use crate::solver::update::{CHUNK, sweep_chunk};
+
+    /// A small xorshift generator: the test's data need no statistical quality, only
+    /// variety and reproducibility.
+    struct Rng(u64);
+
+    impl Rng {
+        fn next(&mut self) -> f64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            (self.0 >> 11) as f64 / (1u64 << 53) as f64
+        }
+        fn signed(&mut self) -> f64 {
+            2.0 * self.next() - 1.0
+        }
+    }
+
+    /// One color of `n` rows on `2n` movable disks and 3 fixed walls shared by some rows,
+    /// with impulses that are zero, inside the Coulomb interval or on its edge, and
+    /// relative velocities that open, close or slide the contacts.
+    fn color_of(n: usize, seed: u64) -> (Vec<Row>, Vec<DVec3>, Vec<BodyProps>) {
+        let mut rng = Rng(seed);
+        let bodies = 2 * n + 3;
+        let gv: Vec<DVec3> = (0..bodies)
+            .map(|_| DVec3::new(rng.signed(), rng.signed(), 3.0 * rng.signed()))
+            .collect();
+        let props: Vec<BodyProps> = (0..bodies)
+            .map(|b| BodyProps {
+                inv_mass: 0.5 + rng.next(),
+                k: 2.0 * rng.next(),
+                lever: 0.1 + rng.next(),
+                movable: if b < 2 * n { 1.0 } else { 0.0 },
+            })
+            .collect();
+        let rows = (0..n)
+            .map(|m| {
+                let a = rng.next() * std::f64::consts::TAU;
+                let mu = [0.0, 0.01, 0.3, 12.0][m % 4];
+                let rn = if m % 3 == 0 { 0.0 } else { rng.next() };
+                let rt = match m % 5 {
+                    0 => mu * rn,
+                    1 => -mu * rn,
+                    _ => mu * rn * rng.signed(),
+                };
+                Row {
+                    i: (2 * m) as u32,
+                    // Every seventh row touches a wall, shared with other rows.
+                    j: if m % 7 == 0 {
+                        (2 * n + m % 3) as u32
+                    } else {
+                        (2 * m + 1) as u32
+                    },
+                    nx: a.cos(),
+                    ny: a.sin(),
+                    inv_wnn: 0.2 + rng.next(),
+                    inv_wtt: if m % 11 == 0 { 0.0 } else { 0.3 + rng.next() },
+                    mu,
+                    bias_n: 0.5 * rng.signed(),
+                    bias_t: 0.1 * rng.signed(),
+                    rn,
+                    rt,
+                }
+            })
+            .collect();
+        (rows, gv, props)
+    }
+
+    /// How a color is swept: one row at a time, with the vector lanes on unpacked rows
+    /// (pairs), or on rows packed four at a time.
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    enum Width {
+        Rows,
+        Pairs,
+        Quads,
+    }
+
+    /// The sums, velocities and impulses after three sweeps over the color, chunk by chunk
+    /// as the Gauss-Seidel sweep goes.
+    fn three_sweeps(n: usize, seed: u64, relax: f64, width: Width) -> Vec<u64> {
+        let (mut rows, mut gv, props) = color_of(n, seed);
+        let ranges = [0, n as u32];
+        let quads = width == Width::Quads;
+        if quads {
+            pack_quads(&mut rows, &ranges, 1);
+        }
+        let ctx = Ctx {
+            gv: gv.as_mut_ptr(),
+            props: props.as_ptr(),
+            contacts: std::ptr::null_mut(),
+            relax,
+            quads,
+        };
+        let mut bits = Vec::new();
+        for _ in 0..3 {
+            let (mut d, mut q) = (0.0, 0.0);
+            for chunk in rows.chunks_mut(CHUNK) {
+                // SAFETY: one thread; the rows of `color_of` share no movable body and
+                // index bodies within `gv` and `props`; packed as `ctx.quads` says, on a
+                // processor with AVX for the quads (checked by the caller).
+                let (dc, qc) = unsafe {
+                    match width {
+                        Width::Rows => sweep_chunk(chunk, ctx),
+                        _ => sweep_color_chunk(chunk, ctx),
+                    }
+                };
+                d += dc;
+                q += qc;
+            }
+            bits.extend([d.to_bits(), q.to_bits()]);
+        }
+        if quads {
+            unpack_quads(&mut rows, &ranges, 1);
+        }
+        bits.extend(gv.iter().flat_map(|v| v.to_array()).map(f64::to_bits));
+        bits.extend(rows.iter().flat_map(|r| [r.rn.to_bits(), r.rt.to_bits()]));
+        bits
+    }
+
+    /// The vector sweeps of a color give the scalar update's result bit for bit (the CPU
+    /// path's determinism across machines rests on it: a processor without AVX sweeps in
+    /// pairs), for every remainder of four and two, relaxed or not; packing and unpacking
+    /// the quads gives the rows back as they were.
+    #[test]
+    fn vector_sweeps_equal_the_scalar_update_bit_for_bit() {
+        let mut widths = vec![Width::Pairs];
+        if avx() {
+            widths.push(Width::Quads);
+        } else {
+            // Past the test harness's capture (eprintln! shows only on failure), so that a
+            // plain `cargo test` says which comparison did not run.
+            let _ = std::io::Write::write_all(
+                &mut std::io::stderr(),
+                b"NOTE: no AVX here (or CDLAB_NO_AVX=1): packed quads not compared\n",
+            );
+        }
+        for n in [1, 2, 3, 4, 5, 6, 7, 64, 67, 130] {
+            for relax in [1.0, 0.5] {
+                let seed = 7 + n as u64;
+                let reference = three_sweeps(n, seed, relax, Width::Rows);
+                assert!(reference.iter().any(|&b| b != 0), "{n} rows did nothing");
+                for &w in &widths {
+                    let other = three_sweeps(n, seed, relax, w);
+                    let first = reference.iter().zip(&other).position(|(a, b)| a != b);
+                    assert_eq!(
+                        first, None,
+                        "{w:?}, {n} rows, relax {relax}: first differing value"
+                    );
+                }
+            }
+        }
+        let (rows, _, _) = color_of(67, 1);
+        let mut packed = rows.clone();
+        pack_quads(&mut packed, &[0, 67], 1);
+        assert_ne!(
+            format!("{packed:?}"),
+            format!("{rows:?}"),
+            "packing moved nothing"
+        );
+        unpack_quads(&mut packed, &[0, 67], 1);
+        assert_eq!(format!("{packed:?}"), format!("{rows:?}"));
+    }
+}

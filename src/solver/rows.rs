@@ -1,0 +1,151 @@
+//! Rows: the compact copy of the contacts that the Gauss-Seidel sweeps work on, the table
+//! of body properties they refer to, and the parking of open candidates.
+//!
+//! The full [`Contact`] is 192 bytes, three cache lines, and 10,000 of them do not fit in
+//! a core's L2 cache. A row keeps only what an update reads and writes (80 bytes), and the
+//! inverse masses and lever arms live once per body in a small table: the update is most
+//! of a step's time (docs/benchmarks.md, "Compact rows").
+
+use glam::DVec3;
+
+use crate::contact::Contact;
+
+/// Marks a row whose contact needs the full 2x2 law (body j translates along an axis
+/// oblique to the contact frame: a force-driven wall); `i` then holds the contact's index.
+pub(super) const FULL: u32 = u32::MAX;
+
+/// The part of a contact that a Gauss-Seidel update touches.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C)]
+pub(super) struct Row {
+    pub(super) i: u32,
+    pub(super) j: u32,
+    pub(super) nx: f64,
+    pub(super) ny: f64,
+    /// `1 / W_nn` and `1 / W_tt` (0 for a direction in which neither body can move).
+    pub(super) inv_wnn: f64,
+    pub(super) inv_wtt: f64,
+    pub(super) mu: f64,
+    pub(super) bias_n: f64,
+    pub(super) bias_t: f64,
+    pub(super) rn: f64,
+    pub(super) rt: f64,
+}
+
+/// What a body contributes to an update: inverse mass, `r / I` (spin change per unit
+/// tangential impulse), lever arm, and 1 when an impulse may change its velocity.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C)]
+pub(super) struct BodyProps {
+    pub(super) inv_mass: f64,
+    pub(super) k: f64,
+    pub(super) lever: f64,
+    pub(super) movable: f64,
+}
+
+fn inverse(w: f64) -> f64 {
+    if w > 0.0 { 1.0 / w } else { 0.0 }
+}
+
+/// The rows of the contacts, in their order, and the table of body properties they refer
+/// to.
+pub(super) fn build(contacts: &[Contact], n_bodies: usize, rows: &mut Vec<Row>, props: &mut Vec<BodyProps>) {
+    props.clear();
+    props.resize(n_bodies, BodyProps::default());
+    rows.clear();
+    rows.extend(contacts.iter().enumerate().map(|(k, c)| {
+        // The sweeps index the velocities without bounds checks: this pass over every
+        // contact is where the indices are checked.
+        assert!(
+            (c.i as usize) < n_bodies && (c.j as usize) < n_bodies,
+            "contact with a body index beyond the velocities"
+        );
+        if c.ma != 0.0 || c.wnt != 0.0 {
+            return Row {
+                i: k as u32,
+                j: FULL,
+                ..Default::default()
+            };
+        }
+        // Every contact of a body sees the same inverse mass, r / I and lever (detection
+        // takes them from the body), so later contacts only rewrite the same values.
+        props[c.i as usize] = BodyProps {
+            inv_mass: c.mi,
+            k: c.ki,
+            lever: c.ri,
+            movable: if c.moves_i() { 1.0 } else { 0.0 },
+        };
+        props[c.j as usize] = BodyProps {
+            inv_mass: c.mj,
+            k: c.kj,
+            lever: c.rj,
+            movable: if c.moves_j() { 1.0 } else { 0.0 },
+        };
+        Row {
+            i: c.i,
+            j: c.j,
+            nx: c.n.x,
+            ny: c.n.y,
+            inv_wnn: inverse(c.wnn),
+            inv_wtt: inverse(c.wtt),
+            mu: c.mu,
+            bias_n: c.bias_n,
+            bias_t: c.bias_t,
+            rn: c.rn,
+            rt: c.rt,
+        }
+    }));
+}
+
+/// Copies the impulses of the rows back into their contacts: row `m` is row `order[m]` (or
+/// `m` without an order) of the swept rows, which belongs to contact `active[..]` of that
+/// (or to the contact of the same index when every contact was swept). Rows marked
+/// [`FULL`] were updated in place.
+pub(super) fn store(rows: &[Row], order: Option<&[u32]>, active: Option<&[u32]>, contacts: &mut [Contact]) {
+    for (m, r) in rows.iter().enumerate() {
+        if r.j != FULL {
+            let c = &mut contacts[contact_of(m, order, active)];
+            c.rn = r.rn;
+            c.rt = r.rt;
+        }
+    }
+}
+
+/// The contact of swept row `m` (see [`store`]).
+pub(super) fn contact_of(m: usize, order: Option<&[u32]>, active: Option<&[u32]>) -> usize {
+    let k = order.map_or(m, |o| o[m] as usize);
+    active.map_or(k, |a| a[k] as usize)
+}
+
+/// `U_n + bias_n` of a row at the velocities `gv`: the local law gives the row a normal
+/// impulse from zero only when this is negative.
+pub(super) fn opening(r: &Row, gv: &[DVec3]) -> f64 {
+    let (vi, vj) = (gv[r.i as usize], gv[r.j as usize]);
+    (vi.x - vj.x) * r.nx + (vi.y - vj.y) * r.ny + r.bias_n
+}
+
+/// Moves out of `rows` the open rows that
+/// [`SolverParams::open_skip`](super::SolverParams::open_skip) leaves out of the sweeps
+/// (into `parked`), and lists in `active` the contact index of every row kept.
+pub(super) fn park(
+    rows: &mut Vec<Row>,
+    gv: &[DVec3],
+    open_skip: f64,
+    active: &mut Vec<u32>,
+    parked: &mut Vec<Row>,
+) {
+    active.clear();
+    parked.clear();
+    let mut kept = 0;
+    for m in 0..rows.len() {
+        let r = rows[m];
+        if r.j != FULL && r.rn == 0.0 && r.rt == 0.0 && opening(&r, gv) > open_skip {
+            parked.push(r);
+        } else {
+            rows[kept] = r;
+            active.push(m as u32);
+            kept += 1;
+        }
+    }
+    rows.truncate(kept);
+}

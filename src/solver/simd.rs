@@ -1,0 +1,214 @@
+//! The vector forms of the diagonal update ([`super::update::update`]) for the rows of one
+//! color, on x86_64. Each lane repeats the scalar update's operations in its order:
+//! `_mm*_max_pd(x, y)` is `if x > y { x } else { y }`, as the scalar update's comparisons
+//! (min likewise, with the same NaN and signed-zero rules), the sign flipped by xor, and
+//! the sums added to the accumulator lane by lane in row order. No fused multiply-add: it
+//! would round differently. The bit-for-bit test is in [`super::lanes`].
+
+use glam::DVec3;
+use std::arch::x86_64::*;
+
+use super::ctx::Ctx;
+use super::quads::Quad;
+use super::rows::{BodyProps, FULL, Row};
+use super::update::update;
+
+/// Writes body `p` (velocity `v` as read) after an update whose impulse on it has
+/// components (`px`, `py`) times `im`, the inverse mass signed for that body, and spin
+/// change `k drt`; a body that cannot move is never written.
+#[inline(always)]
+unsafe fn write(p: *mut DVec3, v: DVec3, body: BodyProps, im: f64, px: f64, py: f64, drt: f64) {
+    if body.movable != 0.0 {
+        // SAFETY: the caller owns `p` for this color.
+        unsafe { p.write(v + DVec3::new(im * px, im * py, body.k * drt)) };
+    }
+}
+
+/// Four rows at a time, packed as [`Quad`]s (a multiple of four rows), their sums added
+/// to `acc` in row order.
+///
+/// # Safety
+/// As [`super::lanes::sweep_color_chunk`], on a processor with AVX, on packed rows.
+#[target_feature(enable = "avx")]
+pub(super) unsafe fn sweep_quads<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx, acc: &mut (f64, f64)) {
+    for quad in rows.chunks_exact_mut(4) {
+        // SAFETY: the caller guarantees these rows hold a packed quad (see `Quad`).
+        let q = unsafe { &mut *quad.as_mut_ptr().cast::<Quad>() };
+        debug_assert!(q.j.iter().all(|&j| j != FULL));
+        // SAFETY: the caller guarantees validity; the four rows write disjoint bodies
+        // and read the shared ones (never written) only.
+        unsafe {
+            let pi = q.i.map(|i| ctx.gv.add(i as usize));
+            let pj = q.j.map(|j| ctx.gv.add(j as usize));
+            let bi = q.i.map(|i| *ctx.props.add(i as usize));
+            let bj = q.j.map(|j| *ctx.props.add(j as usize));
+            let vi = pi.map(|p| p.read());
+            let vj = pj.map(|p| p.read());
+            // Lane l is row l of the quad (`_mm256_set_pd` takes the high lane first).
+            macro_rules! lanes4 {
+                ($x:expr) => {{
+                    let x = $x;
+                    _mm256_set_pd(x[3], x[2], x[1], x[0])
+                }};
+            }
+            macro_rules! field {
+                ($f:ident) => {
+                    _mm256_loadu_pd(q.$f.as_ptr())
+                };
+            }
+            let (nx, ny) = (field!(nx), field!(ny));
+            let dx = _mm256_sub_pd(lanes4!(vi.map(|v| v.x)), lanes4!(vj.map(|v| v.x)));
+            let dy = _mm256_sub_pd(lanes4!(vi.map(|v| v.y)), lanes4!(vj.map(|v| v.y)));
+            let un = _mm256_add_pd(_mm256_mul_pd(dx, nx), _mm256_mul_pd(dy, ny));
+            let ut = _mm256_add_pd(
+                _mm256_add_pd(
+                    _mm256_sub_pd(_mm256_mul_pd(dx, ny), _mm256_mul_pd(dy, nx)),
+                    _mm256_mul_pd(lanes4!(vi.map(|v| v.z)), lanes4!(bi.map(|b| b.lever))),
+                ),
+                _mm256_mul_pd(lanes4!(vj.map(|v| v.z)), lanes4!(bj.map(|b| b.lever))),
+            );
+            let (rn0, rt0) = (field!(rn), field!(rt));
+            let rn = _mm256_max_pd(
+                _mm256_sub_pd(
+                    rn0,
+                    _mm256_mul_pd(_mm256_add_pd(un, field!(bias_n)), field!(inv_wnn)),
+                ),
+                _mm256_setzero_pd(),
+            );
+            let lim = _mm256_mul_pd(field!(mu), rn);
+            let neg_lim = _mm256_xor_pd(lim, _mm256_set1_pd(-0.0));
+            let rt = _mm256_min_pd(
+                _mm256_max_pd(
+                    _mm256_sub_pd(
+                        rt0,
+                        _mm256_mul_pd(_mm256_add_pd(ut, field!(bias_t)), field!(inv_wtt)),
+                    ),
+                    neg_lim,
+                ),
+                lim,
+            );
+            let (rn, rt) = if RELAXED && ctx.relax != 1.0 {
+                let w = _mm256_set1_pd(ctx.relax);
+                (
+                    _mm256_add_pd(rn0, _mm256_mul_pd(w, _mm256_sub_pd(rn, rn0))),
+                    _mm256_add_pd(rt0, _mm256_mul_pd(w, _mm256_sub_pd(rt, rt0))),
+                )
+            } else {
+                (rn, rt)
+            };
+            let (drn, drt) = (_mm256_sub_pd(rn, rn0), _mm256_sub_pd(rt, rt0));
+            _mm256_storeu_pd(q.rn.as_mut_ptr(), rn);
+            _mm256_storeu_pd(q.rt.as_mut_ptr(), rt);
+            let px = _mm256_add_pd(_mm256_mul_pd(drn, nx), _mm256_mul_pd(drt, ny));
+            let py = _mm256_sub_pd(_mm256_mul_pd(drn, ny), _mm256_mul_pd(drt, nx));
+            let sq = _mm256_add_pd(_mm256_mul_pd(drn, drn), _mm256_mul_pd(drt, drt));
+            let r2 = _mm256_add_pd(_mm256_mul_pd(rn, rn), _mm256_mul_pd(rt, rt));
+            let mut out = [[0.0; 4]; 5];
+            for (o, v) in out.iter_mut().zip([px, py, drt, sq, r2]) {
+                _mm256_storeu_pd(o.as_mut_ptr(), v);
+            }
+            let [px, py, drt, sq, r2] = out;
+            for l in 0..4 {
+                write(pi[l], vi[l], bi[l], bi[l].inv_mass, px[l], py[l], drt[l]);
+                write(pj[l], vj[l], bj[l], -bj[l].inv_mass, px[l], py[l], drt[l]);
+                acc.0 += sq[l];
+                acc.1 += r2[l];
+            }
+        }
+    }
+}
+
+/// Two rows at a time, then the last one alone, their sums added to `acc` in row
+/// order.
+///
+/// # Safety
+/// As [`super::lanes::sweep_color_chunk`].
+#[inline] // Its only caller is in another module: keep it in the color sweep's loop.
+pub(super) unsafe fn sweep_pairs<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx, acc: &mut (f64, f64)) {
+    let mut pairs = rows.chunks_exact_mut(2);
+    for pair in &mut pairs {
+        let [a, b] = pair else { unreachable!() };
+        debug_assert!(a.j != FULL && b.j != FULL);
+        // SAFETY: the caller guarantees validity; the two rows write disjoint bodies and
+        // read the shared ones (never written) only.
+        unsafe {
+            let (pia, pja) = (ctx.gv.add(a.i as usize), ctx.gv.add(a.j as usize));
+            let (pib, pjb) = (ctx.gv.add(b.i as usize), ctx.gv.add(b.j as usize));
+            let (bia, bja) = (*ctx.props.add(a.i as usize), *ctx.props.add(a.j as usize));
+            let (bib, bjb) = (*ctx.props.add(b.i as usize), *ctx.props.add(b.j as usize));
+            let (via, vja, vib, vjb) = (pia.read(), pja.read(), pib.read(), pjb.read());
+            // Lane 0 is row a, lane 1 row b (`_mm_set_pd` takes the high lane first).
+            let pair = |x: f64, y: f64| _mm_set_pd(y, x);
+            let (add, sub, mul) = (_mm_add_pd, _mm_sub_pd, _mm_mul_pd);
+            let dx = sub(pair(via.x, vib.x), pair(vja.x, vjb.x));
+            let dy = sub(pair(via.y, vib.y), pair(vja.y, vjb.y));
+            let (nx, ny) = (pair(a.nx, b.nx), pair(a.ny, b.ny));
+            let un = add(mul(dx, nx), mul(dy, ny));
+            let ut = add(
+                add(
+                    sub(mul(dx, ny), mul(dy, nx)),
+                    mul(pair(via.z, vib.z), pair(bia.lever, bib.lever)),
+                ),
+                mul(pair(vja.z, vjb.z), pair(bja.lever, bjb.lever)),
+            );
+            let (rn0, rt0) = (pair(a.rn, b.rn), pair(a.rt, b.rt));
+            let rn = _mm_max_pd(
+                sub(
+                    rn0,
+                    mul(add(un, pair(a.bias_n, b.bias_n)), pair(a.inv_wnn, b.inv_wnn)),
+                ),
+                _mm_setzero_pd(),
+            );
+            let lim = mul(pair(a.mu, b.mu), rn);
+            let neg_lim = _mm_xor_pd(lim, _mm_set1_pd(-0.0));
+            let rt = _mm_min_pd(
+                _mm_max_pd(
+                    sub(
+                        rt0,
+                        mul(add(ut, pair(a.bias_t, b.bias_t)), pair(a.inv_wtt, b.inv_wtt)),
+                    ),
+                    neg_lim,
+                ),
+                lim,
+            );
+            let (rn, rt) = if RELAXED && ctx.relax != 1.0 {
+                let w = _mm_set1_pd(ctx.relax);
+                (add(rn0, mul(w, sub(rn, rn0))), add(rt0, mul(w, sub(rt, rt0))))
+            } else {
+                (rn, rt)
+            };
+            let (drn, drt) = (sub(rn, rn0), sub(rt, rt0));
+            let px = add(mul(drn, nx), mul(drt, ny));
+            let py = sub(mul(drn, ny), mul(drt, nx));
+            let lanes = |v: __m128d| {
+                let mut out = [0.0; 2];
+                _mm_storeu_pd(out.as_mut_ptr(), v);
+                out
+            };
+            let (px, py, drt_l) = (lanes(px), lanes(py), lanes(drt));
+            // Each body is read once: no other row of the pair writes it, so `v` is
+            // what [`update`] reads back before writing j.
+            write(pia, via, bia, bia.inv_mass, px[0], py[0], drt_l[0]);
+            write(pja, vja, bja, -bja.inv_mass, px[0], py[0], drt_l[0]);
+            write(pib, vib, bib, bib.inv_mass, px[1], py[1], drt_l[1]);
+            write(pjb, vjb, bjb, -bjb.inv_mass, px[1], py[1], drt_l[1]);
+            let (rn_l, rt_l) = (lanes(rn), lanes(rt));
+            a.rn = rn_l[0];
+            a.rt = rt_l[0];
+            b.rn = rn_l[1];
+            b.rt = rt_l[1];
+            let d = lanes(add(mul(drn, drn), mul(drt, drt)));
+            let q = lanes(add(mul(rn, rn), mul(rt, rt)));
+            acc.0 += d[0];
+            acc.1 += q[0];
+            acc.0 += d[1];
+            acc.1 += q[1];
+        }
+    }
+    for r in pairs.into_remainder() {
+        // SAFETY: forwarded from the caller.
+        let (d, q) = unsafe { update::<RELAXED>(r, ctx) };
+        acc.0 += d;
+        acc.1 += q;
+    }
+}
