@@ -249,3 +249,24 @@ fn a_sweep_grid_is_validated_before_a_dry_run() {
     }
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// A full disk under the terminal: with stdout and stderr on `/dev/full` (every write fails
+/// with ENOSPC) an error still ends with exit code 1, and a command that succeeds but
+/// cannot print ends with 1 too, never with a panic's 101.
+#[cfg(target_os = "linux")]
+#[test]
+fn output_to_a_full_device_ends_cleanly() {
+    let full = || std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+    for args in [
+        vec!["biaxial", "--resume", "/nonexistent-cdlab-run"],
+        vec!["config", "--print-default"],
+    ] {
+        let status = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+            .args(&args)
+            .stdout(full())
+            .stderr(full())
+            .status()
+            .expect("cdlab runs");
+        assert_eq!(status.code(), Some(1), "{args:?}");
+    }
+}

@@ -160,3 +160,27 @@ fn singular_block_slides_by_the_law() {
     }
     assert!(hits[2] > 1000, "sliding must be exercised: {hits:?}");
 }
+
+/// The last branch of `solve_block`, taken when neither the stick solution nor a slide with
+/// a consistent sliding direction exists. A positive-definite block always has one of them,
+/// so the branch serves round-off at a case boundary; an indefinite block (W_nt^2 > W_nn
+/// W_tt, which no pair of bodies produces) reaches it for certain. Its contract: the last
+/// slide whose normal equation was solvable, which closes the contact exactly (u_n = 0)
+/// on the edge of the Coulomb cone (|R_t| = mu R_n, R_n >= 0).
+#[test]
+fn the_fallback_returns_a_closing_slide_on_the_cone() {
+    // W = [[1, 2], [2, 1]], mu = 1: sliding with s = +1 has W_nn - mu W_nt = -1 <= 0 (no
+    // solution); s = -1 gives R_n = 1/3, R_t = +1/3 and u_t = 5 + (W_nt + mu W_tt) R_n = 6,
+    // of the wrong sign for s = -1 (which needs u_t <= 0); det W = -3 rules out sticking. So
+    // every direct branch fails.
+    let (wnn, wtt, wnt, ufn, uft, mu) = (1.0, 1.0, 2.0, -1.0, 5.0, 1.0);
+    let ut = uft + (wnt + mu * wtt) / 3.0;
+    assert!(ut > 0.0 && wnn * wtt - wnt * wnt < 0.0 && wnn - mu * wnt <= 0.0);
+    let (rn, rt) = solve_block(wnn, wtt, wnt, ufn, uft, mu);
+    // Expected from the slide equations above (s = -1): R_n = -u_n / (W_nn + mu W_nt).
+    assert!((rn - 1.0 / 3.0).abs() < 1e-15, "{rn}");
+    assert!((rt - 1.0 / 3.0).abs() < 1e-15, "{rt}");
+    let un = ufn + wnn * rn + wnt * rt;
+    assert!(un.abs() < 1e-15, "the contact closes exactly: u_n = {un}");
+    assert!((rt.abs() - mu * rn).abs() < 1e-15 && rn >= 0.0);
+}

@@ -79,7 +79,36 @@ pub enum Command {
 }
 
 /// Parses the command line, runs the subcommand and returns the process exit code.
+///
+/// A terminal or log that refuses writes (a full disk under a redirected stderr) makes Rust's
+/// print macros panic. Every file a run writes is already safe at that point (written whole,
+/// or a record that resumes), so such a panic ends the process with exit code 1 and no
+/// backtrace, like any other error; every other panic is left as it is.
 pub fn main() -> i32 {
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if !is_print_failure(info.payload()) {
+            default_hook(info);
+        }
+    }));
+    match std::panic::catch_unwind(run_command) {
+        Ok(code) => code,
+        Err(payload) if is_print_failure(payload.as_ref()) => 1,
+        Err(payload) => std::panic::resume_unwind(payload),
+    }
+}
+
+/// Whether a panic is the print macros' "failed printing to stdout/stderr".
+fn is_print_failure(payload: &(dyn std::any::Any + Send)) -> bool {
+    let text = payload
+        .downcast_ref::<String>()
+        .map(String::as_str)
+        .or_else(|| payload.downcast_ref::<&str>().copied())
+        .unwrap_or("");
+    text.starts_with("failed printing to std")
+}
+
+fn run_command() -> i32 {
     let cli = Cli::parse();
     let result: crate::Result<()> = match cli.command {
         Command::Biaxial(args) => biaxial::run(&args),
