@@ -230,7 +230,7 @@ fn archive_one(src: &Path, dest: &Path, series_rows: usize, keep_snapshot: bool)
         }
         let write = |name: &str| {
             let (from, to) = (src.join(name), dest.join(name));
-            std::fs::write(&to, read(&from)?).map_err(|e| Error::io(&to, e))
+            crate::record::atomic::write_file(&to, &read(&from)?)
         };
         write("summary.txt")?;
         write("summary.json")?;
@@ -239,10 +239,7 @@ fn archive_one(src: &Path, dest: &Path, series_rows: usize, keep_snapshot: bool)
     check_same_test(dest, &config)?;
     let config = config.to_toml_string()?;
     std::fs::create_dir_all(dest).map_err(|e| Error::io(dest, e))?;
-    let write = |name: &str, bytes: &[u8]| {
-        let p = dest.join(name);
-        std::fs::write(&p, bytes).map_err(|e| Error::io(&p, e))
-    };
+    let write = |name: &str, bytes: &[u8]| crate::record::atomic::write_file(&dest.join(name), bytes);
     write(ARCHIVED_CONFIG_FILE, config.as_bytes())?;
     let text = src.join("summary.txt");
     if text.exists() {

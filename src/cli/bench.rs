@@ -160,13 +160,13 @@ pub fn run(args: &Args) -> Result<()> {
     std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
     let json = serde_json::to_string_pretty(&cases).map_err(|e| Error::Other(e.to_string()))?;
     let p = args.out.join("bench.json");
-    std::fs::write(&p, json).map_err(|e| Error::io(&p, e))?;
+    crate::record::atomic::write_file(&p, json.as_bytes())?;
     let mut md = markdown(&cases, args);
     for f in &failures {
         md.push_str(&format!("\nFAILED: {f}\n"));
     }
     let p = args.out.join("bench.md");
-    std::fs::write(&p, &md).map_err(|e| Error::io(&p, e))?;
+    crate::record::atomic::write_file(&p, md.as_bytes())?;
     println!("{md}");
     Ok(())
 }

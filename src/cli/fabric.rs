@@ -25,16 +25,7 @@ pub fn keep_last_snapshot(src: &std::path::Path, dest: &std::path::Path) -> Resu
         return Ok(());
     };
     let bytes = snap.encode()?;
-    let to = dest.join(LAST_SNAPSHOT_FILE);
-    let tmp = dest.join(format!("{LAST_SNAPSHOT_FILE}.part"));
-    let io = |p: &std::path::Path, e| Error::io(p, e);
-    {
-        use std::io::Write;
-        let mut f = std::fs::File::create(&tmp).map_err(|e| io(&tmp, e))?;
-        f.write_all(&bytes).map_err(|e| io(&tmp, e))?;
-        f.sync_all().map_err(|e| io(&tmp, e))?;
-    }
-    std::fs::rename(&tmp, &to).map_err(|e| io(&to, e))
+    crate::record::atomic::write_file(&dest.join(LAST_SNAPSHOT_FILE), &bytes)
 }
 
 /// The snapshots and series of a run directory, or of an archived test holding its last

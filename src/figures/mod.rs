@@ -116,7 +116,7 @@ pub fn save<F: Figure>(fig: &F, path: &Path) -> Result<F::Output> {
             (s.into_bytes(), out)
         }
     };
-    std::fs::write(path, bytes).map_err(|e| Error::io(path, e))?;
+    crate::record::atomic::write_file(path, &bytes)?;
     Ok(out)
 }
 
