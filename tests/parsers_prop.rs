@@ -8,7 +8,7 @@ use std::path::Path;
 use cdlab::config::units::{Dimension, parse_quantity, parse_with_unit};
 use cdlab::config::{Config, Duration, Length, Pressure};
 use cdlab::model::Scene;
-use cdlab::protocol::{LabState, Phase};
+use cdlab::protocol::LabState;
 use cdlab::sample::file::{HEADER_LEN, decode_sample, encode_sample};
 use glam::DVec2;
 use proptest::prelude::*;
@@ -91,21 +91,7 @@ fn sample_bytes() -> Vec<u8> {
         let pos = DVec2::new(2.5 * (k % 8) as f64, 2.5 * (k / 8) as f64);
         scene.disks.push(pos, 1.0, 2600.0).unwrap();
     }
-    let state = LabState {
-        params,
-        phase: Phase::Compaction,
-        loading: Default::default(),
-        gauge: Default::default(),
-        phase_start: 0.0,
-        next_snapshot: 0.0,
-        since_checkpoint: 0,
-        ends: Vec::new(),
-        since_strips: 0,
-        since_series: 0,
-        since_guard: 0,
-        row_sums: None,
-        strain: None,
-    };
+    let state = LabState::new(params, Default::default(), Default::default(), 0.0);
     encode_sample(&state, &scene)
 }
 

@@ -105,14 +105,14 @@ impl<B: Backend> Lab<B> {
         backend.set_scene(scene)?;
         let r_min = scene.disks.radius.iter().cloned().fold(f64::INFINITY, f64::min);
         let mean_mass = scene.disks.mass.iter().sum::<f64>() / scene.disks.len().max(1) as f64;
-        let state = LabState {
-            phase: Phase::Compaction,
-            loading: Loading {
+        let state = LabState::new(
+            params,
+            Loading {
                 top: walls::TOP,
                 bottom: walls::BOTTOM,
                 ..Default::default()
             },
-            gauge: Gauge {
+            Gauge {
                 top: walls::TOP,
                 bottom: walls::BOTTOM,
                 r_min,
@@ -125,17 +125,8 @@ impl<B: Backend> Lab<B> {
                     .sum(),
                 ..Default::default()
             },
-            phase_start: scene.time,
-            next_snapshot: 0.0,
-            since_checkpoint: 0,
-            ends: Vec::new(),
-            since_strips: 0,
-            since_series: 0,
-            since_guard: 0,
-            row_sums: None,
-            strain: None,
-            params,
-        };
+            scene.time,
+        );
         let mut lab = Lab {
             backend,
             state,

@@ -379,6 +379,33 @@ pub struct LabState {
     pub strain: Option<f64>,
 }
 
+impl LabState {
+    /// The state of a lab about to start its compaction at time `phase_start`: no phase
+    /// ended yet, every counter at zero, the loading and the gauge as given.
+    pub fn new(
+        params: ProtocolParams,
+        loading: crate::backend::Loading,
+        gauge: crate::measure::Gauge,
+        phase_start: f64,
+    ) -> Self {
+        LabState {
+            params,
+            phase: Phase::Compaction,
+            loading,
+            gauge,
+            phase_start,
+            next_snapshot: 0.0,
+            since_checkpoint: 0,
+            ends: Vec::new(),
+            since_strips: 0,
+            since_series: 0,
+            since_guard: 0,
+            row_sums: None,
+            strain: None,
+        }
+    }
+}
+
 /// Wall indices of the biaxial scene.
 pub mod walls {
     /// Bottom wall (inward normal +y).

@@ -241,21 +241,7 @@ mod tests {
             let pos = glam::DVec2::new(2.5 * (k % 8) as f64, 2.5 * (k / 8) as f64);
             scene.disks.push(pos, 1.0, 1.0).unwrap();
         }
-        let state = LabState {
-            params,
-            phase: crate::protocol::Phase::Compaction,
-            loading: Default::default(),
-            gauge: Default::default(),
-            phase_start: 0.0,
-            next_snapshot: 0.0,
-            since_checkpoint: 0,
-            ends: Vec::new(),
-            since_strips: 0,
-            since_series: 0,
-            since_guard: 0,
-            row_sums: None,
-            strain: None,
-        };
+        let state = LabState::new(params, Default::default(), Default::default(), 0.0);
         (state, scene)
     }
 
