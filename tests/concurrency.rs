@@ -180,3 +180,68 @@ fn archive_skips_a_test_running_now() {
     );
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// `--jobs 2` runs two tests at once, proved without a clock: the seed's sample is held
+/// "in preparation" by this process, so a test that has started cannot end; both tests of
+/// the grid must nevertheless print their start. A sweep that ran its tests one after the
+/// other would print one start and wait; the watchdog (a failure guard, never a pass
+/// condition) then ends it and the test fails on the missing second start.
+#[test]
+fn two_jobs_start_two_tests_at_once() {
+    let (base, sweep) = campaign("jobs2", "0.1, 0.5");
+    let made = base.join("made.bin");
+    let (ok, text) = cdlab(&[
+        "prepare",
+        "--config",
+        base.join("base.toml").to_str().unwrap(),
+        "-o",
+        made.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let samples = base.join("campaign").join("samples");
+    std::fs::create_dir_all(&samples).unwrap();
+    let sample = samples.join("seed1.bin");
+    let sample_lock = SampleLock::acquire(&sample, || panic!("no one else holds it")).unwrap();
+
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args(["sweep", sweep.to_str().unwrap(), "--jobs", "2"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let pid = child.id();
+    let (done_tx, done_rx) = std::sync::mpsc::channel::<()>();
+    let watchdog = std::thread::spawn(move || {
+        if done_rx.recv_timeout(std::time::Duration::from_secs(300)).is_err() {
+            // SAFETY: kill(2) on the child's pid, which this test has not yet waited for.
+            unsafe { libc::kill(pid as i32, libc::SIGKILL) };
+        }
+    });
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let mut seen = String::new();
+    let mut line = String::new();
+    while seen.matches("sweep: starting").count() < 2 {
+        line.clear();
+        assert!(
+            err.read_line(&mut line).unwrap() > 0,
+            "the sweep did not start its second test while the first waited: {seen}"
+        );
+        seen += &line;
+    }
+    // Both tests started and neither can have ended: the sample they need is still held.
+    assert!(!test_dir(&base, "0.1").join("summary.json").exists(), "{seen}");
+    assert!(!test_dir(&base, "0.5").join("summary.json").exists(), "{seen}");
+    write_atomic(&sample, &std::fs::read(&made).unwrap()).unwrap();
+    drop(sample_lock);
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut err, &mut rest).unwrap();
+    let status = child.wait().unwrap();
+    let _ = done_tx.send(());
+    watchdog.join().unwrap();
+    let text = seen + &rest;
+    assert!(status.success(), "{text}");
+    for mu in ["0.1", "0.5"] {
+        assert!(test_dir(&base, mu).join("summary.json").exists(), "{mu}: {text}");
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}
