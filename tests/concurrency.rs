@@ -41,15 +41,10 @@ fn test_dir(base: &Path, mu: &str) -> PathBuf {
     base.join("campaign").join(format!("seed1_mu{mu}_s1MPa"))
 }
 
-/// A sweep finds one test's lock held (another process runs it) and the seed's sample being
-/// prepared elsewhere: it reports the test as running elsewhere, not FAILED, waits for the
-/// sample, reads the file written meanwhile instead of compacting again, runs the other test
-/// and exits 0. Before: the held test was FAILED with exit 1, and the sample was compacted
-/// again beside the other process's.
-#[test]
-fn a_sweep_leaves_running_tests_and_waits_for_a_sample_in_preparation() {
-    let (base, sweep) = campaign("locks", "0.1, 0.5");
-    // The sample the other process "prepares", made beforehand with the campaign's settings.
+/// The campaign's seed-1 sample "in preparation by another process": this process holds its
+/// lock. Returns the finished sample that process will write (made beforehand with the
+/// campaign's settings, at the first path), the sample's place in the campaign, and the lock.
+fn sample_in_preparation(base: &Path) -> (PathBuf, PathBuf, SampleLock) {
     let made = base.join("made.bin");
     let (ok, text) = cdlab(&[
         "prepare",
@@ -62,7 +57,19 @@ fn a_sweep_leaves_running_tests_and_waits_for_a_sample_in_preparation() {
     let samples = base.join("campaign").join("samples");
     std::fs::create_dir_all(&samples).unwrap();
     let sample = samples.join("seed1.bin");
-    let sample_lock = SampleLock::acquire(&sample, || panic!("no one else holds it")).unwrap();
+    let lock = SampleLock::acquire(&sample, || panic!("no one else holds it")).unwrap();
+    (made, sample, lock)
+}
+
+/// A sweep finds one test's lock held (another process runs it) and the seed's sample being
+/// prepared elsewhere: it reports the test as running elsewhere, not FAILED, waits for the
+/// sample, reads the file written meanwhile instead of compacting again, runs the other test
+/// and exits 0. Before: the held test was FAILED with exit 1, and the sample was compacted
+/// again beside the other process's.
+#[test]
+fn a_sweep_leaves_running_tests_and_waits_for_a_sample_in_preparation() {
+    let (base, sweep) = campaign("locks", "0.1, 0.5");
+    let (made, sample, sample_lock) = sample_in_preparation(&base);
     let busy = test_dir(&base, "0.1");
     let run_lock = RunLock::acquire(&busy).unwrap();
 
@@ -189,19 +196,7 @@ fn archive_skips_a_test_running_now() {
 #[test]
 fn two_jobs_start_two_tests_at_once() {
     let (base, sweep) = campaign("jobs2", "0.1, 0.5");
-    let made = base.join("made.bin");
-    let (ok, text) = cdlab(&[
-        "prepare",
-        "--config",
-        base.join("base.toml").to_str().unwrap(),
-        "-o",
-        made.to_str().unwrap(),
-    ]);
-    assert!(ok, "{text}");
-    let samples = base.join("campaign").join("samples");
-    std::fs::create_dir_all(&samples).unwrap();
-    let sample = samples.join("seed1.bin");
-    let sample_lock = SampleLock::acquire(&sample, || panic!("no one else holds it")).unwrap();
+    let (made, sample, sample_lock) = sample_in_preparation(&base);
 
     let mut child = Command::new(env!("CARGO_BIN_EXE_cdlab"))
         .args(["sweep", sweep.to_str().unwrap(), "--jobs", "2"])

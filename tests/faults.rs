@@ -2,6 +2,7 @@
 //! disk at any write, bit flips and cuts at random places of a record, and the output
 //! intervals, none of which may change a run's result or leave it without a usable record.
 
+mod common;
 mod record_support;
 
 use std::path::Path;
@@ -167,16 +168,7 @@ fn a_full_disk_at_any_write_loses_no_checkpoint_and_resumes_to_the_same_end() {
 
 /// `cdlab biaxial --resume DIR --quiet` on the command line.
 fn resume_cli(dir: &Path) -> (bool, String) {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
-        .args(["biaxial", "--resume", dir.to_str().unwrap(), "--quiet"])
-        .output()
-        .unwrap();
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (out.status.success(), text)
+    common::cdlab(&["biaxial", "--resume", dir.to_str().unwrap(), "--quiet"])
 }
 
 /// A record damaged at random places, a flipped bit or the file cut short: the resume
