@@ -8,22 +8,11 @@
 // host whenever a capacity grows): this keeps the layout at 6 storage buffers, under the
 // WebGPU default of 8 per stage.
 
-const WG: u32 = 64u;
+// WG, the body kinds (KIND_*), NOT_GLUED, PREV_STRIDE and the status-word indices (ST_*)
+// are generated from the Rust constants and put in front of this file (src/gpu/mod.rs,
+// wgsl_prelude): the status words ints[o_status + ST_*] are read back by the host once per
+// step after detection and coloring.
 const UNSET: u32 = 0xffffffffu;
-const NOT_GLUED: u32 = 0xffffffffu;
-const KIND_FREE: u32 = 0u;
-const KIND_KINEMATIC: u32 = 1u;
-
-// Status words (ints[o_status + k]) read back once per step after detection and coloring.
-const ST_CONTACTS: u32 = 0u;      // contacts found (may exceed the capacity)
-const ST_SLOTS_NEED: u32 = 1u;    // largest per-disk contact count (may exceed k_slots)
-const ST_COLORS: u32 = 3u;        // colors used
-const ST_OVERLAP: u32 = 4u;       // largest overlap, f32 bits (positive floats sort as u32)
-const ST_ROUNDS: u32 = 5u;        // coloring rounds
-const ST_CELLS_NEED: u32 = 6u;    // grid cells wanted
-const ST_LEFT: u32 = 7u;          // contacts left uncolored after the recorded rounds
-const ST_DEEP: u32 = 11u;         // contacts marked for local updates (solve.wgsl, deep_mark)
-const ST_WORDS: u32 = 16u;        // status words; color offsets follow them
 
 struct Sim {
     n_disks: u32, n_walls: u32, n_bodies: u32, k_slots: u32,

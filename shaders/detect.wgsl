@@ -24,7 +24,7 @@ fn insert_partner(base: u32, n: u32, q: u32) {
     st(base + s, q);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn detect(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
     let nd = sim.n_disks;
@@ -75,9 +75,9 @@ fn contact_args() {
     let total = ld(sim.o_dcount + sim.n_disks);
     st(sim.o_status + ST_CONTACTS, total);
     let n = min(total, sim.cap_contacts);
-    st(sim.o_status + 8u, (n + WG - 1u) / WG);
-    st(sim.o_status + 9u, 1u);
-    st(sim.o_status + 10u, 1u);
+    st(sim.o_status + ST_ARGS, (n + WG - 1u) / WG);
+    st(sim.o_status + ST_ARGS + 1u, 1u);
+    st(sim.o_status + ST_ARGS + 2u, 1u);
 }
 
 struct Side { body: u32, lever: f32, inv_mass: f32, axial: f32, axis: vec2<f32>, k: f32 }
@@ -103,7 +103,7 @@ fn delassus(c: ptr<function, Contact>) {
 
 // Compacts disk i's partners into contact records: frame, gap, Delassus block, start-of-
 // step velocities, law offsets, and the previous step's impulses for the same partner.
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn build_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
     let nd = sim.n_disks;
@@ -192,12 +192,10 @@ fn build_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
 }
 
-// Words per contact in the warm-start records: partner, R_n bits, R_t bits, color.
-const PREV_STRIDE: u32 = 4u;
-
-// Saves this step's impulses and colors (by disk, in key order) for the next step's warm
-// start and coloring seed.
-@compute @workgroup_size(64)
+// Saves this step's impulses and colors (by disk, in key order; PREV_STRIDE words per
+// contact: partner, R_n bits, R_t bits, color) for the next step's warm start and coloring
+// seed.
+@compute @workgroup_size(WG)
 fn save_prev(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
     let nd = sim.n_disks;

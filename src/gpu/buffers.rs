@@ -149,7 +149,24 @@ pub struct SimParams {
     pub pad: [u32; 2],
 }
 
-/// Status words read back after detection and coloring (indices into the status region).
+/// The per-dispatch arguments (WGSL `Args`, 16 bytes), one per [`ARGS_STRIDE`] slot of the
+/// argument table: the region a scan works on, the color a sweep updates.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+#[allow(missing_docs)]
+pub struct GpuArgs {
+    pub a: u32,
+    pub b: u32,
+    pub c: u32,
+    pub d: u32,
+}
+
+/// Words per contact in the warm-start records of `prev`: partner, R_n bits, R_t bits,
+/// color (WGSL `PREV_STRIDE`, generated from this constant).
+pub const PREV_STRIDE: u32 = 4;
+
+/// Status words read back after detection and coloring (indices into the status region;
+/// the shaders' `ST_*` constants are generated from these, see [`super::wgsl_prelude`]).
 pub mod status {
     /// Contacts found (may exceed the capacity).
     pub const CONTACTS: usize = 0;
@@ -271,8 +288,7 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
         clear_len,
         floats_len: f,
         floats_keep,
-        // Per contact: partner, R_n, R_t, color (detect.wgsl, PREV_STRIDE).
-        prev_len: nd + 1 + 4 * cap.contacts,
+        prev_len: nd + 1 + PREV_STRIDE * cap.contacts,
     }
 }
 

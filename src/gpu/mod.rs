@@ -32,8 +32,48 @@ pub const SHADERS: &[(&str, &str)] = &[
     ("reduce.wgsl", include_str!("../../shaders/reduce.wgsl")),
 ];
 
-/// A phase shader with the shared WGSL in front of it (plain concatenation: WGSL has no
-/// includes, and one shared prefix is all the composition the phases need).
+/// Threads per workgroup of the kernels that run one thread per item (disk, body, contact):
+/// the host's dispatch counts and the shaders' `@workgroup_size(WG)` both use this value.
+pub const WG: u32 = 64;
+
+/// The constants the shaders share with Rust, as `(WGSL name, value)`: body kinds, the
+/// "not glued" sentinel, the status-word indices read back by the host, the warm-start
+/// record stride and the workgroup size. They are written into every shader by
+/// [`wgsl_prelude`], so the shaders never spell these values themselves.
+pub fn wgsl_constants() -> Vec<(&'static str, u32)> {
+    use crate::model::{BodyKind, NOT_GLUED};
+    use buffers::{PREV_STRIDE, status};
+    vec![
+        ("WG", WG),
+        ("KIND_FREE", BodyKind::Free as u32),
+        ("KIND_KINEMATIC", BodyKind::Kinematic as u32),
+        ("KIND_FIXED", BodyKind::Fixed as u32),
+        ("NOT_GLUED", NOT_GLUED),
+        ("PREV_STRIDE", PREV_STRIDE),
+        ("ST_CONTACTS", status::CONTACTS as u32),
+        ("ST_SLOTS_NEED", status::SLOTS_NEED as u32),
+        ("ST_COLORS", status::COLORS as u32),
+        ("ST_OVERLAP", status::OVERLAP as u32),
+        ("ST_ROUNDS", status::ROUNDS as u32),
+        ("ST_LEFT", status::LEFT as u32),
+        ("ST_ARGS", status::ARGS as u32),
+        ("ST_DEEP", status::DEEP as u32),
+        ("ST_WORDS", status::WORDS as u32),
+    ]
+}
+
+/// WGSL declarations of [`wgsl_constants`], put in front of every shader.
+pub fn wgsl_prelude() -> String {
+    let mut s = String::from("// Generated from Rust by cdlab::gpu::wgsl_prelude (src/gpu/mod.rs).\n");
+    for (name, value) in wgsl_constants() {
+        s.push_str(&format!("const {name}: u32 = {value}u;\n"));
+    }
+    s
+}
+
+/// A phase shader with the generated constants and the shared WGSL in front of it (plain
+/// concatenation: WGSL has no includes, and one shared prefix is all the composition the
+/// phases need).
 pub fn compose(phase: &str) -> String {
-    format!("{COMMON_WGSL}\n{phase}")
+    format!("{}{COMMON_WGSL}\n{phase}", wgsl_prelude())
 }
