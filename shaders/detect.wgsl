@@ -160,16 +160,11 @@ fn build_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
         let u = relative_velocity(c, vel_at(1u, c.i), vel_at(1u, c.j));
         c.un0 = u.x;
         c.ut0 = u.y;
-        if c.gap > 0.0 {
-            // Open gap: it may close during the step but not beyond (docs/method.md).
-            c.bias_n = max((c.gap + (1.0 - sim.theta) * sim.dt * u.x) / (sim.theta * sim.dt), 0.0);
-        } else {
-            c.bias_n = sim.e_n * min(u.x, 0.0);
-            // Not for an exact zero gap: -0.0 has the sign bit set, its bits would exceed
-            // every positive overlap's and hide them from the host's overlap limit.
-            if c.gap < 0.0 {
-                atomicMax(&ints[sim.o_status + ST_OVERLAP], bitcast<u32>(-c.gap));
-            }
+        c.bias_n = normal_bias(c.gap, u.x, sim.theta, sim.dt, sim.e_n);
+        // Not for an exact zero gap: -0.0 has the sign bit set, its bits would exceed every
+        // positive overlap's and hide them from the host's overlap limit.
+        if c.gap < 0.0 {
+            atomicMax(&ints[sim.o_status + ST_OVERLAP], bitcast<u32>(-c.gap));
         }
         c.bias_t = sim.e_t * u.y;
         // Warm start: both lists are sorted by partner, so one forward walk finds it. A

@@ -162,11 +162,11 @@ pub struct GpuArgs {
 }
 
 /// Words per contact in the warm-start records of `prev`: partner, R_n bits, R_t bits,
-/// color (WGSL `PREV_STRIDE`, generated from this constant).
+/// color (WGSL `PREV_STRIDE`, checked against this constant).
 pub const PREV_STRIDE: u32 = 4;
 
 /// Status words read back after detection and coloring (indices into the status region;
-/// the shaders' `ST_*` constants are generated from these, see [`super::wgsl_prelude`]).
+/// the shaders' `ST_*` constants are checked against these, see [`super::wgsl_constants`]).
 pub mod status {
     /// Contacts found (may exceed the capacity).
     pub const CONTACTS: usize = 0;

@@ -38,8 +38,9 @@ pub const WG: u32 = 64;
 
 /// The constants the shaders share with Rust, as `(WGSL name, value)`: body kinds, the
 /// "not glued" sentinel, the status-word indices read back by the host, the warm-start
-/// record stride and the workgroup size. They are written into every shader by
-/// [`wgsl_prelude`], so the shaders never spell these values themselves.
+/// record stride and the workgroup size. `shaders/common.wgsl` declares each of them (it
+/// must parse on its own), and tests/gpu_layout.rs checks every declaration against this
+/// table, so the Rust constants stay the one source of these values.
 pub fn wgsl_constants() -> Vec<(&'static str, u32)> {
     use crate::model::{BodyKind, NOT_GLUED};
     use buffers::{PREV_STRIDE, status};
@@ -47,7 +48,6 @@ pub fn wgsl_constants() -> Vec<(&'static str, u32)> {
         ("WG", WG),
         ("KIND_FREE", BodyKind::Free as u32),
         ("KIND_KINEMATIC", BodyKind::Kinematic as u32),
-        ("KIND_FIXED", BodyKind::Fixed as u32),
         ("NOT_GLUED", NOT_GLUED),
         ("PREV_STRIDE", PREV_STRIDE),
         ("ST_CONTACTS", status::CONTACTS as u32),
@@ -62,18 +62,8 @@ pub fn wgsl_constants() -> Vec<(&'static str, u32)> {
     ]
 }
 
-/// WGSL declarations of [`wgsl_constants`], put in front of every shader.
-pub fn wgsl_prelude() -> String {
-    let mut s = String::from("// Generated from Rust by cdlab::gpu::wgsl_prelude (src/gpu/mod.rs).\n");
-    for (name, value) in wgsl_constants() {
-        s.push_str(&format!("const {name}: u32 = {value}u;\n"));
-    }
-    s
-}
-
-/// A phase shader with the generated constants and the shared WGSL in front of it (plain
-/// concatenation: WGSL has no includes, and one shared prefix is all the composition the
-/// phases need).
+/// A phase shader with the shared WGSL in front of it (plain concatenation: WGSL has no
+/// includes, and one shared prefix is all the composition the phases need).
 pub fn compose(phase: &str) -> String {
-    format!("{}{COMMON_WGSL}\n{phase}", wgsl_prelude())
+    format!("{COMMON_WGSL}\n{phase}")
 }
