@@ -34,14 +34,6 @@ pub enum Error {
         /// Which contact or body, and what went wrong.
         message: String,
     },
-    /// A GPU adapter or device problem.
-    #[error("GPU: {0}")]
-    Gpu(String),
-    /// No GPU adapter at all: the machine has no driver wgpu can use. Kept apart from
-    /// [`Error::Gpu`] so that a caller can tell "no GPU here" (a test may skip) from a GPU
-    /// that fails (a shader rejected, a buffer over a limit: always an error).
-    #[error("GPU: {0}")]
-    NoAdapter(String),
     /// Input/output error with the path involved.
     #[error("{path}: {source}")]
     Io {
@@ -58,6 +50,43 @@ pub enum Error {
         signal: i32,
         /// The step of the checkpoint written, 0 when none was.
         step: u64,
+    },
+    /// A GPU adapter or device problem.
+    #[error("GPU: {0}")]
+    Gpu(String),
+    /// No GPU adapter at all: the machine has no driver wgpu can use. Kept apart from
+    /// [`Error::Gpu`] so that a caller can tell "no GPU here" (a test may skip) from a GPU
+    /// that fails (a shader rejected, a buffer over a limit: always an error).
+    #[error("GPU: {0}")]
+    NoAdapter(String),
+    /// A buffer the sample needs is larger than the adapter allows (checked before any
+    /// allocation). The way out: a sample of about `fits_disks` disks, an adapter with
+    /// larger limits, or the CPU path.
+    #[error(
+        "GPU: the {what} buffer needs {bytes} bytes but the adapter's {limit_name} is {limit}: \
+         the largest sample that fits is about {fits_disks} disks"
+    )]
+    GpuLimit {
+        /// Which buffer (disk, contact, integer scratch, ...).
+        what: String,
+        /// Bytes it needs.
+        bytes: u64,
+        /// The wgpu limit it exceeds (`max_storage_buffer_binding_size`, `max_buffer_size`).
+        limit_name: &'static str,
+        /// That limit's value on this adapter (bytes).
+        limit: u64,
+        /// Estimate of the largest sample that fits (disks; sizes grow linearly with them).
+        fits_disks: u64,
+    },
+    /// A compute shader of cdlab that naga rejects before it reaches the driver: a bug in
+    /// the crate (the shaders are checked by tests/gpu.rs and tests/gpu_layout.rs), not in
+    /// the input; the CPU path still runs.
+    #[error("GPU: shader {file} is invalid (a bug in cdlab; use --backend cpu): {message}")]
+    GpuShader {
+        /// The phase shader file in `shaders/`.
+        file: String,
+        /// naga's diagnostic, with the line in the composed source.
+        message: String,
     },
     /// Any other failure, with its message.
     #[error("{0}")]

@@ -152,10 +152,29 @@ fn entry(b: &Binding) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
+/// Parses and validates a composed shader with naga, as wgpu would, so that a shader error
+/// comes back as [`Error::GpuShader`] naming the file and line rather than as a driver's
+/// failure to create a pipeline.
+pub fn validate(file: &str, source: &str) -> Result<()> {
+    let shader_error = |message: String| Error::GpuShader {
+        file: file.to_string(),
+        message,
+    };
+    let module = naga::front::wgsl::parse_str(source).map_err(|e| shader_error(e.emit_to_string(source)))?;
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::empty(),
+    )
+    .validate(&module)
+    .map_err(|e| shader_error(e.emit_to_string(source)))?;
+    Ok(())
+}
+
 impl Pipelines {
     /// Compiles every shader and creates every pipeline inside error scopes: a shader the
     /// driver rejects (a bug in the crate, or a driver that cannot take it) comes back as
-    /// [`Error::Gpu`] naming the adapter, not as wgpu's panic.
+    /// [`Error::Gpu`] naming the adapter, not as wgpu's panic; a shader naga rejects
+    /// ([`validate`]) is [`Error::GpuShader`].
     pub fn new(gpu: &GpuDevice) -> Result<Self> {
         gpu.scoped("compiling the compute shaders", Self::create)?
     }
@@ -179,9 +198,11 @@ impl Pipelines {
         });
         let mut slots: Vec<Option<wgpu::ComputePipeline>> = Kernel::ALL.iter().map(|_| None).collect();
         for (file, source) in SHADERS {
+            let source = compose(source);
+            validate(file, &source)?;
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some(file),
-                source: wgpu::ShaderSource::Wgsl(compose(source).into()),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
             });
             for &kernel in Kernel::ALL.iter().filter(|k| k.file() == *file) {
                 let point = kernel.entry_point();
@@ -254,3 +275,24 @@ fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
 
 // The layouts of these records and of the WGSL structs are compared field by field by
 // tests/gpu_layout.rs (through naga, no adapter needed).
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_shader_naga_rejects_is_a_shader_error_naming_the_file_and_line() {
+        for (file, source) in SHADERS {
+            validate(file, &compose(source)).expect("the crate's shaders validate");
+        }
+        let broken = compose("fn f() -> u32 { return ST_CONTACTS + 1.0; }");
+        match validate("broken.wgsl", &broken) {
+            Err(Error::GpuShader { file, message }) => {
+                assert_eq!(file, "broken.wgsl");
+                let line = broken.lines().count();
+                assert!(message.contains(&format!("wgsl:{line}:")), "{message}");
+            }
+            other => panic!("expected Error::GpuShader, got {other:?}"),
+        }
+    }
+}
