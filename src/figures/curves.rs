@@ -274,7 +274,7 @@ impl Figure for CompareFigure<'_> {
         let (plots, key) = root.split_horizontally(w.saturating_sub(KEY_WIDTH));
         let (top, bottom) = plots.split_vertically(h / 2);
         let n = runs.len();
-        let color = |k: usize| super::envelope::friction_color(k, n);
+        let color = |k: usize| super::colormap::friction_color(k, n);
         let panels: [Panel<'_, DB>; 2] = [
             (&top, (s0, s1), "stress ratio σ₁/σ₃ (-)", |r| {
                 r.sigma1_pa / r.sigma3_pa

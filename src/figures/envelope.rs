@@ -5,7 +5,9 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::colormap::SEQUENTIAL;
+// The campaign's colors are the color map's ([`friction_color`]); the curves use them
+// too, from `colormap`, so this file and `curves` need not import each other.
+pub use super::colormap::friction_color;
 use super::curves::CURVE_SIZE;
 use super::{Figure, LABEL, LINE_COLORS, TICK, draw_err, draw_legend};
 use crate::analysis::fit::Saturation;
@@ -22,16 +24,6 @@ fn check(report: &Report) -> Result<()> {
         ));
     }
     Ok(())
-}
-
-/// Color of friction number `k` of `n`: the sequential map, stopping short of its pale
-/// yellow end, which would vanish on white.
-pub fn friction_color(k: usize, n: usize) -> RGBColor {
-    SEQUENTIAL.at(if n > 1 {
-        0.85 * k as f64 / (n - 1) as f64
-    } else {
-        0.0
-    })
 }
 
 /// q against p (MPa): peak points (filled) and residual points (open) of every friction,

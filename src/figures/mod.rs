@@ -23,6 +23,7 @@ pub mod snapshot;
 use std::path::Path;
 
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use crate::error::{Error, Result};
@@ -140,6 +141,11 @@ fn encode_png(rgb: &[u8], w: u32, h: u32) -> Result<Vec<u8>> {
     writer.finish().map_err(err)?;
     Ok(out)
 }
+
+/// The chart of a snapshot figure (metres on both axes), on which [`snapshot`] draws the
+/// disks and [`network`] the arrows and bars: kept here so those two need not import each
+/// other.
+pub(crate) type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
 /// Font of titles, axis descriptions and legends: one size everywhere keeps the figures
 /// consistent side by side.

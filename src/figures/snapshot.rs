@@ -7,11 +7,10 @@
 use std::str::FromStr;
 
 use plotters::coord::Shift;
-use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use super::colormap::{SEQUENTIAL, Scale, draw_colorbar};
-use super::{Figure, LABEL, TICK, draw_err, network};
+use super::{Chart, Figure, LABEL, TICK, draw_err, network};
 use crate::error::{Error, Result};
 use crate::record::Snapshot;
 
@@ -188,9 +187,6 @@ pub(crate) fn disk_polygon(x: f64, y: f64, r: f64, px_per_m: f64) -> Vec<(f64, f
 
 /// Color of the disk outlines.
 pub const OUTLINE: RGBColor = RGBColor(110, 110, 110);
-
-/// The chart type of a snapshot figure.
-pub(crate) type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
 impl Figure for SnapshotFigure<'_> {
     type Output = Frame;

@@ -14,11 +14,11 @@ use std::path::{Path, PathBuf};
 use mcap::McapError;
 use mcap::sans_io::LinearReaderOptions;
 
-use super::series::SeriesRow;
 use super::snapshot::{SNAPSHOT_SCHEMA, Snapshot};
 use super::*;
 use crate::config::Config;
 use crate::error::{Error, Result};
+use crate::measure::SeriesRow;
 
 /// Everything a run recorded.
 #[derive(Clone, Debug, Default, PartialEq)]
