@@ -32,6 +32,7 @@ pub mod engine;
 pub mod error;
 pub mod fc2d;
 pub mod figures;
+pub mod fsio;
 pub mod gpu;
 pub mod interrupt;
 pub mod measure;

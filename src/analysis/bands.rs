@@ -41,7 +41,7 @@ pub struct BandOptions {
 pub fn select(snaps: &[Snapshot], from: Option<f64>, to: Option<f64>) -> Result<(usize, usize)> {
     let n = snaps.len();
     if n < 2 {
-        return Err(Error::Other(format!(
+        return Err(Error::BandAnalysis(format!(
             "the run holds {n} snapshot(s); the shear-band analysis needs two \
              (set output.snapshot_every > 0 and run past one interval)"
         )));
@@ -68,7 +68,7 @@ pub fn select(snaps: &[Snapshot], from: Option<f64>, to: Option<f64>) -> Result<
     let b = to.map_or(n - 1, nearest);
     if snaps[a].strain >= snaps[b].strain {
         let have: Vec<String> = snaps.iter().map(|s| format!("{:.4}", s.strain)).collect();
-        return Err(Error::Other(format!(
+        return Err(Error::BandAnalysis(format!(
             "the strain window selects the snapshots at strain {:.4} and {:.4}: they must be \
              two snapshots in increasing strain (recorded: {})",
             snaps[a].strain,
@@ -106,14 +106,14 @@ pub fn analyse_strain(
     opts: &BandOptions,
 ) -> Result<ShearBands> {
     let d_mean = mean_diameter(&a.disks)
-        .ok_or_else(|| Error::Other("no disk with a finite positive radius in the snapshot".into()))?;
+        .ok_or_else(|| Error::BandAnalysis("no disk with a finite positive radius in the snapshot".into()))?;
     let points: Vec<(glam::DVec2, f64)> = local
         .iter()
         .zip(&a.disks)
         .filter_map(|(s, d)| s.map(|s| (glam::DVec2::new(d.x, d.y), s.shear)))
         .collect();
     if points.len() < 10 {
-        return Err(Error::Other(format!(
+        return Err(Error::BandAnalysis(format!(
             "only {} of {} disks have a local strain value (10 needed for a band profile)",
             points.len(),
             a.disks.len()

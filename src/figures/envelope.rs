@@ -19,7 +19,7 @@ const MARKER: i32 = 5;
 
 fn check(report: &Report) -> Result<()> {
     if report.frictions.is_empty() {
-        return Err(Error::Other(
+        return Err(Error::NothingToDraw(
             "the report holds no friction: nothing to plot".into(),
         ));
     }
@@ -154,7 +154,7 @@ impl Figure for MuMacroFigure<'_> {
         check(self.report)?;
         let rows: Vec<_> = self.report.frictions.iter().filter(|r| r.mu > 0.0).collect();
         if rows.is_empty() {
-            return Err(Error::Other(
+            return Err(Error::NothingToDraw(
                 "every friction of the report is 0, which a logarithmic axis cannot show".into(),
             ));
         }

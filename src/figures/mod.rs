@@ -75,7 +75,7 @@ pub trait Figure {
 /// Turns a plotters error into ours. Plotters fails only on a font problem or a backend
 /// write; both are worth a message rather than a panic.
 pub(crate) fn draw_err<E: std::fmt::Display>(e: E) -> Error {
-    Error::Other(format!("drawing a figure: {e}"))
+    Error::Drawing(format!("drawing a figure: {e}"))
 }
 
 /// Draws `fig` as an encoded PNG file's bytes.
@@ -117,7 +117,7 @@ pub fn save<F: Figure>(fig: &F, path: &Path) -> Result<F::Output> {
             (s.into_bytes(), out)
         }
     };
-    crate::record::atomic::write_file(path, &bytes)?;
+    crate::fsio::write_file(path, &bytes)?;
     Ok(out)
 }
 
@@ -132,7 +132,7 @@ pub fn save_both<F: Figure>(fig: &F, dir: &Path, stem: &str) -> Result<[std::pat
 
 fn encode_png(rgb: &[u8], w: u32, h: u32) -> Result<Vec<u8>> {
     let mut out = Vec::new();
-    let err = |e: png::EncodingError| Error::Other(format!("encoding a PNG figure: {e}"));
+    let err = |e: png::EncodingError| Error::Drawing(format!("encoding a PNG figure: {e}"));
     let mut enc = png::Encoder::new(&mut out, w, h);
     enc.set_color(png::ColorType::Rgb);
     enc.set_depth(png::BitDepth::Eight);

@@ -201,7 +201,7 @@ impl Figure for SnapshotFigure<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<Frame> {
         let snap = self.snap;
         if snap.disks.is_empty() {
-            return Err(Error::Other(format!(
+            return Err(Error::NothingToDraw(format!(
                 "the snapshot at axial strain {:.4} holds no disk",
                 snap.strain
             )));
@@ -218,7 +218,7 @@ impl Figure for SnapshotFigure<'_> {
             (Field::Shear, _) => match self.shear {
                 Some(sh) => format!("local shear strain since axial strain {:.5}", sh.strain_from),
                 None => {
-                    return Err(Error::Other(
+                    return Err(Error::NothingToDraw(
                         "the shear field needs the local strain of an interval (cdlab render computes it \
                          from the snapshot before)"
                             .into(),
