@@ -9,8 +9,8 @@
 //! - [`font`]: the embedded font that PNG text needs.
 //!
 //! Every figure implements [`Figure`]: one drawing code for both backends, so the PNG and
-//! the SVG of a figure show the same thing. Figures are drawn in memory and written with
-//! one `std::fs::write`, so an unwritable path is an [`Error::Io`] naming it.
+//! the SVG of a figure show the same thing. Figures are drawn in memory and written whole
+//! ([`crate::fsio::write_file`]), so an unwritable path is an [`Error::Io`] naming it.
 
 pub mod colormap;
 pub mod curves;

@@ -1,5 +1,9 @@
-//! Macroscopic measurements of a biaxial test, computed from a backend's reductions, and
-//! the derived results (peak and residual strength, Mohr-Coulomb angle).
+//! What a biaxial test measures, as types and their maths: the rows of the time series
+//! (which `crate::protocol::Gauge` fills from a backend's reductions), the phases and how
+//! they ended, the micromechanical sums the backends accumulate, the derived results (peak
+//! and residual strength, Mohr-Coulomb angle), the summary and its shear-band report. It
+//! sits below the backends and knows none of the modules that compute, record or analyse
+//! these measurements.
 
 pub mod bands;
 pub mod derived;

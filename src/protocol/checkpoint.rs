@@ -250,7 +250,7 @@ mod tests {
     /// length given for a cut checkpoint (the cut is where the bytes ran out).
     #[test]
     fn errors_carry_the_offset_where_decoding_stopped() {
-        let params = crate::config::Config::default().protocol();
+        let params = crate::protocol::ProtocolParams::paper_defaults(4);
         let mut scene = Scene::default();
         for k in 0..4 {
             scene
