@@ -88,9 +88,163 @@ pub enum Error {
         /// naga's diagnostic, with the line in the composed source.
         message: String,
     },
+    // Files a caller can act on (read again, prepare again, wait, skip): each names what
+    // is at fault; the messages are those the command line prints.
+    /// A path that names no file (`/`, `..`) where a file is to be written
+    /// ([`crate::fsio::write_file`]).
+    #[error("{}: not a file name", path.display())]
+    NotAFile {
+        /// The path.
+        path: PathBuf,
+    },
+    /// A run directory held by another cdlab process (it holds the directory's lock file):
+    /// let that run end or stop it, then try again.
+    #[error(
+        "{} is in use by another cdlab process (it holds the lock on {}): let that run end or stop it first",
+        dir.display(),
+        lock.display()
+    )]
+    InUse {
+        /// The run directory.
+        dir: PathBuf,
+        /// Its lock file.
+        lock: PathBuf,
+    },
+    /// A test directory kept by `cdlab archive` (configuration, summary, thinned series)
+    /// asked for its full record, which went with the run's own directory.
+    #[error(
+        "{} is an archived test (`cdlab archive`: its configuration, summary and time series thinned to {}, \
+         without the record {}); this needs the full record, which only the run's own directory holds \
+         (`cdlab render DIR --curves` draws from the thinned series)",
+        dir.display(),
+        thinned,
+        record
+    )]
+    Archived {
+        /// The archived test's directory.
+        dir: PathBuf,
+        /// The file name of the thinned series it keeps.
+        thinned: &'static str,
+        /// The file name of the record it lacks.
+        record: &'static str,
+    },
+    /// A run record that is not a cdlab record, or is damaged before anything usable (a
+    /// record damaged later is read up to the damage: `RunRecord::damaged`). `path` is
+    /// `None` where bytes were parsed (`crate::record::parse_run`).
+    #[error("{}{message}", path.as_ref().map(|p| format!("{}: ", p.display())).unwrap_or_default())]
+    BadRecord {
+        /// The record file, when known.
+        path: Option<PathBuf>,
+        /// What is wrong.
+        message: String,
+    },
+    /// A checkpoint that does not decode (`crate::protocol::checkpoint::decode`): foreign
+    /// or damaged bytes.
+    #[error("{message}")]
+    BadCheckpoint {
+        /// The byte of the checkpoint at which decoding stopped.
+        offset: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// A prepared-sample file that cannot be used (`crate::sample::file`): prepare it
+    /// again.
+    #[error("{}: {}", path.display(), problem.describe(path))]
+    BadSample {
+        /// The sample file.
+        path: PathBuf,
+        /// What is wrong with it.
+        problem: SampleProblem,
+    },
+    /// Input in which a figure finds nothing to draw (no compression rows, no friction,
+    /// no disk): the figure is skipped, the others can still be drawn.
+    #[error("{0}")]
+    NothingToDraw(String),
+    /// The drawing or the encoding of a figure failed.
+    #[error("{0}")]
+    Drawing(String),
+    /// The shear-band analysis cannot run on the snapshots given (too few snapshots, not
+    /// the same sample, too few local strain values).
+    #[error("{0}")]
+    BandAnalysis(String),
     /// Any other failure, with its message.
     #[error("{0}")]
     Other(String),
+}
+
+/// What makes a prepared-sample file unusable ([`Error::BadSample`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum SampleProblem {
+    /// A format that holds no checksum (`version`), which cannot be checked for damage.
+    OldFormat {
+        /// The format version found.
+        version: u32,
+    },
+    /// Not a cdlab sample file at all (its magic is someone else's).
+    NotASample,
+    /// Shorter than the header.
+    ShortHeader {
+        /// Bytes in the file.
+        len: usize,
+        /// Bytes of the header.
+        header: usize,
+    },
+    /// The payload's length differs from the header's.
+    Length {
+        /// Bytes of payload the header announces.
+        announced: u64,
+        /// Bytes of payload the file holds.
+        found: u64,
+    },
+    /// The payload's CRC-32 differs from the header's.
+    Checksum {
+        /// CRC-32 of the payload as read.
+        computed: u32,
+        /// CRC-32 the header records.
+        recorded: u32,
+    },
+    /// The payload passed its checks but does not decode as a sample.
+    Payload(String),
+    /// The scene holds another number of disks than its parameters record.
+    DiskCount {
+        /// Disks in the scene.
+        found: usize,
+        /// Disks the parameters record.
+        recorded: usize,
+    },
+}
+
+impl SampleProblem {
+    /// The problem in words, with what to do about it (`path` is the file, for the command
+    /// that writes it again).
+    pub fn describe(&self, path: &std::path::Path) -> String {
+        match self {
+            SampleProblem::OldFormat { .. } => format!(
+                "a sample in the old format without a checksum, which cannot be checked for damage: prepare \
+                 it again (`cdlab prepare -o {} --force` with its settings; for a sweep, delete the file and \
+                 run the sweep again, which prepares it)",
+                path.display()
+            ),
+            SampleProblem::NotASample => "not a cdlab sample (bad magic; `cdlab prepare` writes them)".into(),
+            SampleProblem::ShortHeader { len, header } => {
+                format!("truncated: {len} bytes, shorter than the {header}-byte header")
+            }
+            SampleProblem::Length { announced, found } => {
+                format!(
+                    "damaged or truncated: the header announces {announced} bytes of data, the file holds {found}"
+                )
+            }
+            SampleProblem::Checksum { computed, recorded } => {
+                format!(
+                    "damaged: CRC-32 {computed:08x} of its data, {recorded:08x} recorded; prepare the sample again"
+                )
+            }
+            SampleProblem::Payload(why) => why.clone(),
+            SampleProblem::DiskCount { found, recorded } => {
+                format!("the sample holds {found} disks but records {recorded} (a corrupt or foreign file)")
+            }
+        }
+    }
 }
 
 /// The crate's result type.
