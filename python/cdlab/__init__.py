@@ -197,14 +197,16 @@ class Test:
     def series(self) -> pd.DataFrame:
         """The time series: the columns of ``series.csv`` (:data:`SERIES_FIELDS`), one row per
         measurement, read from the record (an archived test: its thinned series). float64,
-        uint64 and str columns; NaN where the record holds none (a copy)."""
+        uint64 and text (``phase``) columns; NaN where the record holds none (a copy)."""
         if self._series is None:
             cols = self._record.series_columns()
             data: Dict[str, Any] = {}
             for name, kind, _ in SERIES_FIELDS:
                 raw = cols[name]
                 if kind == "string":
-                    data[name] = pd.Series(raw, dtype=object)
+                    # pandas' own text dtype (object before pandas 3, str from it on),
+                    # as pandas.read_csv gives for series.csv.
+                    data[name] = pd.Series(raw)
                 else:
                     data[name] = _column(raw, _U64 if kind == "integer" else _F64)
             self._series = pd.DataFrame(data)
