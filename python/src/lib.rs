@@ -314,6 +314,9 @@ fn open_record(py: Python<'_>, path: PathBuf, allow_damaged: bool) -> PyResult<R
     }
 }
 
+/// One field of a snapshot's disk.
+type DiskField = fn(&cdlab::record::DiskRecord) -> f64;
+
 /// Little-endian bytes of `values`.
 fn le_f64(values: impl Iterator<Item = f64>) -> Vec<u8> {
     values.flat_map(f64::to_le_bytes).collect()
@@ -441,7 +444,7 @@ impl Record {
     fn snapshot_disks<'py>(&self, py: Python<'py>, index: usize) -> PyResult<Bound<'py, PyDict>> {
         let s = self.snapshot(index)?;
         let out = PyDict::new(py);
-        let cols: [(&str, fn(&cdlab::record::DiskRecord) -> f64); 9] = [
+        let cols: [(&str, DiskField); 9] = [
             ("x_m", |d| d.x),
             ("y_m", |d| d.y),
             ("theta_rad", |d| d.theta),
