@@ -3,10 +3,29 @@
 from __future__ import annotations
 
 import shutil
+import struct
 
 import pytest
 
 import cdlab
+
+
+def middle_chunk(data: bytes) -> range:
+    """The byte range of the content of the record's middle chunk. Only the record framing
+    of the MCAP format is walked (8-byte magic, then opcode u8 and length u64 LE per record;
+    0x06 a chunk), to put the damage where the reader must find it, whatever the sizes of
+    this run's chunks."""
+    chunks, p = [], 8
+    while p + 9 <= len(data):
+        op = data[p]
+        n = struct.unpack_from("<Q", data, p + 1)[0]
+        if op == 0x06:
+            chunks.append(range(p + 9, p + 9 + n))
+        if op == 0x0F:  # data end
+            break
+        p += 9 + n
+    assert len(chunks) >= 3, f"{len(chunks)} chunks"
+    return chunks[len(chunks) // 2]
 
 
 def copy_run(src, dst):
@@ -18,8 +37,9 @@ def test_a_damaged_record_raises_naming_the_file(small_run, tmp_path):
     run = copy_run(small_run, tmp_path / "run")
     mcap = run / "run.mcap"
     data = bytearray(mcap.read_bytes())
-    # One byte in the middle of the data section: inside a chunk, whose CRC then fails.
-    data[len(data) // 2] ^= 0xFF
+    # One byte in the middle of a chunk's compressed records, whose CRC then fails.
+    chunk = middle_chunk(bytes(data))
+    data[chunk.start + len(chunk) // 2] ^= 0xFF
     mcap.write_bytes(bytes(data))
     with pytest.raises(cdlab.DamagedRecordError) as e:
         cdlab.open(run)
@@ -37,7 +57,9 @@ def test_a_record_cut_short_opens_with_what_it_holds(small_run, tmp_path):
     (run / "summary.json").unlink()
     mcap = run / "run.mcap"
     data = mcap.read_bytes()
-    mcap.write_bytes(data[: len(data) * 3 // 4])
+    # Cut inside the middle chunk, as a run killed while it wrote the chunk leaves it.
+    chunk = middle_chunk(data)
+    mcap.write_bytes(data[: chunk.start + len(chunk) // 2])
     t = cdlab.open(run)
     assert t.truncated is not None and t.damaged is None
     assert 0 < len(t.series) < len(cdlab.open(small_run).series)
