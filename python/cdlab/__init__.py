@@ -14,6 +14,7 @@ file at fault, and the subclasses carry it as attributes (``FileError.path``,
 
 from __future__ import annotations
 
+import csv
 import io
 import json
 import os
@@ -297,6 +298,25 @@ def report(paths: Union[PathLike, Iterable[PathLike]]) -> Report:
     if isinstance(paths, (str, os.PathLike)):
         paths = [paths]
     json_text, fits_csv, tests_csv = _cdlab.campaign_report([os.fspath(p) for p in paths])
-    fits = pd.read_csv(io.StringIO(fits_csv), dtype={"dt_ms": str})
-    tests = pd.read_csv(io.StringIO(tests_csv))
+    fits = _frame_from_csv(fits_csv, text=("dt_ms",))
+    tests = _frame_from_csv(tests_csv, text=("dir",))
     return Report(fits=fits, tests=tests, raw=json.loads(json_text))
+
+
+def _frame_from_csv(csv_text: str, *, text: Tuple[str, ...] = ()) -> pd.DataFrame:
+    """A DataFrame of a CSV text that cdlab wrote: the ``text`` columns as str, the others as
+    int64 when every cell is an integer, else float64 with NaN for an empty cell. Python's
+    float() reads Rust's shortest round-trip form back to the same bits, which
+    pandas.read_csv does not promise before pandas 3."""
+    rows = list(csv.reader(io.StringIO(csv_text)))
+    header, body = rows[0], rows[1:]
+    data: Dict[str, Any] = {}
+    for k, name in enumerate(header):
+        cells = [r[k] for r in body]
+        if name in text:
+            data[name] = pd.Series(cells)
+        elif cells and all(c.lstrip("-").isdigit() for c in cells):
+            data[name] = np.array([int(c) for c in cells], dtype=np.int64)
+        else:
+            data[name] = np.array([float(c) if c else np.nan for c in cells], dtype=np.float64)
+    return pd.DataFrame(data, columns=header)
