@@ -1,0 +1,581 @@
+//! `cdlab._cdlab`: the compiled half of the `cdlab` Python package (python/cdlab/ is the
+//! other half, which turns what this module hands out into dicts, NumPy arrays and pandas
+//! DataFrames).
+//!
+//! Everything here goes through the cdlab library's own readers: the record
+//! ([`cdlab::record::read_run`], with its chunk and checkpoint CRCs), the archived test's
+//! configuration and thinned series ([`cdlab::record::read_series`]), the micromechanical
+//! analysis of a snapshot ([`cdlab::measure::micro`]) and the campaign report
+//! ([`cdlab::analysis::report`]). Nothing of the MCAP layout is parsed in Python.
+//!
+//! Arrays cross the boundary as little-endian bytes that the Python half wraps with
+//! `numpy.frombuffer`: no copy per element through Python objects, and no dependency on a
+//! NumPy crate whose version would have to follow PyO3's.
+
+use std::path::{Path, PathBuf};
+
+use cdlab::Error;
+use cdlab::config::Config;
+use cdlab::measure::micro::{Analysis, from_snapshot};
+use cdlab::measure::summary::Summary;
+use cdlab::record::{
+    ARCHIVED_CONFIG_FILE, MCAP_FILE, SERIES_FIELDS, SeriesRow, Snapshot, read_run, read_series,
+};
+use pyo3::create_exception;
+use pyo3::exceptions::PyException;
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict, PyList};
+
+create_exception!(
+    cdlab,
+    CdlabError,
+    PyException,
+    "Base class of every error cdlab raises; `str(e)` names the field or file at fault."
+);
+create_exception!(
+    cdlab,
+    InvalidParameterError,
+    CdlabError,
+    "A parameter outside its allowed range; attributes `field`, `value`, `allowed`."
+);
+create_exception!(
+    cdlab,
+    ParseError,
+    CdlabError,
+    "A file that cannot be parsed; attributes `path` and `line` (1-based, 0 when unknown)."
+);
+create_exception!(
+    cdlab,
+    NumericalError,
+    CdlabError,
+    "A time step that produced a non-finite value or too large an overlap; attribute `step`."
+);
+create_exception!(cdlab, GpuError, CdlabError, "A GPU adapter or device failure.");
+create_exception!(
+    cdlab,
+    NoAdapterError,
+    GpuError,
+    "No GPU adapter on this machine (a GpuError that a caller may treat as 'skip')."
+);
+create_exception!(
+    cdlab,
+    FileError,
+    CdlabError,
+    "A file or directory that cannot be read or is not what it should be; attribute `path`."
+);
+create_exception!(
+    cdlab,
+    DamagedRecordError,
+    FileError,
+    "A run record (run.mcap) whose content failed a check; attribute `path`, and `reason`."
+);
+create_exception!(
+    cdlab,
+    StoppedError,
+    CdlabError,
+    "A run stopped by a signal; attributes `signal` and `step` (0 when nothing to resume)."
+);
+
+/// A cdlab error as the matching Python exception, its fields set as attributes.
+fn py_err(py: Python<'_>, e: Error) -> PyErr {
+    let msg = e.to_string();
+    let (err, attrs): (PyErr, Vec<(&str, Py<PyAny>)>) = match e {
+        Error::Invalid {
+            field,
+            value,
+            allowed,
+        } => (
+            InvalidParameterError::new_err(msg),
+            vec![
+                ("field", field.into_pyobject(py).unwrap().into_any().unbind()),
+                ("value", value.into_pyobject(py).unwrap().into_any().unbind()),
+                ("allowed", allowed.into_pyobject(py).unwrap().into_any().unbind()),
+            ],
+        ),
+        Error::Parse { path, line, .. } => (
+            ParseError::new_err(msg),
+            vec![
+                ("path", path_obj(py, &path)),
+                ("line", line.into_pyobject(py).unwrap().into_any().unbind()),
+            ],
+        ),
+        Error::Numerical { step, .. } => (
+            NumericalError::new_err(msg),
+            vec![("step", step.into_pyobject(py).unwrap().into_any().unbind())],
+        ),
+        Error::Gpu(_) => (GpuError::new_err(msg), vec![]),
+        Error::NoAdapter(_) => (NoAdapterError::new_err(msg), vec![]),
+        Error::Io { path, .. } => (FileError::new_err(msg), vec![("path", path_obj(py, &path))]),
+        Error::Interrupted { signal, step } => (
+            StoppedError::new_err(msg),
+            vec![
+                ("signal", signal.into_pyobject(py).unwrap().into_any().unbind()),
+                ("step", step.into_pyobject(py).unwrap().into_any().unbind()),
+            ],
+        ),
+        Error::Other(_) => (CdlabError::new_err(msg), vec![]),
+    };
+    set_attrs(py, err, attrs)
+}
+
+/// Sets `attrs` on the exception instance of `err` (exceptions have a `__dict__`).
+fn set_attrs(py: Python<'_>, err: PyErr, attrs: Vec<(&str, Py<PyAny>)>) -> PyErr {
+    let value = err.value(py);
+    for (k, v) in attrs {
+        if let Err(e) = value.setattr(k, v) {
+            return e;
+        }
+    }
+    err
+}
+
+/// A path as a Python `str` (what `os.fspath` gives; the Python half may wrap it).
+fn path_obj(py: Python<'_>, p: &Path) -> Py<PyAny> {
+    p.display()
+        .to_string()
+        .into_pyobject(py)
+        .unwrap()
+        .into_any()
+        .unbind()
+}
+
+/// A [`FileError`] naming `path`.
+fn file_error(py: Python<'_>, path: &Path, msg: String) -> PyErr {
+    set_attrs(py, FileError::new_err(msg), vec![("path", path_obj(py, path))])
+}
+
+/// Which of the two kinds of test directory a [`Record`] was read from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Kind {
+    /// A run directory (or its `run.mcap`): everything from the record.
+    Run,
+    /// A directory written by `cdlab archive`: configuration, summary, thinned series and,
+    /// when kept, the last snapshot.
+    Archived,
+}
+
+/// A run or an archived test, read whole (the snapshots are decoded; arrays and the
+/// micromechanical analysis of a snapshot are built when asked for).
+#[pyclass(frozen, module = "cdlab._cdlab")]
+struct Record {
+    path: PathBuf,
+    kind: Kind,
+    config_json: String,
+    summary_json: Option<String>,
+    series: Vec<SeriesRow>,
+    snapshots: Vec<Snapshot>,
+    truncated: Option<String>,
+    damaged: Option<String>,
+    run_id: Option<String>,
+    version: Option<String>,
+    backend: Option<String>,
+}
+
+/// Failures of [`read_record`]: a cdlab error, or a damaged record refused (file, why).
+enum ReadError {
+    Cdlab(Error),
+    Damaged(PathBuf, String),
+    File(PathBuf, String),
+}
+
+impl From<Error> for ReadError {
+    fn from(e: Error) -> Self {
+        ReadError::Cdlab(e)
+    }
+}
+
+/// The summary of the test in `dir` (`summary.json`), checked to parse as cdlab's
+/// [`Summary`] and, when both carry an identity, to be the summary of the record `run_id`
+/// (a summary left from a record since replaced is stale). `None` when there is none yet
+/// (a run not finished).
+fn read_summary(dir: &Path, run_id: Option<&str>) -> Result<Option<String>, ReadError> {
+    let file = dir.join("summary.json");
+    if !file.exists() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&file).map_err(|e| Error::io(&file, e))?;
+    let summary: Summary = serde_json::from_str(&text)
+        .map_err(|e| ReadError::File(file.clone(), format!("{}: {e}", file.display())))?;
+    if let (Some(ours), Some(theirs)) = (run_id, summary.record_id.as_deref())
+        && ours != theirs
+    {
+        return Err(ReadError::File(
+            file.clone(),
+            format!(
+                "{}: the summary of record {theirs}, not of this directory's {MCAP_FILE} \
+                 (record {ours}): stale; `cdlab summarize {}` writes it again",
+                file.display(),
+                dir.display()
+            ),
+        ));
+    }
+    Ok(Some(text))
+}
+
+/// Reads the test at `path` (see [`open_record`]).
+fn read_record(path: &Path, allow_damaged: bool) -> Result<Record, ReadError> {
+    let archived =
+        path.is_dir() && !path.join(MCAP_FILE).exists() && path.join(ARCHIVED_CONFIG_FILE).exists();
+    let config_text = |c: &Config| {
+        serde_json::to_string(c).map_err(|e| ReadError::Cdlab(Error::Other(format!("configuration: {e}"))))
+    };
+    if archived {
+        let (series, config) = read_series(path)?;
+        let config = config?;
+        let kept = path.join(cdlab::cli::fabric::LAST_SNAPSHOT_FILE);
+        let snapshots = if kept.exists() {
+            let bytes = std::fs::read(&kept).map_err(|e| Error::io(&kept, e))?;
+            vec![
+                Snapshot::decode(&bytes)
+                    .map_err(|e| ReadError::File(kept.clone(), format!("{}: {e}", kept.display())))?,
+            ]
+        } else {
+            Vec::new()
+        };
+        return Ok(Record {
+            path: path.to_path_buf(),
+            kind: Kind::Archived,
+            config_json: config_text(&config)?,
+            summary_json: read_summary(path, None)?,
+            series,
+            snapshots,
+            truncated: None,
+            damaged: None,
+            run_id: None,
+            version: None,
+            backend: None,
+        });
+    }
+    let rec = read_run(path)?;
+    let file = if path.is_dir() {
+        path.join(MCAP_FILE)
+    } else {
+        path.to_path_buf()
+    };
+    if let (Some(why), false) = (&rec.damaged, allow_damaged) {
+        return Err(ReadError::Damaged(file, why.clone()));
+    }
+    let config = rec
+        .config()
+        .map_err(|e| ReadError::File(file.clone(), format!("{}: {e}", file.display())))?;
+    let dir = file.parent().unwrap_or(Path::new("."));
+    Ok(Record {
+        path: if path.is_dir() {
+            path.to_path_buf()
+        } else {
+            dir.to_path_buf()
+        },
+        kind: Kind::Run,
+        config_json: config_text(&config)?,
+        summary_json: read_summary(dir, rec.run_id.as_deref())?,
+        series: rec.series,
+        snapshots: rec.snapshots,
+        truncated: rec.truncated,
+        damaged: rec.damaged,
+        run_id: rec.run_id,
+        version: Some(rec.version),
+        backend: rec.backend,
+    })
+}
+
+/// Opens the run directory (or its `run.mcap`) or the archived test at `path`. The record
+/// is read with its checks (chunk CRCs, checkpoint CRCs); one that failed a check raises
+/// [`DamagedRecordError`] naming the file unless `allow_damaged`, when what precedes the
+/// damage is kept and `damaged` says why. A record cut short (a run killed mid-write, not a
+/// failed check) opens, `truncated` saying where it ends. The file is read without the GIL.
+#[pyfunction]
+#[pyo3(signature = (path, allow_damaged = false))]
+fn open_record(py: Python<'_>, path: PathBuf, allow_damaged: bool) -> PyResult<Record> {
+    if !path.exists() {
+        return Err(file_error(
+            py,
+            &path,
+            format!("{}: no such file or directory", path.display()),
+        ));
+    }
+    match py.detach(|| read_record(&path, allow_damaged)) {
+        Ok(r) => Ok(r),
+        Err(ReadError::Cdlab(e)) => Err(py_err(py, e)),
+        Err(ReadError::File(p, msg)) => Err(file_error(py, &p, msg)),
+        Err(ReadError::Damaged(p, why)) => {
+            let msg = format!(
+                "{}: {why}: `cdlab biaxial --resume {}` recomputes the run from its last intact \
+                 checkpoint (open(..., allow_damaged=True) reads what precedes the damage)",
+                p.display(),
+                p.parent().unwrap_or(Path::new(".")).display()
+            );
+            let reason = why.into_pyobject(py)?.into_any().unbind();
+            Err(set_attrs(
+                py,
+                DamagedRecordError::new_err(msg),
+                vec![("path", path_obj(py, &p)), ("reason", reason)],
+            ))
+        }
+    }
+}
+
+/// One field of a snapshot's disk.
+type DiskField = fn(&cdlab::record::DiskRecord) -> f64;
+
+/// Little-endian bytes of `values`.
+fn le_f64(values: impl Iterator<Item = f64>) -> Vec<u8> {
+    values.flat_map(f64::to_le_bytes).collect()
+}
+
+/// Little-endian bytes of `values`.
+fn le_u32(values: impl Iterator<Item = u32>) -> Vec<u8> {
+    values.flat_map(u32::to_le_bytes).collect()
+}
+
+impl Record {
+    fn snapshot(&self, index: usize) -> PyResult<&Snapshot> {
+        self.snapshots.get(index).ok_or_else(|| {
+            pyo3::exceptions::PyIndexError::new_err(format!(
+                "snapshot {index} of {} in {}",
+                self.snapshots.len(),
+                self.path.display()
+            ))
+        })
+    }
+}
+
+#[pymethods]
+impl Record {
+    /// The run directory or archived test read.
+    #[getter]
+    fn path(&self) -> String {
+        self.path.display().to_string()
+    }
+
+    /// "run" (a record) or "archived" (a directory of `cdlab archive`).
+    #[getter]
+    fn kind(&self) -> &'static str {
+        match self.kind {
+            Kind::Run => "run",
+            Kind::Archived => "archived",
+        }
+    }
+
+    /// The configuration as JSON (SI units, the keys of the TOML file).
+    #[getter]
+    fn config_json(&self) -> &str {
+        &self.config_json
+    }
+
+    /// `summary.json`'s text, checked; None when the test has none (not finished).
+    #[getter]
+    fn summary_json(&self) -> Option<&str> {
+        self.summary_json.as_deref()
+    }
+
+    /// Why the record ends early (None for a complete file).
+    #[getter]
+    fn truncated(&self) -> Option<&str> {
+        self.truncated.as_deref()
+    }
+
+    /// Why the record failed a check (None unless opened with `allow_damaged`).
+    #[getter]
+    fn damaged(&self) -> Option<&str> {
+        self.damaged.as_deref()
+    }
+
+    /// The record's identity (`summary.json`'s `record_id`).
+    #[getter]
+    fn run_id(&self) -> Option<&str> {
+        self.run_id.as_deref()
+    }
+
+    /// The cdlab version that wrote the record.
+    #[getter]
+    fn version(&self) -> Option<&str> {
+        self.version.as_deref()
+    }
+
+    /// The backend that wrote the record's last part, when it says.
+    #[getter]
+    fn backend(&self) -> Option<&str> {
+        self.backend.as_deref()
+    }
+
+    /// The series as columns in the order of `series.csv`: name -> little-endian bytes of
+    /// float64 (type "number") or uint64 (type "integer"), or a list of str ("string").
+    fn series_columns<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let rows: Vec<serde_json::Value> = self
+            .series
+            .iter()
+            .map(|r| serde_json::to_value(r).map_err(|e| CdlabError::new_err(format!("series row: {e}"))))
+            .collect::<PyResult<_>>()?;
+        let out = PyDict::new(py);
+        for (name, kind, _) in SERIES_FIELDS {
+            let cell = |r: &serde_json::Value| r.get(*name).cloned().unwrap_or(serde_json::Value::Null);
+            match *kind {
+                "string" => {
+                    let v: Vec<String> = rows
+                        .iter()
+                        .map(|r| cell(r).as_str().unwrap_or_default().to_string())
+                        .collect();
+                    out.set_item(*name, PyList::new(py, v)?)?;
+                }
+                "integer" => {
+                    let bytes: Vec<u8> = rows
+                        .iter()
+                        .flat_map(|r| cell(r).as_u64().unwrap_or_default().to_le_bytes())
+                        .collect();
+                    out.set_item(*name, PyBytes::new(py, &bytes))?;
+                }
+                _ => {
+                    // JSON null is how a series row serializes NaN.
+                    let bytes = le_f64(rows.iter().map(|r| cell(r).as_f64().unwrap_or(f64::NAN)));
+                    out.set_item(*name, PyBytes::new(py, &bytes))?;
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// (time_s, strain) of every snapshot, in record order.
+    fn snapshot_times(&self) -> Vec<(f64, f64)> {
+        self.snapshots.iter().map(|s| (s.time_s, s.strain)).collect()
+    }
+
+    /// The disks of snapshot `index`: name -> little-endian float64 bytes, one value per
+    /// disk (x_m, y_m, theta_rad, vx_m_s, vy_m_s, w_rad_s, r_m, dx_m, dy_m).
+    fn snapshot_disks<'py>(&self, py: Python<'py>, index: usize) -> PyResult<Bound<'py, PyDict>> {
+        let s = self.snapshot(index)?;
+        let out = PyDict::new(py);
+        let cols: [(&str, DiskField); 9] = [
+            ("x_m", |d| d.x),
+            ("y_m", |d| d.y),
+            ("theta_rad", |d| d.theta),
+            ("vx_m_s", |d| d.vx),
+            ("vy_m_s", |d| d.vy),
+            ("w_rad_s", |d| d.w),
+            ("r_m", |d| d.r),
+            ("dx_m", |d| d.dx),
+            ("dy_m", |d| d.dy),
+        ];
+        for (name, f) in cols {
+            out.set_item(name, PyBytes::new(py, &le_f64(s.disks.iter().map(f))))?;
+        }
+        Ok(out)
+    }
+
+    /// The contacts of snapshot `index`: "i", "j" (little-endian uint32 bytes), "nx", "ny",
+    /// "f_n_n_m", "f_t_n_m" (float64 bytes; forces in N/m) and "class" (uint8 bytes).
+    fn snapshot_contacts<'py>(&self, py: Python<'py>, index: usize) -> PyResult<Bound<'py, PyDict>> {
+        let s = self.snapshot(index)?;
+        let c = &s.contacts;
+        let out = PyDict::new(py);
+        out.set_item("i", PyBytes::new(py, &le_u32(c.iter().map(|c| c.i))))?;
+        out.set_item("j", PyBytes::new(py, &le_u32(c.iter().map(|c| c.j))))?;
+        out.set_item("nx", PyBytes::new(py, &le_f64(c.iter().map(|c| c.nx))))?;
+        out.set_item("ny", PyBytes::new(py, &le_f64(c.iter().map(|c| c.ny))))?;
+        out.set_item("f_n_n_m", PyBytes::new(py, &le_f64(c.iter().map(|c| c.f_n))))?;
+        out.set_item("f_t_n_m", PyBytes::new(py, &le_f64(c.iter().map(|c| c.f_t))))?;
+        let class: Vec<u8> = c.iter().map(|c| c.class).collect();
+        out.set_item("class", PyBytes::new(py, &class))?;
+        Ok(out)
+    }
+
+    /// The micromechanical analysis of snapshot `index` as JSON (what `cdlab fabric`
+    /// prints: [`Analysis`]), the stress divided by the sample area of the series row
+    /// nearest the snapshot's time. An error names the test when no row gives an area or
+    /// no contact carries force.
+    fn snapshot_fabric_json(&self, py: Python<'_>, index: usize) -> PyResult<String> {
+        let s = self.snapshot(index)?;
+        let row = self
+            .series
+            .iter()
+            .min_by(|a, b| {
+                (a.time_s - s.time_s)
+                    .abs()
+                    .total_cmp(&(b.time_s - s.time_s).abs())
+            })
+            .ok_or_else(|| CdlabError::new_err(format!("{}: no series row", self.path.display())))?;
+        let area = row.height_m * row.width_m;
+        if !(area.is_finite() && area > 0.0) {
+            return Err(CdlabError::new_err(format!(
+                "{}: the series row at t = {} s gives no sample area (height {} m, width {} m)",
+                self.path.display(),
+                row.time_s,
+                row.height_m,
+                row.width_m
+            )));
+        }
+        let json = py.detach(|| {
+            let radius: Vec<f64> = s.disks.iter().map(|d| d.r).collect();
+            let a = Analysis::of(&from_snapshot(s), &radius, area);
+            if a.sums.n_force == 0 {
+                return Err(format!(
+                    "{}: the snapshot at strain {} has no force-carrying contact",
+                    self.path.display(),
+                    s.strain
+                ));
+            }
+            serde_json::to_string(&a).map_err(|e| e.to_string())
+        });
+        json.map_err(CdlabError::new_err)
+    }
+}
+
+/// The campaign report of the finished tests below `paths` (each a run directory, an
+/// archived test or a directory holding them): `(report_json, report_csv, tests_csv)`,
+/// the texts `cdlab report` writes as report.json, report.csv and tests.csv. An error
+/// names a path that is not a directory, or says that none holds a finished test.
+#[pyfunction]
+fn campaign_report(py: Python<'_>, paths: Vec<PathBuf>) -> PyResult<(String, String, String)> {
+    use cdlab::analysis::report::{analyse, collect};
+    for p in &paths {
+        if !p.is_dir() {
+            return Err(file_error(py, p, format!("{}: not a directory", p.display())));
+        }
+    }
+    let (points, missing) = py.detach(|| collect(&paths));
+    if points.is_empty() {
+        return Err(CdlabError::new_err(format!(
+            "no finished test (summary.json) below {}",
+            paths
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )));
+    }
+    let report = analyse(&points, missing);
+    let json = serde_json::to_string(&report).map_err(|e| CdlabError::new_err(e.to_string()))?;
+    Ok((json, report.csv(), report.tests_csv()))
+}
+
+/// The series columns: (name, JSON type, description with unit), in `series.csv` order.
+#[pyfunction]
+fn series_fields() -> Vec<(&'static str, &'static str, &'static str)> {
+    SERIES_FIELDS.to_vec()
+}
+
+/// The cdlab library version this module was built with.
+#[pyfunction]
+fn library_version() -> &'static str {
+    env!("CARGO_PKG_VERSION")
+}
+
+/// The module `cdlab._cdlab`.
+#[pymodule]
+fn _cdlab(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    m.add_class::<Record>()?;
+    m.add_function(wrap_pyfunction!(open_record, m)?)?;
+    m.add_function(wrap_pyfunction!(campaign_report, m)?)?;
+    m.add_function(wrap_pyfunction!(series_fields, m)?)?;
+    m.add_function(wrap_pyfunction!(library_version, m)?)?;
+    m.add("CdlabError", py.get_type::<CdlabError>())?;
+    m.add("InvalidParameterError", py.get_type::<InvalidParameterError>())?;
+    m.add("ParseError", py.get_type::<ParseError>())?;
+    m.add("NumericalError", py.get_type::<NumericalError>())?;
+    m.add("GpuError", py.get_type::<GpuError>())?;
+    m.add("NoAdapterError", py.get_type::<NoAdapterError>())?;
+    m.add("FileError", py.get_type::<FileError>())?;
+    m.add("DamagedRecordError", py.get_type::<DamagedRecordError>())?;
+    m.add("StoppedError", py.get_type::<StoppedError>())?;
+    Ok(())
+}
