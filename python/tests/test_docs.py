@@ -11,7 +11,7 @@ import pytest
 
 from conftest import ROOT
 
-PAGE = ROOT / "docs" / "python.md"
+PAGE = ROOT / "docs/python.md"
 BLOCKS = re.findall(r"^```python test\n(.*?)^```$", PAGE.read_text(), flags=re.S | re.M)
 
 
