@@ -25,6 +25,7 @@
 
 pub mod analysis;
 pub mod backend;
+pub mod campaign;
 pub mod cli;
 pub mod config;
 pub mod contact;
@@ -38,6 +39,7 @@ pub mod measure;
 pub mod model;
 pub mod protocol;
 pub mod record;
+pub mod run;
 pub mod sample;
 pub mod solver;
 
