@@ -20,6 +20,7 @@
 //! and the natural order of test names are those of `crate::analysis::report`, which reads
 //! campaigns back.
 
+pub mod archive;
 mod pool;
 mod sweep;
 
