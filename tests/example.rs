@@ -5,11 +5,11 @@
 #[allow(dead_code)]
 mod example;
 
-/// A 200-disk test to 0.3% of axial strain under 1 MPa: the callback sees every row the
+/// A 300-disk test to 0.3% of axial strain under 1 MPa: the callback sees every row the
 /// record holds and the three phases end in order, the record ends at the end strain, and
 /// the peak stress lies above the confining stress (a compressed sample carries more
 /// axially than laterally) and below five times it (docs/results.md: over the whole
-/// 5000-disk campaign the peak stress ratio stays between 1.33 and 2.63; 200 disks scatter
+/// 5000-disk campaign the peak stress ratio stays between 1.33 and 2.63; 300 disks scatter
 /// more, a few tenths of a percent of strain build less).
 #[test]
 fn the_library_example_runs_a_test_and_reads_it_back() {

@@ -5,6 +5,7 @@ pub mod archive;
 pub mod bands;
 pub mod bench;
 pub mod biaxial;
+mod campaign_display;
 pub mod compare;
 pub mod config;
 pub mod export;

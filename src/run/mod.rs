@@ -22,7 +22,7 @@
 //! use cdlab::run::{self, Event};
 //!
 //! let config = run::configure(None, &Overrides {
-//!     disks: Some(200),
+//!     disks: Some(300),
 //!     strain: Some(0.002),
 //!     backend: Some("cpu".into()),
 //!     out: Some("runs/tiny".into()),
