@@ -1,5 +1,7 @@
 //! The `cdlab` command line. Each subcommand lives in its own file with an `Args` struct
-//! (clap) and a `run` function; this file only dispatches.
+//! (clap) and a `run` function; this file only dispatches. The work of running tests and
+//! campaigns is the library's ([`crate::run`], [`crate::campaign`]): the subcommands parse,
+//! call it and print, and their progress displays are implementations of its callbacks.
 
 pub mod archive;
 pub mod bands;
