@@ -40,15 +40,18 @@ pub fn summary_of(
         config.solver.deep_sweeps,
         rows,
     );
-    let bands = match record {
-        Ok(rec) => crate::analysis::bands::analyse_run(rec, None, None, &Default::default()),
-        Err(e) => Err(Error::Other(e.to_string())),
-    };
     summary.record_id = record.as_ref().ok().and_then(|r| r.run_id.clone());
+    let bands = record
+        .as_ref()
+        .map(|rec| crate::analysis::bands::analyse_run(rec, None, None, &Default::default()));
     summary.shear_bands = match bands {
-        Ok(b) => Some(b),
-        Err(e) => {
+        Ok(Ok(b)) => Some(b),
+        Ok(Err(e)) => {
             progress.event(&Event::NoShearBands(&e));
+            None
+        }
+        Err(e) => {
+            progress.event(&Event::NoShearBands(e));
             None
         }
     };
@@ -59,9 +62,14 @@ pub fn summary_of(
 /// synced and renamed into place ([`atomic::write_file`]): `summary.json` marks the test
 /// finished, so it comes last and is never seen half-written.
 pub fn write_summary(dir: &Path, summary: &Summary) -> Result<()> {
-    let json = serde_json::to_string_pretty(summary).map_err(|e| Error::Other(e.to_string()))?;
+    let json = serde_json::to_string_pretty(summary).map_err(|e| unwritable(dir, e))?;
     atomic::write_file(&dir.join("summary.txt"), summary.table().as_bytes())?;
     atomic::write_file(&dir.join("summary.json"), json.as_bytes())
+}
+
+/// A summary that cannot be put into JSON: the error of writing `dir`'s `summary.json`.
+fn unwritable(dir: &Path, e: serde_json::Error) -> Error {
+    Error::io(dir.join("summary.json"), std::io::Error::other(e))
 }
 
 /// Why the `summary.json` beside a complete record cannot stand, if it cannot: missing,
@@ -203,7 +211,7 @@ pub fn summarize(dir: &Path, dry_run: bool) -> Result<Summarized> {
         Some(_) => None,
     };
     let summary = rebuild_summary(dir, &record, old.as_ref())?;
-    let new = serde_json::to_value(&summary).map_err(|e| Error::Other(e.to_string()))?;
+    let new = serde_json::to_value(&summary).map_err(|e| unwritable(dir, e))?;
     let changed = match (&old, &fault) {
         (Some(old), None) => changed_keys(old, &new),
         _ => vec![format!("all (summary.json {})", fault.unwrap_or_default())],
