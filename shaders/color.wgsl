@@ -4,7 +4,7 @@
 // then one dispatch per coloring round, then count, offsets and scatter of the contact
 // indices by color into `order`.
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn incidence_count(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
     if k >= n_contacts() { return; }
@@ -13,7 +13,7 @@ fn incidence_count(@builtin(global_invocation_id) gid: vec3<u32>) {
     if moves_j(c) { atomicAdd(&ints[sim.o_inc_count + c.j], 1u); }
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn incidence_fill(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
     if k >= n_contacts() { return; }
@@ -44,7 +44,7 @@ fn rank_in(b: u32, k: u32) {
     st(sim.o_inc_list + lo + rank, k);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn incidence_rank(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
     if k >= n_contacts() { return; }
@@ -106,7 +106,7 @@ fn scan_body(b: u32, k: u32, pk: u32, base: u32, r: u32) -> Scan {
 // start uncolored. The kept seeds share no body (of two equal neighbours the loser drops),
 // and the rounds only add colors around them. ints[o_left + r] counts the contacts still
 // uncolored after round r (the counters are cleared with the step's scratch).
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn color_seed(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
     if k >= n_contacts() { return; }
@@ -139,7 +139,7 @@ fn color_seed(@builtin(global_invocation_id) gid: vec3<u32>) {
 // every contact ran past llvmpipe's per-invocation loop budget of 65,535 iterations from
 // about 58,000 contacts and stopped halfway). Every uncolored contact that beats all its
 // uncolored neighbours takes the smallest color its colored neighbours do not use.
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn color_round(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
     let r = args.a;
@@ -178,7 +178,7 @@ fn color_round(@builtin(global_invocation_id) gid: vec3<u32>) {
 // After the rounds: the color of each contact into its record, the count per color and
 // the number of colors (colors beyond capacity are reported and the host grows the color
 // table and redoes the step; an unfinished coloring is reported through ST_LEFT).
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn color_count(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
     if k >= n_contacts() { return; }
@@ -215,7 +215,7 @@ fn color_offsets() {
 // Permutes contact indices by color into `order`, so each color is a contiguous range the
 // solver sweeps with one dispatch. The order inside a color is arbitrary and harmless:
 // contacts of one color share no movable body, so their updates commute.
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn color_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
     if k >= n_contacts() { return; }

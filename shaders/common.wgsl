@@ -8,22 +8,28 @@
 // host whenever a capacity grows): this keeps the layout at 6 storage buffers, under the
 // WebGPU default of 8 per stage.
 
-const WG: u32 = 64u;
-const UNSET: u32 = 0xffffffffu;
-const NOT_GLUED: u32 = 0xffffffffu;
-const KIND_FREE: u32 = 0u;
+// The constants shared with Rust; each is checked against its Rust source by
+// tests/gpu_layout.rs (table: cdlab::gpu::wgsl_constants in src/gpu/mod.rs).
+const WG: u32 = 64u;                // threads per workgroup of per-item kernels (gpu::WG)
+const NOT_GLUED: u32 = 0xffffffffu; // model::NOT_GLUED
+const KIND_FREE: u32 = 0u;          // model::BodyKind
 const KIND_KINEMATIC: u32 = 1u;
+const PREV_STRIDE: u32 = 4u;        // words per warm-start record (buffers::PREV_STRIDE)
 
-// Status words (ints[o_status + k]) read back once per step after detection and coloring.
+// Status words (ints[o_status + k]) read back once per step after detection and coloring
+// (buffers::status).
 const ST_CONTACTS: u32 = 0u;      // contacts found (may exceed the capacity)
 const ST_SLOTS_NEED: u32 = 1u;    // largest per-disk contact count (may exceed k_slots)
 const ST_COLORS: u32 = 3u;        // colors used
 const ST_OVERLAP: u32 = 4u;       // largest overlap, f32 bits (positive floats sort as u32)
 const ST_ROUNDS: u32 = 5u;        // coloring rounds
-const ST_CELLS_NEED: u32 = 6u;    // grid cells wanted
 const ST_LEFT: u32 = 7u;          // contacts left uncolored after the recorded rounds
+const ST_ARGS: u32 = 8u;          // indirect dispatch size of per-contact kernels (3 words)
 const ST_DEEP: u32 = 11u;         // contacts marked for local updates (solve.wgsl, deep_mark)
 const ST_WORDS: u32 = 16u;        // status words; color offsets follow them
+
+// Internal to the shaders.
+const UNSET: u32 = 0xffffffffu;
 
 struct Sim {
     n_disks: u32, n_walls: u32, n_bodies: u32, k_slots: u32,
@@ -121,6 +127,14 @@ fn dv_j(c: Contact, drn: f32, drt: f32) -> vec4<f32> {
 // Kinematic and fixed bodies are never written: this is what lets one color share them.
 fn moves_j(c: Contact) -> bool { return c.mj != 0.0 || c.ma != 0.0 || c.kj != 0.0; }
 fn moves_i(c: Contact) -> bool { return c.mi != 0.0 || c.ki != 0.0; }
+
+// The offset of the normal law for a step (CPU twin: engine::normal_bias): an open gap may
+// close during the step but not beyond (docs/method.md), a closed one gets the restitution
+// offset e_n min(U_n, 0).
+fn normal_bias(gap: f32, un: f32, theta: f32, dt: f32, e_n: f32) -> f32 {
+    if gap > 0.0 { return max((gap + (1.0 - theta) * dt * un) / (theta * dt), 0.0); }
+    return e_n * min(un, 0.0);
+}
 
 // Exact local solution with a diagonal Delassus block (every disk-disk and disk-plane
 // contact): R_n = max(0, -ufn / W_nn), R_t = clamp(-uft / W_tt, -mu R_n, mu R_n).

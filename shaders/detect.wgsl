@@ -24,7 +24,7 @@ fn insert_partner(base: u32, n: u32, q: u32) {
     st(base + s, q);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn detect(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
     let nd = sim.n_disks;
@@ -75,9 +75,9 @@ fn contact_args() {
     let total = ld(sim.o_dcount + sim.n_disks);
     st(sim.o_status + ST_CONTACTS, total);
     let n = min(total, sim.cap_contacts);
-    st(sim.o_status + 8u, (n + WG - 1u) / WG);
-    st(sim.o_status + 9u, 1u);
-    st(sim.o_status + 10u, 1u);
+    st(sim.o_status + ST_ARGS, (n + WG - 1u) / WG);
+    st(sim.o_status + ST_ARGS + 1u, 1u);
+    st(sim.o_status + ST_ARGS + 2u, 1u);
 }
 
 struct Side { body: u32, lever: f32, inv_mass: f32, axial: f32, axis: vec2<f32>, k: f32 }
@@ -103,7 +103,7 @@ fn delassus(c: ptr<function, Contact>) {
 
 // Compacts disk i's partners into contact records: frame, gap, Delassus block, start-of-
 // step velocities, law offsets, and the previous step's impulses for the same partner.
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn build_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
     let nd = sim.n_disks;
@@ -160,16 +160,11 @@ fn build_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
         let u = relative_velocity(c, vel_at(1u, c.i), vel_at(1u, c.j));
         c.un0 = u.x;
         c.ut0 = u.y;
-        if c.gap > 0.0 {
-            // Open gap: it may close during the step but not beyond (docs/method.md).
-            c.bias_n = max((c.gap + (1.0 - sim.theta) * sim.dt * u.x) / (sim.theta * sim.dt), 0.0);
-        } else {
-            c.bias_n = sim.e_n * min(u.x, 0.0);
-            // Not for an exact zero gap: -0.0 has the sign bit set, its bits would exceed
-            // every positive overlap's and hide them from the host's overlap limit.
-            if c.gap < 0.0 {
-                atomicMax(&ints[sim.o_status + ST_OVERLAP], bitcast<u32>(-c.gap));
-            }
+        c.bias_n = normal_bias(c.gap, u.x, sim.theta, sim.dt, sim.e_n);
+        // Not for an exact zero gap: -0.0 has the sign bit set, its bits would exceed every
+        // positive overlap's and hide them from the host's overlap limit.
+        if c.gap < 0.0 {
+            atomicMax(&ints[sim.o_status + ST_OVERLAP], bitcast<u32>(-c.gap));
         }
         c.bias_t = sim.e_t * u.y;
         // Warm start: both lists are sorted by partner, so one forward walk finds it. A
@@ -192,12 +187,10 @@ fn build_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
 }
 
-// Words per contact in the warm-start records: partner, R_n bits, R_t bits, color.
-const PREV_STRIDE: u32 = 4u;
-
-// Saves this step's impulses and colors (by disk, in key order) for the next step's warm
-// start and coloring seed.
-@compute @workgroup_size(64)
+// Saves this step's impulses and colors (by disk, in key order; PREV_STRIDE words per
+// contact: partner, R_n bits, R_t bits, color) for the next step's warm start and coloring
+// seed.
+@compute @workgroup_size(WG)
 fn save_prev(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
     let nd = sim.n_disks;

@@ -72,7 +72,7 @@ fn cell_coords(k: u32) -> vec2<u32> {
 }
 
 // Counts the disks of every cell (into the cell-start region, scanned next).
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn grid_count(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
     if k >= sim.n_disks { return; }
@@ -83,7 +83,7 @@ fn grid_count(@builtin(global_invocation_id) gid: vec3<u32>) {
 }
 
 // Places every disk in its cell's range of the item list.
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn grid_scatter(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
     if k >= sim.n_disks { return; }

@@ -1,6 +1,6 @@
 // Phase 6: theta scheme (CPU twin: CpuEngine::integrate). One thread per generalized body.
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn integrate(@builtin(global_invocation_id) gid: vec3<u32>) {
     let b = gid.x;
     let nd = sim.n_disks;

@@ -13,7 +13,7 @@ fn strip_force(k: u32) -> vec2<f32> {
     return vec2<f32>(-f32(s) * total * disks[k].radius / sum_r, 0.0);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn free_velocity(@builtin(global_invocation_id) gid: vec3<u32>) {
     let b = gid.x;
     let nd = sim.n_disks;

@@ -3,7 +3,7 @@
 // exclusive prefix sum of a region, in place.
 
 // Zeroes ints[args.a .. args.a + args.b] (the per-step counters, laid out contiguously).
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn clear_ints(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
     if k < args.b { st(args.a + k, 0u); }

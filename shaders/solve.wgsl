@@ -12,7 +12,7 @@ fn contribution(b: u32, c: Contact, rn: f32, rt: f32) -> vec4<f32> {
 }
 
 // v = v_free + M^-1 sum H R over the body's contacts (warm start and Jacobi).
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn gather(@builtin(global_invocation_id) gid: vec3<u32>) {
     let b = gid.x;
     if b >= sim.n_bodies { return; }
@@ -55,7 +55,7 @@ fn color_member(gid: u32) -> u32 {
 
 // One color of a Gauss-Seidel sweep: the color index is args.a; sim.gs_relax is the
 // iteration's relaxation (CPU twin: SolverParams::relax_at).
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn sweep_color(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = color_member(gid.x);
     if k == UNSET { return; }
@@ -67,7 +67,7 @@ fn sweep_color(@builtin(global_invocation_id) gid: vec3<u32>) {
 // Local updates of deep contacts (CPU twin: the end of solver::sweep::solve), part 1: after
 // the iterations, mark each loaded contact overlapping by more than sim.deep_gap, and count
 // them. Contacts with a full 2x2 block (glued walls) are left out, as on the CPU.
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn deep_mark(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
     if k >= n_contacts() { return; }
@@ -79,7 +79,7 @@ fn deep_mark(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 // Part 2: one color's marked contacts updated once more, unrelaxed (the selection does not
 // change during the updates, as on the CPU).
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn deep_color(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = color_member(gid.x);
     if k == UNSET || contacts[k].deep == 0u { return; }
@@ -94,7 +94,7 @@ fn deep_tally() {
 }
 
 // Jacobi, part 1: every contact from the same velocities, relaxed by sim.relax.
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn jacobi_solve(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
     if k >= n_contacts() { return; }
@@ -110,7 +110,7 @@ fn jacobi_solve(@builtin(global_invocation_id) gid: vec3<u32>) {
 }
 
 // Jacobi, part 2: commit the relaxed impulses (the gather then rebuilds the velocities).
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn jacobi_commit(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
     if k >= n_contacts() { return; }
@@ -120,7 +120,7 @@ fn jacobi_commit(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 // The velocity test (CPU twin: solver::convergence::VelocityTest): the iterate before the last
 // iteration of a batch goes to region 4.
-@compute @workgroup_size(64)
+@compute @workgroup_size(WG)
 fn save_iterate(@builtin(global_invocation_id) gid: vec3<u32>) {
     let b = gid.x;
     if b >= sim.n_bodies { return; }

@@ -34,14 +34,6 @@ pub enum Error {
         /// Which contact or body, and what went wrong.
         message: String,
     },
-    /// A GPU adapter or device problem.
-    #[error("GPU: {0}")]
-    Gpu(String),
-    /// No GPU adapter at all: the machine has no driver wgpu can use. Kept apart from
-    /// [`Error::Gpu`] so that a caller can tell "no GPU here" (a test may skip) from a GPU
-    /// that fails (a shader rejected, a buffer over a limit: always an error).
-    #[error("GPU: {0}")]
-    NoAdapter(String),
     /// Input/output error with the path involved.
     #[error("{path}: {source}")]
     Io {
@@ -59,6 +51,122 @@ pub enum Error {
         /// The step of the checkpoint written, 0 when none was.
         step: u64,
     },
+    /// A GPU adapter or device problem.
+    #[error("GPU: {0}")]
+    Gpu(String),
+    /// No GPU adapter at all: the machine has no driver wgpu can use. Kept apart from
+    /// [`Error::Gpu`] so that a caller can tell "no GPU here" (a test may skip) from a GPU
+    /// that fails (a shader rejected, a buffer over a limit: always an error).
+    #[error("GPU: {0}")]
+    NoAdapter(String),
+    /// A buffer the sample needs is larger than the adapter allows (checked before any
+    /// allocation). The way out: a sample of about `fits_disks` disks, an adapter with
+    /// larger limits, or the CPU path.
+    #[error(
+        "GPU: the {what} buffer needs {bytes} bytes but the adapter's {limit_name} is {limit}: \
+         the largest sample that fits is about {fits_disks} disks"
+    )]
+    GpuLimit {
+        /// Which buffer (disk, contact, integer scratch, ...).
+        what: String,
+        /// Bytes it needs.
+        bytes: u64,
+        /// The wgpu limit it exceeds (`max_storage_buffer_binding_size`, `max_buffer_size`).
+        limit_name: &'static str,
+        /// That limit's value on this adapter (bytes).
+        limit: u64,
+        /// Estimate of the largest sample that fits (disks; sizes grow linearly with them).
+        fits_disks: u64,
+    },
+    /// A compute shader of cdlab that naga rejects before it reaches the driver: a bug in
+    /// the crate (the shaders are checked by tests/gpu.rs and tests/gpu_layout.rs), not in
+    /// the input; the CPU path still runs.
+    #[error("GPU: shader {file} is invalid (a bug in cdlab; use --backend cpu): {message}")]
+    GpuShader {
+        /// The phase shader file in `shaders/`.
+        file: String,
+        /// naga's diagnostic, with the line in the composed source.
+        message: String,
+    },
+    // Files a caller can act on (read again, prepare again, wait, skip): each names what
+    // is at fault; the messages are those the command line prints.
+    /// A path that names no file (`/`, `..`) where a file is to be written
+    /// ([`crate::fsio::write_file`]).
+    #[error("{}: not a file name", path.display())]
+    NotAFile {
+        /// The path.
+        path: PathBuf,
+    },
+    /// A run directory held by another cdlab process (it holds the directory's lock file):
+    /// let that run end or stop it, then try again.
+    #[error(
+        "{} is in use by another cdlab process (it holds the lock on {}): let that run end or stop it first",
+        dir.display(),
+        lock.display()
+    )]
+    InUse {
+        /// The run directory.
+        dir: PathBuf,
+        /// Its lock file.
+        lock: PathBuf,
+    },
+    /// A test directory kept by `cdlab archive` (configuration, summary, thinned series)
+    /// asked for its full record, which went with the run's own directory.
+    #[error(
+        "{} is an archived test (`cdlab archive`: its configuration, summary and time series thinned to {}, \
+         without the record {}); this needs the full record, which only the run's own directory holds \
+         (`cdlab render DIR --curves` draws from the thinned series)",
+        dir.display(),
+        thinned,
+        record
+    )]
+    Archived {
+        /// The archived test's directory.
+        dir: PathBuf,
+        /// The file name of the thinned series it keeps.
+        thinned: &'static str,
+        /// The file name of the record it lacks.
+        record: &'static str,
+    },
+    /// A run record that is not a cdlab record, or is damaged before anything usable (a
+    /// record damaged later is read up to the damage: `RunRecord::damaged`). `path` is
+    /// `None` where bytes were parsed (`crate::record::parse_run`).
+    #[error("{}{message}", path.as_ref().map(|p| format!("{}: ", p.display())).unwrap_or_default())]
+    BadRecord {
+        /// The record file, when known.
+        path: Option<PathBuf>,
+        /// What is wrong.
+        message: String,
+    },
+    /// A checkpoint that does not decode (`crate::protocol::checkpoint::decode`): foreign
+    /// or damaged bytes.
+    #[error("{message}")]
+    BadCheckpoint {
+        /// The byte of the checkpoint at which decoding stopped.
+        offset: usize,
+        /// What is wrong.
+        message: String,
+    },
+    /// A prepared-sample file that cannot be used (`crate::sample::file`): prepare it
+    /// again.
+    #[error("{}: {}", path.display(), problem.describe(path))]
+    BadSample {
+        /// The sample file.
+        path: PathBuf,
+        /// What is wrong with it.
+        problem: SampleProblem,
+    },
+    /// Input in which a figure finds nothing to draw (no compression rows, no friction,
+    /// no disk): the figure is skipped, the others can still be drawn.
+    #[error("{0}")]
+    NothingToDraw(String),
+    /// The drawing or the encoding of a figure failed.
+    #[error("{0}")]
+    Drawing(String),
+    /// The shear-band analysis cannot run on the snapshots given (too few snapshots, not
+    /// the same sample, too few local strain values).
+    #[error("{0}")]
+    BandAnalysis(String),
     // Runs and campaigns (`crate::run`, `crate::campaign`): what a caller can act on.
     /// A run directory, record or file that does not allow what was asked: `fault` says
     /// why in a form a program can match, `message` says it to a person.
@@ -105,6 +213,81 @@ pub enum RunFault {
     OtherSettings,
     /// A record or file whose content cannot be used (damaged, or not what it should be).
     Damaged,
+}
+
+/// What makes a prepared-sample file unusable ([`Error::BadSample`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum SampleProblem {
+    /// A format that holds no checksum (`version`), which cannot be checked for damage.
+    OldFormat {
+        /// The format version found.
+        version: u32,
+    },
+    /// Not a cdlab sample file at all (its magic is someone else's).
+    NotASample,
+    /// Shorter than the header.
+    ShortHeader {
+        /// Bytes in the file.
+        len: usize,
+        /// Bytes of the header.
+        header: usize,
+    },
+    /// The payload's length differs from the header's.
+    Length {
+        /// Bytes of payload the header announces.
+        announced: u64,
+        /// Bytes of payload the file holds.
+        found: u64,
+    },
+    /// The payload's CRC-32 differs from the header's.
+    Checksum {
+        /// CRC-32 of the payload as read.
+        computed: u32,
+        /// CRC-32 the header records.
+        recorded: u32,
+    },
+    /// The payload passed its checks but does not decode as a sample.
+    Payload(String),
+    /// The scene holds another number of disks than its parameters record.
+    DiskCount {
+        /// Disks in the scene.
+        found: usize,
+        /// Disks the parameters record.
+        recorded: usize,
+    },
+}
+
+impl SampleProblem {
+    /// The problem in words, with what to do about it (`path` is the file, for the command
+    /// that writes it again).
+    pub fn describe(&self, path: &std::path::Path) -> String {
+        match self {
+            SampleProblem::OldFormat { .. } => format!(
+                "a sample in the old format without a checksum, which cannot be checked for damage: prepare \
+                 it again (`cdlab prepare -o {} --force` with its settings; for a sweep, delete the file and \
+                 run the sweep again, which prepares it)",
+                path.display()
+            ),
+            SampleProblem::NotASample => "not a cdlab sample (bad magic; `cdlab prepare` writes them)".into(),
+            SampleProblem::ShortHeader { len, header } => {
+                format!("truncated: {len} bytes, shorter than the {header}-byte header")
+            }
+            SampleProblem::Length { announced, found } => {
+                format!(
+                    "damaged or truncated: the header announces {announced} bytes of data, the file holds {found}"
+                )
+            }
+            SampleProblem::Checksum { computed, recorded } => {
+                format!(
+                    "damaged: CRC-32 {computed:08x} of its data, {recorded:08x} recorded; prepare the sample again"
+                )
+            }
+            SampleProblem::Payload(why) => why.clone(),
+            SampleProblem::DiskCount { found, recorded } => {
+                format!("the sample holds {found} disks but records {recorded} (a corrupt or foreign file)")
+            }
+        }
+    }
 }
 
 /// The crate's result type.

@@ -12,19 +12,25 @@
 //! - [`run`]: the library face of a test: configure, prepare a sample, run or resume with a
 //!   progress callback and a cancellation token, open a finished run (`docs/library.md`);
 //! - [`figures`]: PNG and SVG figures of runs, snapshots and campaign reports;
-//! - [`analysis`]: fits of the campaign (Mohr-Coulomb envelopes, friction saturation);
-//! - [`record`]: run records (MCAP + CSV), written during a run and read back;
+//! - [`analysis`]: fits of the campaign (Mohr-Coulomb envelopes, friction saturation), and the
+//!   shear bands of a run found in its snapshots;
+//! - [`record`]: run records (MCAP + CSV), written during a run and read back: they
+//!   serialise the types of [`measure`];
+//! - [`fc2d`]: Siconos frictional contact problems, an outside test of the local law;
 //! - [`config`]: the run configuration (TOML with units);
-//! - [`protocol`]: the biaxial test's phases (preparation, confinement, compression);
-//! - [`sample`]: grain sizes and geometric deposition;
-//! - [`measure`]: series rows and derived strength;
+//! - [`protocol`]: the biaxial test's phases (preparation, confinement, compression), and
+//!   the gauge that turns a backend's reductions into series rows;
+//! - [`sample`]: grain sizes, geometric deposition, and the prepared-sample file (which holds
+//!   a [`protocol`] checkpoint: the one import that still runs up the list);
 //! - [`gpu`]: the GPU backend (wgpu, WGSL shaders in `shaders/`);
 //! - [`backend`]: the interface the protocol drives, and the CPU backend;
+//! - [`measure`]: what is measured, types and their maths: series rows, phases, micromechanics
+//!   (the backends' reductions fill its sums), derived strength, summaries, shear-band report;
 //! - [`engine`]: the CPU reference time stepper;
 //! - [`solver`]: local law, coloring, Gauss-Seidel and Jacobi sweeps;
 //! - [`contact`]: contact frame, cell grid and detection;
-//! - [`fc2d`]: Siconos frictional contact problems, an outside test of the local law;
 //! - [`model`]: disks, walls, material (the state a backend steps);
+//! - [`fsio`]: files written whole or not at all (temporary name, fsync, rename);
 //! - [`error`]: the error type;
 //! - [`interrupt`]: the cancellation token that stops a run at a checkpoint, and SIGINT or
 //!   SIGTERM as one source of it (installed only by the command line).
@@ -39,6 +45,7 @@ pub mod engine;
 pub mod error;
 pub mod fc2d;
 pub mod figures;
+pub mod fsio;
 pub mod gpu;
 pub mod interrupt;
 pub mod measure;

@@ -8,9 +8,7 @@ use crate::contact::Contact;
 use crate::engine::StepStats;
 use crate::model::{BodyKind, Scene};
 
-/// Relative threshold below which a normal force counts as zero: a contact carries force
-/// when `N > FORCE_THRESHOLD * mean(N)` over the contacts with `N > 0` (dimensionless).
-pub const FORCE_THRESHOLD: f64 = 1e-6;
+pub use crate::measure::micro::FORCE_THRESHOLD;
 
 /// Relative tolerance on `|T| = mu N` for a sliding contact: sliding when
 /// `|T| >= mu N (1 - SLIDE_EPS)` (dimensionless).

@@ -110,6 +110,8 @@ pub fn run(args: &Args) -> Result<()> {
     };
     figures::save(&fig, &args.out).map_err(|e| match e {
         Error::Other(m) => Error::Other(format!("compare: {m}")),
+        Error::NothingToDraw(m) => Error::NothingToDraw(format!("compare: {m}")),
+        Error::Drawing(m) => Error::Drawing(format!("compare: {m}")),
         e => e,
     })?;
     println!("{} runs -> {}", runs.len(), args.out.display());

@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use super::render::nearest_snapshot;
 use crate::error::{Error, Result};
 use crate::figures::rose::{ForcePdfFigure, RoseFigure};
-use crate::measure::micro::{Analysis, PDF_BINS, PDF_MAX, ROSE_BINS, from_snapshot};
+use crate::measure::micro::{Analysis, PDF_BINS, PDF_MAX, ROSE_BINS};
 use crate::record::{MCAP_FILE, SeriesRow, Snapshot, read_run, read_series};
 
 pub use crate::campaign::archive::{LAST_SNAPSHOT_FILE, keep_last_snapshot};
@@ -83,7 +83,7 @@ pub fn run(args: &Args) -> Result<()> {
         )));
     }
     let radius: Vec<f64> = snap.disks.iter().map(|d| d.r).collect();
-    let contacts = from_snapshot(snap);
+    let contacts = snap.micro_contacts();
     let a = Analysis::of(&contacts, &radius, area);
     if a.sums.n_force == 0 {
         return Err(Error::Other(format!(

@@ -225,14 +225,7 @@ impl CpuEngine {
             let (un, ut) = c.relative_velocity(&self.gv_minus);
             c.un0 = un;
             c.ut0 = ut;
-            c.bias_n = if c.gap > 0.0 {
-                // Open gap: the law lets it close during the step but not beyond. A gap the
-                // start velocity alone would already close gets no negative shift (that
-                // would push the disks apart and inject energy).
-                ((c.gap + (1.0 - theta) * dt * un) / (theta * dt)).max(0.0)
-            } else {
-                m.e_n * un.min(0.0)
-            };
+            c.bias_n = normal_bias(c.gap, un, theta, dt, m.e_n);
             c.bias_t = m.e_t * ut;
             // Both lists are sorted by key: a merge finds the previous impulses.
             let key = c.key();
@@ -376,5 +369,22 @@ pub fn body_name(scene: &Scene, k: usize) -> String {
         format!("disk {k}")
     } else {
         format!("wall {}", k - nd)
+    }
+}
+
+/// The offset `bias_n` of a contact's normal law for a step, from its gap and its
+/// start-of-step normal velocity `un` (WGSL twin: `normal_bias` in shaders/common.wgsl,
+/// compared by tests/gpu_kernels.rs).
+///
+/// An open gap (`gap > 0`) may close during the step but not beyond: the shift is
+/// `max(0, (gap + (1 - theta) dt un) / (theta dt))`. A gap the start velocity alone would
+/// already close gets no negative shift (that would push the disks apart and inject
+/// energy). A closed gap gets the Newton restitution offset `e_n min(un, 0)`.
+#[inline]
+pub fn normal_bias(gap: f64, un: f64, theta: f64, dt: f64, e_n: f64) -> f64 {
+    if gap > 0.0 {
+        ((gap + (1.0 - theta) * dt * un) / (theta * dt)).max(0.0)
+    } else {
+        e_n * un.min(0.0)
     }
 }

@@ -138,6 +138,16 @@ pub fn draw_colorbar<DB: DrawingBackend>(
     Ok(())
 }
 
+/// Color of friction number `k` of `n`: the sequential map, stopping short of its pale
+/// yellow end, which would vanish on white.
+pub fn friction_color(k: usize, n: usize) -> RGBColor {
+    SEQUENTIAL.at(if n > 1 {
+        0.85 * k as f64 / (n - 1) as f64
+    } else {
+        0.0
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -19,7 +19,7 @@ fn compression(rows: &[SeriesRow]) -> Result<Vec<&SeriesRow>> {
         .filter(|r| r.phase == "compression" && r.strain_axial.is_finite())
         .collect();
     if c.is_empty() {
-        return Err(Error::Other(
+        return Err(Error::NothingToDraw(
             "the run has no series row of the compression phase: nothing to plot against axial strain".into(),
         ));
     }
@@ -253,16 +253,16 @@ impl Figure for CompareFigure<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
         let mut runs = Vec::with_capacity(self.runs.len());
         for (label, rows) in &self.runs {
-            let rows = compression(rows).map_err(|e| Error::Other(format!("{label}: {e}")))?;
+            let rows = compression(rows).map_err(|e| Error::NothingToDraw(format!("{label}: {e}")))?;
             if rows.iter().any(|r| r.sigma3_pa.is_nan() || r.sigma3_pa <= 0.0) {
-                return Err(Error::Other(format!(
+                return Err(Error::NothingToDraw(format!(
                     "{label}: a compression row without a positive confining stress: no stress ratio"
                 )));
             }
             runs.push((label, rows));
         }
         if runs.is_empty() {
-            return Err(Error::Other("no run to compare".into()));
+            return Err(Error::NothingToDraw("no run to compare".into()));
         }
         let all = || runs.iter().flat_map(|(_, rows)| rows.iter());
         let (x0, x1) = padded_range(all().map(|r| r.strain_axial), true);
@@ -274,7 +274,7 @@ impl Figure for CompareFigure<'_> {
         let (plots, key) = root.split_horizontally(w.saturating_sub(KEY_WIDTH));
         let (top, bottom) = plots.split_vertically(h / 2);
         let n = runs.len();
-        let color = |k: usize| super::envelope::friction_color(k, n);
+        let color = |k: usize| super::colormap::friction_color(k, n);
         let panels: [Panel<'_, DB>; 2] = [
             (&top, (s0, s1), "stress ratio σ₁/σ₃ (-)", |r| {
                 r.sigma1_pa / r.sigma3_pa

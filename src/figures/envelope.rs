@@ -5,7 +5,9 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::colormap::SEQUENTIAL;
+// The campaign's colors are the color map's ([`friction_color`]); the curves use them
+// too, from `colormap`, so this file and `curves` need not import each other.
+pub use super::colormap::friction_color;
 use super::curves::CURVE_SIZE;
 use super::{Figure, LABEL, LINE_COLORS, TICK, draw_err, draw_legend};
 use crate::analysis::fit::Saturation;
@@ -17,21 +19,11 @@ const MARKER: i32 = 5;
 
 fn check(report: &Report) -> Result<()> {
     if report.frictions.is_empty() {
-        return Err(Error::Other(
+        return Err(Error::NothingToDraw(
             "the report holds no friction: nothing to plot".into(),
         ));
     }
     Ok(())
-}
-
-/// Color of friction number `k` of `n`: the sequential map, stopping short of its pale
-/// yellow end, which would vanish on white.
-pub fn friction_color(k: usize, n: usize) -> RGBColor {
-    SEQUENTIAL.at(if n > 1 {
-        0.85 * k as f64 / (n - 1) as f64
-    } else {
-        0.0
-    })
 }
 
 /// q against p (MPa): peak points (filled) and residual points (open) of every friction,
@@ -162,7 +154,7 @@ impl Figure for MuMacroFigure<'_> {
         check(self.report)?;
         let rows: Vec<_> = self.report.frictions.iter().filter(|r| r.mu > 0.0).collect();
         if rows.is_empty() {
-            return Err(Error::Other(
+            return Err(Error::NothingToDraw(
                 "every friction of the report is 0, which a logarithmic axis cannot show".into(),
             ));
         }

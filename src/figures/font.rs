@@ -27,5 +27,5 @@ pub fn ensure() -> Result<()> {
                 .map_err(|_| "the embedded DejaVu Sans is not a readable font".to_string())
         })
         .clone()
-        .map_err(Error::Other)
+        .map_err(Error::Drawing)
 }

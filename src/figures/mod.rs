@@ -9,8 +9,8 @@
 //! - [`font`]: the embedded font that PNG text needs.
 //!
 //! Every figure implements [`Figure`]: one drawing code for both backends, so the PNG and
-//! the SVG of a figure show the same thing. Figures are drawn in memory and written with
-//! one `std::fs::write`, so an unwritable path is an [`Error::Io`] naming it.
+//! the SVG of a figure show the same thing. Figures are drawn in memory and written whole
+//! ([`crate::fsio::write_file`]), so an unwritable path is an [`Error::Io`] naming it.
 
 pub mod colormap;
 pub mod curves;
@@ -23,6 +23,7 @@ pub mod snapshot;
 use std::path::Path;
 
 use plotters::coord::Shift;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use crate::error::{Error, Result};
@@ -74,7 +75,7 @@ pub trait Figure {
 /// Turns a plotters error into ours. Plotters fails only on a font problem or a backend
 /// write; both are worth a message rather than a panic.
 pub(crate) fn draw_err<E: std::fmt::Display>(e: E) -> Error {
-    Error::Other(format!("drawing a figure: {e}"))
+    Error::Drawing(format!("drawing a figure: {e}"))
 }
 
 /// Draws `fig` as an encoded PNG file's bytes.
@@ -116,7 +117,7 @@ pub fn save<F: Figure>(fig: &F, path: &Path) -> Result<F::Output> {
             (s.into_bytes(), out)
         }
     };
-    crate::record::atomic::write_file(path, &bytes)?;
+    crate::fsio::write_file(path, &bytes)?;
     Ok(out)
 }
 
@@ -131,7 +132,7 @@ pub fn save_both<F: Figure>(fig: &F, dir: &Path, stem: &str) -> Result<[std::pat
 
 fn encode_png(rgb: &[u8], w: u32, h: u32) -> Result<Vec<u8>> {
     let mut out = Vec::new();
-    let err = |e: png::EncodingError| Error::Other(format!("encoding a PNG figure: {e}"));
+    let err = |e: png::EncodingError| Error::Drawing(format!("encoding a PNG figure: {e}"));
     let mut enc = png::Encoder::new(&mut out, w, h);
     enc.set_color(png::ColorType::Rgb);
     enc.set_depth(png::BitDepth::Eight);
@@ -140,6 +141,11 @@ fn encode_png(rgb: &[u8], w: u32, h: u32) -> Result<Vec<u8>> {
     writer.finish().map_err(err)?;
     Ok(out)
 }
+
+/// The chart of a snapshot figure (metres on both axes), on which [`snapshot`] draws the
+/// disks and [`network`] the arrows and bars: kept here so those two need not import each
+/// other.
+pub(crate) type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
 /// Font of titles, axis descriptions and legends: one size everywhere keeps the figures
 /// consistent side by side.

@@ -4,8 +4,7 @@
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use super::snapshot::Chart;
-use super::{LABEL, draw_err};
+use super::{Chart, LABEL, draw_err};
 use crate::backend::ContactClass;
 use crate::error::Result;
 use crate::record::Snapshot;

@@ -31,7 +31,7 @@ impl Figure for RoseFigure<'_> {
 
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
         if self.all.is_empty() || self.all.len() != self.strong.len() {
-            return Err(Error::Other(
+            return Err(Error::NothingToDraw(
                 "rose diagram: no orientation histogram (no force-carrying contact)".into(),
             ));
         }
@@ -132,7 +132,9 @@ impl Figure for ForcePdfFigure<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
         let pts: Vec<(f64, f64)> = self.pdf.iter().cloned().filter(|(_, p)| *p > 0.0).collect();
         if pts.is_empty() {
-            return Err(Error::Other("force PDF: no force-carrying contact".into()));
+            return Err(Error::NothingToDraw(
+                "force PDF: no force-carrying contact".into(),
+            ));
         }
         let x1 = self.pdf.last().map_or(1.0, |(x, _)| *x) * 1.05;
         let lo = pts.iter().map(|p| p.1).fold(f64::INFINITY, f64::min) * 0.5;

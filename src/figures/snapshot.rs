@@ -7,11 +7,10 @@
 use std::str::FromStr;
 
 use plotters::coord::Shift;
-use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use super::colormap::{SEQUENTIAL, Scale, draw_colorbar};
-use super::{Figure, LABEL, TICK, draw_err, network};
+use super::{Chart, Figure, LABEL, TICK, draw_err, network};
 use crate::error::{Error, Result};
 use crate::record::Snapshot;
 
@@ -189,9 +188,6 @@ pub(crate) fn disk_polygon(x: f64, y: f64, r: f64, px_per_m: f64) -> Vec<(f64, f
 /// Color of the disk outlines.
 pub const OUTLINE: RGBColor = RGBColor(110, 110, 110);
 
-/// The chart type of a snapshot figure.
-pub(crate) type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
-
 impl Figure for SnapshotFigure<'_> {
     type Output = Frame;
 
@@ -205,7 +201,7 @@ impl Figure for SnapshotFigure<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<Frame> {
         let snap = self.snap;
         if snap.disks.is_empty() {
-            return Err(Error::Other(format!(
+            return Err(Error::NothingToDraw(format!(
                 "the snapshot at axial strain {:.4} holds no disk",
                 snap.strain
             )));
@@ -222,7 +218,7 @@ impl Figure for SnapshotFigure<'_> {
             (Field::Shear, _) => match self.shear {
                 Some(sh) => format!("local shear strain since axial strain {:.5}", sh.strain_from),
                 None => {
-                    return Err(Error::Other(
+                    return Err(Error::NothingToDraw(
                         "the shear field needs the local strain of an interval (cdlab render computes it \
                          from the snapshot before)"
                             .into(),

@@ -149,7 +149,24 @@ pub struct SimParams {
     pub pad: [u32; 2],
 }
 
-/// Status words read back after detection and coloring (indices into the status region).
+/// The per-dispatch arguments (WGSL `Args`, 16 bytes), one per [`ARGS_STRIDE`] slot of the
+/// argument table: the region a scan works on, the color a sweep updates.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+#[allow(missing_docs)]
+pub struct GpuArgs {
+    pub a: u32,
+    pub b: u32,
+    pub c: u32,
+    pub d: u32,
+}
+
+/// Words per contact in the warm-start records of `prev`: partner, R_n bits, R_t bits,
+/// color (WGSL `PREV_STRIDE`, checked against this constant).
+pub const PREV_STRIDE: u32 = 4;
+
+/// Status words read back after detection and coloring (indices into the status region;
+/// the shaders' `ST_*` constants are checked against these, see [`super::wgsl_constants`]).
 pub mod status {
     /// Contacts found (may exceed the capacity).
     pub const CONTACTS: usize = 0;
@@ -271,8 +288,7 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
         clear_len,
         floats_len: f,
         floats_keep,
-        // Per contact: partner, R_n, R_t, color (detect.wgsl, PREV_STRIDE).
-        prev_len: nd + 1 + 4 * cap.contacts,
+        prev_len: nd + 1 + PREV_STRIDE * cap.contacts,
     }
 }
 
@@ -313,8 +329,9 @@ pub fn round_slot(cap: Capacity, r: u32) -> u32 {
     4 + cap.colors + r - 1
 }
 
-/// Checks one buffer size against the adapter's limits; the error names the limit, the
-/// need and an estimate of the largest sample that fits (sizes grow linearly with disks).
+/// Checks one buffer size against the adapter's limits; the error ([`Error::GpuLimit`])
+/// names the limit, the need and an estimate of the largest sample that fits (sizes grow
+/// linearly with disks).
 pub fn check_size(
     what: &str,
     bytes: u64,
@@ -331,11 +348,13 @@ pub fn check_size(
         (limits.max_buffer_size, "max_buffer_size")
     };
     if bytes > limit {
-        let fits = (n_disks as f64 * limit as f64 / bytes as f64) as u64;
-        return Err(Error::Gpu(format!(
-            "the {what} buffer needs {bytes} bytes but the adapter's {name} is {limit}: \
-             the largest sample that fits is about {fits} disks"
-        )));
+        return Err(Error::GpuLimit {
+            what: what.to_string(),
+            bytes,
+            limit_name: name,
+            limit,
+            fits_disks: (n_disks as f64 * limit as f64 / bytes as f64) as u64,
+        });
     }
     Ok(())
 }
@@ -419,5 +438,39 @@ impl Buffers {
             }),
             layout,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_buffer_over_the_binding_limit_is_a_limit_error_with_the_sample_that_fits() {
+        let limits = wgpu::Limits {
+            max_storage_buffer_binding_size: 1000,
+            max_buffer_size: 4000,
+            ..wgpu::Limits::default()
+        };
+        check_size("disk", 1000, 100, &limits, true).expect("at the limit fits");
+        match check_size("disk", 4000, 100, &limits, true) {
+            // 100 disks need 4000 bytes, 1000 fit: about 25 disks.
+            Err(Error::GpuLimit {
+                limit_name,
+                limit,
+                fits_disks,
+                ..
+            }) => {
+                assert_eq!(limit_name, "max_storage_buffer_binding_size");
+                assert_eq!((limit, fits_disks), (1000, 25));
+            }
+            other => panic!("expected Error::GpuLimit, got {other:?}"),
+        }
+        // A non-binding buffer is held to max_buffer_size only.
+        check_size("indirect", 4000, 100, &limits, false).expect("within max_buffer_size");
+        assert!(matches!(
+            check_size("indirect", 4001, 100, &limits, false),
+            Err(Error::GpuLimit { limit: 4000, .. })
+        ));
     }
 }

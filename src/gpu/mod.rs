@@ -32,6 +32,36 @@ pub const SHADERS: &[(&str, &str)] = &[
     ("reduce.wgsl", include_str!("../../shaders/reduce.wgsl")),
 ];
 
+/// Threads per workgroup of the kernels that run one thread per item (disk, body, contact):
+/// the host's dispatch counts and the shaders' `@workgroup_size(WG)` both use this value.
+pub const WG: u32 = 64;
+
+/// The constants the shaders share with Rust, as `(WGSL name, value)`: body kinds, the
+/// "not glued" sentinel, the status-word indices read back by the host, the warm-start
+/// record stride and the workgroup size. `shaders/common.wgsl` declares each of them (it
+/// must parse on its own), and tests/gpu_layout.rs checks every declaration against this
+/// table, so the Rust constants stay the one source of these values.
+pub fn wgsl_constants() -> Vec<(&'static str, u32)> {
+    use crate::model::{BodyKind, NOT_GLUED};
+    use buffers::{PREV_STRIDE, status};
+    vec![
+        ("WG", WG),
+        ("KIND_FREE", BodyKind::Free as u32),
+        ("KIND_KINEMATIC", BodyKind::Kinematic as u32),
+        ("NOT_GLUED", NOT_GLUED),
+        ("PREV_STRIDE", PREV_STRIDE),
+        ("ST_CONTACTS", status::CONTACTS as u32),
+        ("ST_SLOTS_NEED", status::SLOTS_NEED as u32),
+        ("ST_COLORS", status::COLORS as u32),
+        ("ST_OVERLAP", status::OVERLAP as u32),
+        ("ST_ROUNDS", status::ROUNDS as u32),
+        ("ST_LEFT", status::LEFT as u32),
+        ("ST_ARGS", status::ARGS as u32),
+        ("ST_DEEP", status::DEEP as u32),
+        ("ST_WORDS", status::WORDS as u32),
+    ]
+}
+
 /// A phase shader with the shared WGSL in front of it (plain concatenation: WGSL has no
 /// includes, and one shared prefix is all the composition the phases need).
 pub fn compose(phase: &str) -> String {

@@ -3,127 +3,225 @@
 //! a whole step. Group 1 carries per-dispatch arguments at a dynamic offset (the region a
 //! scan works on, the color a sweep updates).
 
-use std::collections::HashMap;
-
-use super::buffers::{Buffers, SimParams};
+use super::buffers::{Buffers, GpuArgs, GpuContact, GpuDisk, GpuWall, SimParams};
 use super::device::GpuDevice;
 use super::{SHADERS, compose};
 use crate::error::{Error, Result};
 
-/// Entry points, by shader file.
-const ENTRY_POINTS: &[(&str, &[&str])] = &[
-    ("scan.wgsl", &["clear_ints", "scan"]),
-    ("integrate_free.wgsl", &["free_velocity"]),
-    ("grid.wgsl", &["grid_bounds", "grid_count", "grid_scatter"]),
-    (
-        "detect.wgsl",
-        &["detect", "contact_args", "build_contacts", "save_prev"],
-    ),
-    (
-        "color.wgsl",
-        &[
-            "incidence_count",
-            "incidence_fill",
-            "incidence_rank",
-            "color_seed",
-            "color_round",
-            "color_count",
-            "color_offsets",
-            "color_scatter",
-        ],
-    ),
-    (
-        "solve.wgsl",
-        &[
-            "gather",
-            "sweep_color",
-            "jacobi_solve",
-            "jacobi_commit",
-            "conv_reduce",
-            "save_iterate",
-            "velocity_change",
-            "deep_mark",
-            "deep_color",
-            "deep_tally",
-        ],
-    ),
-    ("integrate.wgsl", &["integrate"]),
-    ("reduce.wgsl", &["wall_impulse", "reduce_final"]),
+/// Declares [`Kernel`] from the entry points of each shader file.
+macro_rules! kernels {
+    ($($file:literal => [$($kernel:ident = $entry:literal),* $(,)?]),* $(,)?) => {
+        /// A compute kernel: one entry point of one phase shader. [`Pipelines::get`] takes
+        /// one, so a kernel that does not exist cannot be asked for.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum Kernel {
+            $($(
+                #[doc = concat!("Entry point `", $entry, "` of `shaders/", $file, "`.")]
+                $kernel,
+            )*)*
+        }
+
+        impl Kernel {
+            /// Every kernel, in declaration order (the order of the pipeline table).
+            pub const ALL: &[Kernel] = &[$($(Kernel::$kernel,)*)*];
+
+            /// The WGSL entry point's name.
+            pub fn entry_point(self) -> &'static str {
+                match self {
+                    $($(Kernel::$kernel => $entry,)*)*
+                }
+            }
+
+            /// The phase shader file (in `shaders/`) that holds the entry point.
+            pub fn file(self) -> &'static str {
+                match self {
+                    $($(Kernel::$kernel => $file,)*)*
+                }
+            }
+        }
+    };
+}
+
+kernels! {
+    "scan.wgsl" => [ClearInts = "clear_ints", Scan = "scan"],
+    "integrate_free.wgsl" => [FreeVelocity = "free_velocity"],
+    "grid.wgsl" => [
+        GridBounds = "grid_bounds",
+        GridCount = "grid_count",
+        GridScatter = "grid_scatter",
+    ],
+    "detect.wgsl" => [
+        Detect = "detect",
+        ContactArgs = "contact_args",
+        BuildContacts = "build_contacts",
+        SavePrev = "save_prev",
+    ],
+    "color.wgsl" => [
+        IncidenceCount = "incidence_count",
+        IncidenceFill = "incidence_fill",
+        IncidenceRank = "incidence_rank",
+        ColorSeed = "color_seed",
+        ColorRound = "color_round",
+        ColorCount = "color_count",
+        ColorOffsets = "color_offsets",
+        ColorScatter = "color_scatter",
+    ],
+    "solve.wgsl" => [
+        Gather = "gather",
+        SweepColor = "sweep_color",
+        JacobiSolve = "jacobi_solve",
+        JacobiCommit = "jacobi_commit",
+        ConvReduce = "conv_reduce",
+        SaveIterate = "save_iterate",
+        VelocityChange = "velocity_change",
+        DeepMark = "deep_mark",
+        DeepColor = "deep_color",
+        DeepTally = "deep_tally",
+    ],
+    "integrate.wgsl" => [Integrate = "integrate"],
+    "reduce.wgsl" => [WallImpulse = "wall_impulse", ReduceFinal = "reduce_final"],
+}
+
+/// One buffer binding of the shared layout, as the shaders declare it in
+/// `shaders/common.wgsl`.
+#[derive(Clone, Copy, Debug)]
+pub struct Binding {
+    /// Bind group.
+    pub group: u32,
+    /// Binding index within the group.
+    pub binding: u32,
+    /// The WGSL variable's name.
+    pub name: &'static str,
+    /// Whether the shaders only read it (`var<storage, read>`).
+    pub read_only: bool,
+    /// The smallest size a bound buffer may have, in bytes: the record for a single
+    /// struct, one element for a runtime-sized array. It is the layout's
+    /// `min_binding_size`, so wgpu checks every bind group against it at creation instead
+    /// of each dispatch, and tests/gpu_layout.rs checks it against the WGSL types.
+    pub min_size: u64,
+}
+
+const fn binding(group: u32, binding: u32, name: &'static str, read_only: bool, min_size: usize) -> Binding {
+    Binding {
+        group,
+        binding,
+        name,
+        read_only,
+        min_size: min_size as u64,
+    }
+}
+
+/// The buffer bindings of both groups, in binding order. Group 1 carries the per-dispatch
+/// arguments at a dynamic offset.
+pub const BINDINGS: [Binding; 9] = [
+    binding(0, 0, "sim", true, size_of::<SimParams>()),
+    binding(0, 1, "disks", false, size_of::<GpuDisk>()),
+    binding(0, 2, "walls", false, size_of::<GpuWall>()),
+    binding(0, 3, "vel", false, size_of::<[f32; 4]>()),
+    binding(0, 4, "ints", false, size_of::<u32>()),
+    binding(0, 5, "contacts", false, size_of::<GpuContact>()),
+    binding(0, 6, "floats", false, size_of::<f32>()),
+    binding(0, 7, "prev", false, size_of::<u32>()),
+    binding(1, 0, "args", true, size_of::<GpuArgs>()),
 ];
 
 /// The pipelines and the layouts they share.
 pub struct Pipelines {
-    pipelines: HashMap<&'static str, wgpu::ComputePipeline>,
+    /// One pipeline per kernel, indexed by `Kernel as usize`.
+    pipelines: Vec<wgpu::ComputePipeline>,
     /// Layout of group 0 (parameters and buffers).
     pub group0: wgpu::BindGroupLayout,
     /// Layout of group 1 (per-dispatch arguments).
     pub group1: wgpu::BindGroupLayout,
 }
 
-fn entry(binding: u32, ty: wgpu::BufferBindingType, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
+fn entry(b: &Binding) -> wgpu::BindGroupLayoutEntry {
+    // The parameters and the per-dispatch arguments are read-only storage, not uniform
+    // buffers: see the note at `sim` in shaders/common.wgsl (a driver leak).
     wgpu::BindGroupLayoutEntry {
-        binding,
+        binding: b.binding,
         visibility: wgpu::ShaderStages::COMPUTE,
         ty: wgpu::BindingType::Buffer {
-            ty,
-            has_dynamic_offset: dynamic,
-            min_binding_size: None,
+            ty: wgpu::BufferBindingType::Storage {
+                read_only: b.read_only,
+            },
+            has_dynamic_offset: b.group == 1,
+            min_binding_size: wgpu::BufferSize::new(b.min_size),
         },
         count: None,
     }
 }
 
+/// Parses and validates a composed shader with naga, as wgpu would, so that a shader error
+/// comes back as [`Error::GpuShader`] naming the file and line rather than as a driver's
+/// failure to create a pipeline.
+pub fn validate(file: &str, source: &str) -> Result<()> {
+    let shader_error = |message: String| Error::GpuShader {
+        file: file.to_string(),
+        message,
+    };
+    let module = naga::front::wgsl::parse_str(source).map_err(|e| shader_error(e.emit_to_string(source)))?;
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::empty(),
+    )
+    .validate(&module)
+    .map_err(|e| shader_error(e.emit_to_string(source)))?;
+    Ok(())
+}
+
 impl Pipelines {
     /// Compiles every shader and creates every pipeline inside error scopes: a shader the
     /// driver rejects (a bug in the crate, or a driver that cannot take it) comes back as
-    /// [`Error::Gpu`] naming the adapter, not as wgpu's panic.
+    /// [`Error::Gpu`] naming the adapter, not as wgpu's panic; a shader naga rejects
+    /// ([`validate`]) is [`Error::GpuShader`].
     pub fn new(gpu: &GpuDevice) -> Result<Self> {
         gpu.scoped("compiling the compute shaders", Self::create)?
     }
 
     fn create(device: &wgpu::Device) -> Result<Self> {
-        let storage = wgpu::BufferBindingType::Storage { read_only: false };
-        // The parameters and the per-dispatch arguments are read-only storage, not uniform
-        // buffers: see the note at `sim` in shaders/common.wgsl (a driver leak).
-        let params = wgpu::BufferBindingType::Storage { read_only: true };
-        let mut entries = vec![entry(0, params, false)];
-        entries.extend((1..=7).map(|b| entry(b, storage, false)));
+        let entries = |group: u32| -> Vec<wgpu::BindGroupLayoutEntry> {
+            BINDINGS.iter().filter(|b| b.group == group).map(entry).collect()
+        };
         let group0 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("cdlab group 0"),
-            entries: &entries,
+            entries: &entries(0),
         });
         let group1 = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("cdlab group 1"),
-            entries: &[entry(0, params, true)],
+            entries: &entries(1),
         });
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("cdlab"),
             bind_group_layouts: &[Some(&group0), Some(&group1)],
             immediate_size: 0,
         });
-        let mut pipelines = HashMap::new();
-        for (file, points) in ENTRY_POINTS {
-            let source = SHADERS
-                .iter()
-                .find(|(name, _)| name == file)
-                .map(|(_, s)| compose(s))
-                .ok_or_else(|| Error::Gpu(format!("missing shader {file}")))?;
+        let mut slots: Vec<Option<wgpu::ComputePipeline>> = Kernel::ALL.iter().map(|_| None).collect();
+        for (file, source) in SHADERS {
+            let source = compose(source);
+            validate(file, &source)?;
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some(file),
                 source: wgpu::ShaderSource::Wgsl(source.into()),
             });
-            for point in points.iter() {
-                let p = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(point),
-                    layout: Some(&layout),
-                    module: &module,
-                    entry_point: Some(point),
-                    compilation_options: Default::default(),
-                    cache: None,
-                });
-                pipelines.insert(*point, p);
+            for &kernel in Kernel::ALL.iter().filter(|k| k.file() == *file) {
+                let point = kernel.entry_point();
+                slots[kernel as usize] =
+                    Some(device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some(point),
+                        layout: Some(&layout),
+                        module: &module,
+                        entry_point: Some(point),
+                        compilation_options: Default::default(),
+                        cache: None,
+                    }));
             }
         }
+        let pipelines = Kernel::ALL
+            .iter()
+            .zip(slots)
+            .map(|(k, p)| p.ok_or_else(|| Error::Gpu(format!("missing shader {}", k.file()))))
+            .collect::<Result<_>>()?;
         Ok(Pipelines {
             pipelines,
             group0,
@@ -131,9 +229,9 @@ impl Pipelines {
         })
     }
 
-    /// The pipeline of an entry point (panics on a name not in the table: a crate bug).
-    pub fn get(&self, name: &str) -> &wgpu::ComputePipeline {
-        &self.pipelines[name]
+    /// The pipeline of a kernel.
+    pub fn get(&self, kernel: Kernel) -> &wgpu::ComputePipeline {
+        &self.pipelines[kernel as usize]
     }
 
     /// The bind groups of a set of buffers.
@@ -160,7 +258,7 @@ impl Pipelines {
                 resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
                     buffer: &b.args,
                     offset: 0,
-                    size: wgpu::BufferSize::new(16),
+                    size: wgpu::BufferSize::new(size_of::<GpuArgs>() as u64),
                 }),
             }],
         });
@@ -175,6 +273,26 @@ fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     }
 }
 
-/// Size check of the uniform parameters against the WGSL struct (a layout mismatch would
-/// silently scramble every kernel).
-const _: () = assert!(size_of::<SimParams>() == 224);
+// The layouts of these records and of the WGSL structs are compared field by field by
+// tests/gpu_layout.rs (through naga, no adapter needed).
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_shader_naga_rejects_is_a_shader_error_naming_the_file_and_line() {
+        for (file, source) in SHADERS {
+            validate(file, &compose(source)).expect("the crate's shaders validate");
+        }
+        let broken = compose("fn f() -> u32 { return ST_CONTACTS + 1.0; }");
+        match validate("broken.wgsl", &broken) {
+            Err(Error::GpuShader { file, message }) => {
+                assert_eq!(file, "broken.wgsl");
+                let line = broken.lines().count();
+                assert!(message.contains(&format!("wgsl:{line}:")), "{message}");
+            }
+            other => panic!("expected Error::GpuShader, got {other:?}"),
+        }
+    }
+}

@@ -13,13 +13,13 @@
 //!
 //! At the end of a run, one more submission reduces counts, overlaps and energies.
 
+use super::WG;
 use super::backend::GpuBackend;
 use super::buffers::{ARGS_STRIDE, SimParams, round_slot, status};
+use super::pipeline::Kernel;
 use crate::backend::{Loading, Reductions};
 use crate::error::{Error, Result};
 use crate::solver::Method;
-
-const WG: u32 = 64;
 
 fn groups(n: u32) -> u32 {
     n.div_ceil(WG)
@@ -48,26 +48,26 @@ impl<'a> Rec<'a> {
         }
     }
 
-    /// Dispatches `x` workgroups of entry point `name` with argument slot `slot`.
-    fn go(&mut self, name: &str, slot: u32, x: u32) {
+    /// Dispatches `x` workgroups of `kernel` with argument slot `slot`.
+    fn go(&mut self, kernel: Kernel, slot: u32, x: u32) {
         if x == 0 {
             return;
         }
-        self.pass.set_pipeline(self.b.pipes.get(name));
+        self.pass.set_pipeline(self.b.pipes.get(kernel));
         self.pass
             .set_bind_group(1, &self.b.bind.1, &[(slot as u64 * ARGS_STRIDE) as u32]);
         self.pass.dispatch_workgroups(x, 1, 1);
         self.dispatches += 1;
     }
 
-    /// Dispatches entry point `name` over the contacts (indirect: the count is on the GPU).
-    fn go_contacts(&mut self, name: &str) {
-        self.go_contacts_with(name, 0);
+    /// Dispatches `kernel` over the contacts (indirect: the count is on the GPU).
+    fn go_contacts(&mut self, kernel: Kernel) {
+        self.go_contacts_with(kernel, 0);
     }
 
     /// [`Rec::go_contacts`] with argument slot `slot`.
-    fn go_contacts_with(&mut self, name: &str, slot: u32) {
-        self.pass.set_pipeline(self.b.pipes.get(name));
+    fn go_contacts_with(&mut self, kernel: Kernel, slot: u32) {
+        self.pass.set_pipeline(self.b.pipes.get(kernel));
         self.pass
             .set_bind_group(1, &self.b.bind.1, &[(slot as u64 * ARGS_STRIDE) as u32]);
         self.pass.dispatch_workgroups_indirect(&self.b.bufs.indirect, 0);
@@ -137,34 +137,34 @@ impl GpuBackend {
             let mut d = 0;
             {
                 let mut r = Rec::new(&mut enc, self);
-                r.go("clear_ints", 0, groups(self.bufs.layout.clear_len));
-                r.go("free_velocity", 0, groups(nb));
-                r.go("grid_bounds", 0, 1);
-                r.go("grid_count", 0, groups(nd));
-                r.go("scan", 1, 1);
-                r.go("grid_scatter", 0, groups(nd));
-                r.go("detect", 0, groups(nd));
-                r.go("scan", 2, 1);
-                r.go("contact_args", 0, 1);
+                r.go(Kernel::ClearInts, 0, groups(self.bufs.layout.clear_len));
+                r.go(Kernel::FreeVelocity, 0, groups(nb));
+                r.go(Kernel::GridBounds, 0, 1);
+                r.go(Kernel::GridCount, 0, groups(nd));
+                r.go(Kernel::Scan, 1, 1);
+                r.go(Kernel::GridScatter, 0, groups(nd));
+                r.go(Kernel::Detect, 0, groups(nd));
+                r.go(Kernel::Scan, 2, 1);
+                r.go(Kernel::ContactArgs, 0, 1);
                 d += r.dispatches;
             }
             let o = 4 * (self.sim.o_status as u64 + status::ARGS as u64);
             enc.copy_buffer_to_buffer(&self.bufs.ints, o, &self.bufs.indirect, 0, 12);
             {
                 let mut r = Rec::new(&mut enc, self);
-                r.go("build_contacts", 0, groups(nd));
-                r.go_contacts("incidence_count");
-                r.go("scan", 3, 1);
-                r.go_contacts("incidence_fill");
-                r.go_contacts("incidence_rank");
-                r.go("gather", 0, groups(nb));
-                r.go_contacts("color_seed");
+                r.go(Kernel::BuildContacts, 0, groups(nd));
+                r.go_contacts(Kernel::IncidenceCount);
+                r.go(Kernel::Scan, 3, 1);
+                r.go_contacts(Kernel::IncidenceFill);
+                r.go_contacts(Kernel::IncidenceRank);
+                r.go(Kernel::Gather, 0, groups(nb));
+                r.go_contacts(Kernel::ColorSeed);
                 for k in 1..=rounds {
-                    r.go_contacts_with("color_round", round_slot(self.cap, k));
+                    r.go_contacts_with(Kernel::ColorRound, round_slot(self.cap, k));
                 }
-                r.go_contacts("color_count");
-                r.go("color_offsets", round_slot(self.cap, rounds), 1);
-                r.go_contacts("color_scatter");
+                r.go_contacts(Kernel::ColorCount);
+                r.go(Kernel::ColorOffsets, round_slot(self.cap, rounds), 1);
+                r.go_contacts(Kernel::ColorScatter);
                 d += r.dispatches;
             }
             self.counters.dispatches += d;
@@ -252,17 +252,17 @@ impl GpuBackend {
             if p.deep_updates() && n > 0 {
                 // Local updates of deep contacts: one dispatch per color and update, as
                 // the iterations (the selection is made once, before them).
-                r.go_contacts("deep_mark");
+                r.go_contacts(Kernel::DeepMark);
                 for _ in 0..p.deep_sweeps {
                     for (c, w) in self.color_offsets.windows(2).enumerate() {
-                        r.go("deep_color", 4 + c as u32, groups(w[1] - w[0]));
+                        r.go(Kernel::DeepColor, 4 + c as u32, groups(w[1] - w[0]));
                     }
                 }
-                r.go("deep_tally", 0, 1);
+                r.go(Kernel::DeepTally, 0, 1);
             }
-            r.go("integrate", 0, groups(nb));
-            r.go("wall_impulse", 0, self.sim.n_walls);
-            r.go("save_prev", 0, groups(n.max(nd + 1)));
+            r.go(Kernel::Integrate, 0, groups(nb));
+            r.go(Kernel::WallImpulse, 0, self.sim.n_walls);
+            r.go(Kernel::SavePrev, 0, groups(n.max(nd + 1)));
             let d = r.dispatches;
             drop(r);
             self.counters.dispatches += d;
@@ -318,21 +318,21 @@ impl GpuBackend {
                 let mut r = Rec::new(&mut enc, self);
                 for k in 0..batch {
                     if velocity_test && k + 1 == batch {
-                        r.go("save_iterate", 0, groups(nb));
+                        r.go(Kernel::SaveIterate, 0, groups(nb));
                     }
                     if jacobi {
-                        r.go("jacobi_solve", 0, groups(n));
-                        r.go("jacobi_commit", 0, groups(n));
-                        r.go("gather", 0, groups(nb));
+                        r.go(Kernel::JacobiSolve, 0, groups(n));
+                        r.go(Kernel::JacobiCommit, 0, groups(n));
+                        r.go(Kernel::Gather, 0, groups(nb));
                     } else {
                         for (c, w) in self.color_offsets.windows(2).enumerate() {
-                            r.go("sweep_color", 4 + c as u32, groups(w[1] - w[0]));
+                            r.go(Kernel::SweepColor, 4 + c as u32, groups(w[1] - w[0]));
                         }
                     }
                 }
-                r.go("conv_reduce", 0, 1);
+                r.go(Kernel::ConvReduce, 0, 1);
                 if velocity_test {
-                    r.go("velocity_change", 0, 1);
+                    r.go(Kernel::VelocityChange, 0, 1);
                 }
                 let d = r.dispatches;
                 drop(r);
@@ -374,7 +374,7 @@ impl GpuBackend {
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         {
             let mut r = Rec::new(&mut enc, self);
-            r.go("reduce_final", 0, 1);
+            r.go(Kernel::ReduceFinal, 0, 1);
             let d = r.dispatches;
             drop(r);
             self.counters.dispatches += d;

@@ -15,7 +15,10 @@
 
 use glam::DVec2;
 
-use crate::backend::reduce::FORCE_THRESHOLD;
+/// Relative threshold below which a normal force counts as zero: a contact carries force
+/// when `N > FORCE_THRESHOLD * mean(N)` over the contacts with `N > 0` (dimensionless).
+/// The backends' reductions count force-carrying contacts by it too.
+pub const FORCE_THRESHOLD: f64 = 1e-6;
 
 /// Bins of the orientation histogram over [0, pi) kept in the sums: 18 bins of 10 degrees.
 /// The fabric homogeneity ([`MicroSums::rose_max_deviation`]) is measured on these bins.
@@ -506,36 +509,6 @@ pub fn from_solver(contacts: &[crate::contact::Contact], radius: &[f64], dt: f64
                 f_n: c.rn / dt,
                 f_t: c.rt / dt,
                 length: radius[c.i as usize] + if disk { radius[j] } else { 0.0 } + c.gap,
-            }
-        })
-        .collect()
-}
-
-/// The measures' view of a snapshot's contacts. A snapshot holds no gaps: the branch of a
-/// disk-disk contact is the distance between the centres, that of a wall contact the
-/// disk's radius.
-pub fn from_snapshot(s: &crate::record::Snapshot) -> Vec<MicroContact> {
-    let nd = s.disks.len();
-    s.contacts
-        .iter()
-        .filter(|c| (c.i as usize) < nd)
-        .map(|c| {
-            let di = &s.disks[c.i as usize];
-            let j = c.j as usize;
-            let disk = j < nd;
-            let length = if disk {
-                let dj = &s.disks[j];
-                (di.x - dj.x).hypot(di.y - dj.y)
-            } else {
-                di.r
-            };
-            MicroContact {
-                i: c.i,
-                j: disk.then_some(c.j),
-                n: DVec2::new(c.nx, c.ny),
-                f_n: c.f_n,
-                f_t: c.f_t,
-                length,
             }
         })
         .collect()

@@ -2,7 +2,7 @@
 
 use super::SeriesRow;
 use super::derived::{Strength, strength};
-use crate::protocol::PhaseEnd;
+use super::phase::PhaseEnd;
 
 /// What a finished biaxial test reports.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -90,7 +90,7 @@ pub struct Summary {
     /// Shear bands over the last snapshot interval (`crate::analysis::bands`); null when
     /// the run recorded fewer than two snapshots or the analysis could not run.
     #[serde(default)]
-    pub shear_bands: Option<crate::analysis::bands::ShearBands>,
+    pub shear_bands: Option<super::bands::ShearBands>,
     /// Fabric and force anisotropies at the ends of the preparation phases, at the peak and
     /// at the end ([`crate::measure::micro`]); absent when the rows hold no
     /// micromechanical columns (records written before them).

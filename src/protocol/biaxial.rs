@@ -13,11 +13,11 @@
 use glam::DVec2;
 
 use super::checkpoint::{Checkpoint, encode};
-use super::{LabState, Observer, Phase, PhaseEnd, ProtocolParams, walls};
+use super::{Gauge, LabState, Observer, Phase, PhaseEnd, ProtocolParams, walls};
 use crate::backend::reduce::strip_members;
 use crate::backend::{Backend, Loading, Reductions};
 use crate::error::{Error, Result};
-use crate::measure::{Gauge, SeriesRow};
+use crate::measure::SeriesRow;
 use crate::model::{NOT_GLUED, Scene, WallDrive};
 use serde::{Deserialize, Serialize};
 

@@ -41,11 +41,19 @@ impl W {
     }
 }
 
-struct R<'a>(&'a [u8]);
+/// A reader over the bytes left (`.0`) of a checkpoint of `.1` bytes.
+struct R<'a>(&'a [u8], usize);
 impl R<'_> {
+    /// A decoding error at the current byte.
+    fn bad(&self, message: String) -> Error {
+        Error::BadCheckpoint {
+            offset: self.1 - self.0.len(),
+            message,
+        }
+    }
     fn take(&mut self, n: usize) -> Result<&[u8]> {
         if self.0.len() < n {
-            return Err(Error::Other("checkpoint is truncated".into()));
+            return Err(self.bad("checkpoint is truncated".into()));
         }
         let (a, b) = self.0.split_at(n);
         self.0 = b;
@@ -65,7 +73,7 @@ impl R<'_> {
         // Each element takes at least 8 bytes: a larger count is corruption, not a request
         // to allocate terabytes.
         if n > (self.0.len() / 8) as u64 {
-            return Err(Error::Other(format!("checkpoint: corrupt {what} count {n}")));
+            return Err(self.bad(format!("checkpoint: corrupt {what} count {n}")));
         }
         Ok(n as usize)
     }
@@ -133,19 +141,22 @@ pub fn encode(state: &LabState, scene: &Scene, reference: &[DVec2], warm: &[Cont
 
 /// Decodes a checkpoint; a foreign or damaged byte string is an error, never a panic.
 pub fn decode(bytes: &[u8]) -> Result<Checkpoint> {
-    let mut r = R(bytes);
+    let mut r = R(bytes, bytes.len());
     if r.take(8)? != MAGIC {
-        return Err(Error::Other("not a cdlab checkpoint (bad magic)".into()));
+        return Err(Error::BadCheckpoint {
+            offset: 0,
+            message: "not a cdlab checkpoint (bad magic)".into(),
+        });
     }
     // The state is a byte string: its length is bounded by the bytes left, not by the
     // 8-byte elements `count` assumes (a small sample's state is more than an eighth of it).
     let n = r.u()?;
     if n > r.0.len() as u64 {
-        return Err(Error::Other(format!("checkpoint: corrupt state length {n}")));
+        return Err(r.bad(format!("checkpoint: corrupt state length {n}")));
     }
     let n = n as usize;
     let state: LabState =
-        serde_json::from_slice(r.take(n)?).map_err(|e| Error::Other(format!("checkpoint state: {e}")))?;
+        serde_json::from_slice(r.take(n)?).map_err(|e| r.bad(format!("checkpoint state: {e}")))?;
     let nd = r.count("disk")?;
     let mut d = Disks::default();
     for _ in 0..nd {
@@ -161,7 +172,7 @@ pub fn decode(bytes: &[u8]) -> Result<Checkpoint> {
             0 => BodyKind::Free,
             1 => BodyKind::Kinematic,
             2 => BodyKind::Fixed,
-            k => return Err(Error::Other(format!("checkpoint: bad body kind {k}"))),
+            k => return Err(r.bad(format!("checkpoint: bad body kind {k}"))),
         });
         d.force.push(r.v()?);
         d.torque.push(r.f()?);
@@ -229,4 +240,46 @@ pub fn decode(bytes: &[u8]) -> Result<Checkpoint> {
         reference,
         warm,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A decoding error says at which byte it stopped: 0 for a foreign magic, at most the
+    /// length given for a cut checkpoint (the cut is where the bytes ran out).
+    #[test]
+    fn errors_carry_the_offset_where_decoding_stopped() {
+        let params = crate::protocol::ProtocolParams::paper_defaults(4);
+        let mut scene = Scene::default();
+        for k in 0..4 {
+            scene
+                .disks
+                .push(DVec2::new(3.0 * k as f64, 0.0), 1.0, 1.0)
+                .unwrap();
+        }
+        let state = LabState::new(params, Default::default(), Default::default(), 0.0);
+        let bytes = encode(&state, &scene, &[], &[]);
+        assert!(decode(&bytes).is_ok());
+        let mut foreign = bytes.clone();
+        foreign[0] ^= 0xff;
+        match decode(&foreign) {
+            Err(Error::BadCheckpoint { offset, message }) => {
+                assert_eq!(offset, 0);
+                assert!(message.contains("bad magic"), "{message}");
+            }
+            other => panic!("expected a bad checkpoint, got {:?}", other.map(|_| ())),
+        }
+        for cut in [4, 12, bytes.len() / 2, bytes.len() - 1] {
+            match decode(&bytes[..cut]) {
+                Err(Error::BadCheckpoint { offset, .. }) => {
+                    assert!(offset <= cut, "cut {cut}: offset {offset}")
+                }
+                other => panic!(
+                    "cut {cut}: expected a bad checkpoint, got {:?}",
+                    other.map(|_| ())
+                ),
+            }
+        }
+    }
 }

@@ -8,12 +8,18 @@
 
 pub mod biaxial;
 pub mod checkpoint;
+mod gauge;
 pub mod prepare;
+
+pub use gauge::Gauge;
 
 use crate::backend::ContactRecord;
 use crate::engine::StepParams;
 use crate::error::{Error, Result, check_positive, check_range};
 use crate::measure::SeriesRow;
+// The phases name parts of a test's measurements (rows, the summary's phase ends), so they
+// are defined with them; the protocol drives them.
+pub use crate::measure::phase::{Phase, PhaseEnd};
 use crate::model::Scene;
 
 /// When a phase counts as settled (docs/protocol.md, "Equilibrium"; recorded with each
@@ -245,49 +251,6 @@ impl ProtocolParams {
     }
 }
 
-/// The phases, in order.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Phase {
-    /// Frictionless uniaxial compaction by the right wall.
-    Compaction,
-    /// Strips and bumpy walls set up, sample brought to sigma3.
-    Confinement,
-    /// Top wall moving down at constant velocity.
-    Compression,
-    /// Finished.
-    Done,
-}
-
-impl Phase {
-    /// Lower-case name used in records.
-    pub fn name(self) -> &'static str {
-        match self {
-            Phase::Compaction => "compaction",
-            Phase::Confinement => "confinement",
-            Phase::Compression => "compression",
-            Phase::Done => "done",
-        }
-    }
-}
-
-/// How a phase ended (recorded).
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct PhaseEnd {
-    /// The phase.
-    pub phase: Phase,
-    /// Simulated time at its end (s).
-    pub time_s: f64,
-    /// Step at its end.
-    pub step: u64,
-    /// True when the equilibrium criteria were met (false: stopped at `max_time`).
-    pub settled: bool,
-    /// Kinetic ratio `K / (sigma A)` at the end (dimensionless).
-    pub kinetic_ratio: f64,
-    /// Force imbalance at the end (dimensionless).
-    pub force_imbalance: f64,
-}
-
 /// What a run reports as it goes; the CLI shows progress and records, tests collect.
 pub trait Observer {
     /// A row of the time series.
@@ -349,7 +312,7 @@ pub struct LabState {
     /// Loads the backend applies every step.
     pub loading: crate::backend::Loading,
     /// Geometry for stresses and strains.
-    pub gauge: crate::measure::Gauge,
+    pub gauge: Gauge,
     /// Simulated time at which the current phase started (s).
     pub phase_start: f64,
     /// Axial strain of the next snapshot.
@@ -385,7 +348,7 @@ impl LabState {
     pub fn new(
         params: ProtocolParams,
         loading: crate::backend::Loading,
-        gauge: crate::measure::Gauge,
+        gauge: Gauge,
         phase_start: f64,
     ) -> Self {
         LabState {

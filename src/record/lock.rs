@@ -35,12 +35,10 @@ impl RunLock {
             .map_err(|e| Error::io(&path, e))?;
         match file.try_lock() {
             Ok(()) => Ok(RunLock { _file: file }),
-            Err(TryLockError::WouldBlock) => Err(Error::Other(format!(
-                "{} is in use by another cdlab process (it holds the lock on {}): let that \
-                 run end or stop it first",
-                dir.display(),
-                path.display()
-            ))),
+            Err(TryLockError::WouldBlock) => Err(Error::InUse {
+                dir: dir.to_path_buf(),
+                lock: path.clone(),
+            }),
             Err(TryLockError::Error(e)) => Err(Error::io(&path, e)),
         }
     }

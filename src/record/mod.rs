@@ -32,9 +32,10 @@ mod writer;
 #[cfg(test)]
 mod tests;
 
+pub use crate::measure::SeriesRow;
 pub use lock::{LOCK_FILE, RunLock};
 pub use reader::{RunRecord, parse_run, read_config, read_run, read_run_id, read_series};
-pub use series::{SERIES_FIELDS, SeriesRow, csv_header, parse_csv, series_json_schema};
+pub use series::{SERIES_FIELDS, csv_header, parse_csv, series_json_schema};
 pub use snapshot::{ContactClass, ContactRecord, DiskRecord, SNAPSHOT_SCHEMA, Snapshot};
 pub use writer::{RecordHead, Recorder, new_run_id};
 

@@ -14,11 +14,11 @@ use std::path::{Path, PathBuf};
 use mcap::McapError;
 use mcap::sans_io::LinearReaderOptions;
 
-use super::series::SeriesRow;
 use super::snapshot::{SNAPSHOT_SCHEMA, Snapshot};
 use super::*;
 use crate::config::Config;
 use crate::error::{Error, Result};
+use crate::measure::SeriesRow;
 
 /// Everything a run recorded.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -51,8 +51,10 @@ pub struct RunRecord {
 impl RunRecord {
     /// Parses the recorded configuration.
     pub fn config(&self) -> Result<Config> {
-        serde_json::from_str(&self.config_json)
-            .map_err(|e| Error::Other(format!("recorded configuration: {e}")))
+        serde_json::from_str(&self.config_json).map_err(|e| Error::BadRecord {
+            path: None,
+            message: format!("recorded configuration: {e}"),
+        })
     }
 }
 
@@ -400,18 +402,19 @@ fn read_head(dir: &Path) -> Result<Head> {
 pub fn read_run(path: impl AsRef<Path>) -> Result<RunRecord> {
     let path = path.as_ref();
     if is_archived(path) {
-        return Err(Error::Other(format!(
-            "{} is an archived test (`cdlab archive`: its configuration, summary and time \
-             series thinned to {THINNED_SERIES_FILE}, without the record {MCAP_FILE}); this \
-             needs the full record, which only the run's own directory holds (`cdlab render \
-             DIR --curves` draws from the thinned series)",
-            path.display()
-        )));
+        return Err(Error::Archived {
+            dir: path.to_path_buf(),
+            thinned: THINNED_SERIES_FILE,
+            record: MCAP_FILE,
+        });
     }
     let path = mcap_path(path);
     let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
     parse_run(&bytes).map_err(|e| match e {
-        Error::Other(msg) => Error::io(&path, std::io::Error::new(std::io::ErrorKind::InvalidData, msg)),
+        Error::BadRecord { path: None, message } => Error::BadRecord {
+            path: Some(path),
+            message,
+        },
         other => other,
     })
 }
@@ -420,7 +423,7 @@ pub fn read_run(path: impl AsRef<Path>) -> Result<RunRecord> {
 /// the file: the caller knows it). Any input gives a record or an error, never a panic,
 /// and allocates at most a bounded multiple of its length.
 pub fn parse_run(bytes: &[u8]) -> Result<RunRecord> {
-    let bad = Error::Other;
+    let bad = |message: String| Error::BadRecord { path: None, message };
     let mut run = RunRecord::default();
     let mut have_config = false;
     // Ends the read at damaged content: what came before stays usable.

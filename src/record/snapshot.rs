@@ -15,6 +15,7 @@
 //! not depend on the host's endianness or on struct padding.
 
 use crate::error::{Error, Result};
+use crate::measure::micro::MicroContact;
 
 /// Schema name of the snapshot layout (bump the version when the layout changes).
 pub const SNAPSHOT_SCHEMA: &str = "cdlab.Snapshot.v1";
@@ -89,6 +90,36 @@ pub fn layout_description() -> &'static str {
 }
 
 impl Snapshot {
+    /// The measures' view of the snapshot's contacts (`crate::measure::micro`). A snapshot
+    /// holds no gaps: the branch of a disk-disk contact is the distance between the
+    /// centres, that of a wall contact the disk's radius.
+    pub fn micro_contacts(&self) -> Vec<MicroContact> {
+        let nd = self.disks.len();
+        self.contacts
+            .iter()
+            .filter(|c| (c.i as usize) < nd)
+            .map(|c| {
+                let di = &self.disks[c.i as usize];
+                let j = c.j as usize;
+                let disk = j < nd;
+                let length = if disk {
+                    let dj = &self.disks[j];
+                    (di.x - dj.x).hypot(di.y - dj.y)
+                } else {
+                    di.r
+                };
+                MicroContact {
+                    i: c.i,
+                    j: disk.then_some(c.j),
+                    n: glam::DVec2::new(c.nx, c.ny),
+                    f_n: c.f_n,
+                    f_t: c.f_t,
+                    length,
+                }
+            })
+            .collect()
+    }
+
     /// Encodes the snapshot in the v1 layout. Fails if there are more than `u32::MAX` disks
     /// or contacts (the counts are u32).
     pub fn encode(&self) -> Result<Vec<u8>> {

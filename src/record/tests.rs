@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use super::*;
 use crate::config::Config;
+use crate::error::Error;
 
 /// A fresh directory under the system temp dir, removed when dropped.
 struct TempDir(PathBuf);
@@ -628,4 +629,50 @@ fn staged_record_replaces_the_old_only_at_commit() {
     atomic::remove_file(&f).unwrap();
     atomic::remove_file(&f).unwrap();
     assert!(!f.exists());
+}
+
+/// The record's errors a caller can act on come back as their own variants, naming the
+/// directory or file: a run held by another process (wait), an archived test (use its
+/// thinned series), a file that is not a record.
+#[test]
+fn record_errors_are_variants_naming_the_place() {
+    let tmp = TempDir::new("variants");
+    let run = tmp.0.join("run");
+    let held = RunLock::acquire(&run).unwrap();
+    match RunLock::acquire(&run) {
+        Err(Error::InUse { dir, lock }) => {
+            assert_eq!(dir, run);
+            assert_eq!(lock, run.join(LOCK_FILE));
+        }
+        other => panic!("expected the run to be in use, got {:?}", other.map(|_| ())),
+    }
+    drop(held);
+    assert!(RunLock::acquire(&run).is_ok());
+
+    let archived = tmp.0.join("archived");
+    std::fs::create_dir_all(&archived).unwrap();
+    std::fs::write(archived.join(THINNED_SERIES_FILE), csv_header() + "\n").unwrap();
+    std::fs::write(
+        archived.join(ARCHIVED_CONFIG_FILE),
+        Config::default().to_toml_string().unwrap(),
+    )
+    .unwrap();
+    match read_run(&archived) {
+        Err(Error::Archived { dir, .. }) => assert_eq!(dir, archived),
+        other => panic!("expected an archived test, got {:?}", other.map(|_| ())),
+    }
+
+    let text = tmp.0.join("notes.mcap");
+    std::fs::write(&text, "not a record\n").unwrap();
+    match read_run(&text) {
+        Err(Error::BadRecord { path, message }) => {
+            assert_eq!(path.as_deref(), Some(text.as_path()));
+            assert!(!message.is_empty());
+        }
+        other => panic!("expected a bad record, got {:?}", other.map(|_| ())),
+    }
+    assert!(matches!(
+        parse_run(b"not a record"),
+        Err(Error::BadRecord { path: None, .. })
+    ));
 }

@@ -110,7 +110,7 @@ pub fn write_vtp(snap: &Snapshot, path: &Path) -> Result<()> {
     }
     let _ = writeln!(w, "</DataArray></Lines>");
     let _ = writeln!(w, "</Piece>\n</PolyData>\n</VTKFile>");
-    super::atomic::write_file(path, s.as_bytes())
+    crate::fsio::write_file(path, s.as_bytes())
 }
 
 /// Writes every snapshot as `snapshot_NNNN.vtp` into `dir` and the series `snapshots.pvd`
@@ -134,7 +134,7 @@ pub fn write_series(snaps: &[Snapshot], dir: &Path) -> Result<Vec<PathBuf>> {
     }
     pvd.push_str("</Collection>\n</VTKFile>\n");
     let p = dir.join("snapshots.pvd");
-    super::atomic::write_file(&p, pvd.as_bytes())?;
+    crate::fsio::write_file(&p, pvd.as_bytes())?;
     files.push(p);
     Ok(files)
 }

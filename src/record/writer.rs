@@ -8,12 +8,13 @@ use std::path::{Path, PathBuf};
 use mcap::records::MessageHeader;
 use mcap::{McapError, WriteOptions, Writer};
 
-use super::atomic::{FaultFile, rename, sync_dir, tmp_path};
-use super::series::{SeriesRow, csv_header, series_json_schema};
+use super::series::{csv_header, series_json_schema};
 use super::snapshot::{SNAPSHOT_SCHEMA, Snapshot, layout_description};
 use super::*;
 use crate::config::Config;
 use crate::error::{Error, Result};
+use crate::fsio::{FaultFile, rename, sync_dir, tmp_path};
+use crate::measure::SeriesRow;
 
 /// Target uncompressed chunk size. Small, so that little is lost when a run is killed
 /// between two flushes; zstd still finds the repetition of JSON keys within 64 KiB.

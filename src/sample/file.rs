@@ -26,10 +26,9 @@
 //! file or the whole file, never half of one.
 
 use std::fs::{File, OpenOptions, TryLockError};
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, SampleProblem};
 use crate::model::Scene;
 use crate::protocol::{LabState, ProtocolParams, checkpoint};
 
@@ -66,87 +65,54 @@ pub fn write_sample(path: &Path, state: &LabState, scene: &Scene) -> Result<()> 
 }
 
 /// Writes `bytes` to `path` so that `path` holds either its old content or all of `bytes`,
-/// whenever the process or the machine stops: a temporary file in the same directory,
-/// fsynced, renamed over `path`, then the directory fsynced so the rename itself persists.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let name = path
-        .file_name()
-        .ok_or_else(|| Error::Other(format!("{}: not a file name", path.display())))?;
-    // The process id keeps two writers (two shards) off each other's temporary file.
-    let tmp = dir.join(format!(".{}.tmp{}", name.to_string_lossy(), std::process::id()));
-    let result = (|| {
-        let mut f = OpenOptions::new()
-            .write(true)
-            .create(true)
-            .truncate(true)
-            .open(&tmp)
-            .map_err(|e| Error::io(&tmp, e))?;
-        f.write_all(bytes).map_err(|e| Error::io(&tmp, e))?;
-        f.sync_all().map_err(|e| Error::io(&tmp, e))?;
-        drop(f);
-        std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e))?;
-        // Persist the rename; a directory that cannot be opened for syncing (some file
-        // systems) still holds the renamed file, so that failure is not an error.
-        if let Ok(d) = File::open(&dir) {
-            let _ = d.sync_all();
-        }
-        Ok(())
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
-}
+/// whenever the process or the machine stops ([`crate::fsio::write_file`]: a temporary file
+/// unique to the process, so two shards never share one, fsynced, renamed, the directory
+/// fsynced).
+pub use crate::fsio::write_file as write_atomic;
 
 /// Decodes the bytes of a sample file; `path` names the file in errors. The length and
 /// CRC are checked before any of the payload is decoded.
 pub fn decode_sample(bytes: &[u8], path: &Path) -> Result<PreparedSample> {
-    let fail = |what: String| Error::Other(format!("{}: {what}", path.display()));
+    let fail = |problem: SampleProblem| Error::BadSample {
+        path: path.to_path_buf(),
+        problem,
+    };
     if bytes.len() >= 8 && &bytes[..8] == MAGIC_V1 {
-        return Err(fail(format!(
-            "a sample in the old format without a checksum, which cannot be checked for \
-             damage: prepare it again (`cdlab prepare -o {} --force` with its settings; for a \
-             sweep, delete the file and run the sweep again, which prepares it)",
-            path.display()
-        )));
+        return Err(fail(SampleProblem::OldFormat { version: 1 }));
     }
     if bytes.len() < HEADER_LEN || &bytes[..8] != MAGIC {
         return Err(fail(if bytes.len() >= 8 && &bytes[..8] == MAGIC {
-            format!(
-                "truncated: {} bytes, shorter than the {HEADER_LEN}-byte header",
-                bytes.len()
-            )
+            SampleProblem::ShortHeader {
+                len: bytes.len(),
+                header: HEADER_LEN,
+            }
         } else {
-            "not a cdlab sample (bad magic; `cdlab prepare` writes them)".into()
+            SampleProblem::NotASample
         }));
     }
     let length = u64::from_le_bytes(bytes[8..16].try_into().expect("8 bytes"));
     let crc = u32::from_le_bytes(bytes[16..20].try_into().expect("4 bytes"));
     let payload = &bytes[HEADER_LEN..];
     if payload.len() as u64 != length {
-        return Err(fail(format!(
-            "damaged or truncated: the header announces {length} bytes of data, the file holds {}",
-            payload.len()
-        )));
+        return Err(fail(SampleProblem::Length {
+            announced: length,
+            found: payload.len() as u64,
+        }));
     }
     let found = crc32fast::hash(payload);
     if found != crc {
-        return Err(fail(format!(
-            "damaged: CRC-32 {found:08x} of its data, {crc:08x} recorded; prepare the sample again"
-        )));
+        return Err(fail(SampleProblem::Checksum {
+            computed: found,
+            recorded: crc,
+        }));
     }
-    let ck = checkpoint::decode(payload).map_err(|e| fail(e.to_string()))?;
+    let ck = checkpoint::decode(payload).map_err(|e| fail(SampleProblem::Payload(e.to_string())))?;
     let (scene, params) = (ck.scene, ck.state.params);
     if scene.disks.len() != params.disks {
-        return Err(fail(format!(
-            "the sample holds {} disks but records {} (a corrupt or foreign file)",
-            scene.disks.len(),
-            params.disks
-        )));
+        return Err(fail(SampleProblem::DiskCount {
+            found: scene.disks.len(),
+            recorded: params.disks,
+        }));
     }
     Ok(PreparedSample { scene, params })
 }
@@ -294,5 +260,53 @@ mod tests {
         let v1 = checkpoint::encode(&state, &scene, &[], &[]);
         let e = decode_sample(&v1, Path::new("old.bin")).unwrap_err().to_string();
         assert!(e.contains("old.bin") && e.contains("cdlab prepare"), "{e}");
+    }
+
+    /// Each kind of damage comes back as its own [`SampleProblem`], so that a caller (a
+    /// sweep) can tell an old format from a damaged file, with the numbers it found.
+    #[test]
+    fn damage_is_told_by_its_kind() {
+        let (state, scene) = tiny();
+        let good = encode_sample(&state, &scene);
+        let path = Path::new("k.bin");
+        let problem = |bytes: &[u8]| match decode_sample(bytes, path) {
+            Err(Error::BadSample { path: p, problem }) => {
+                assert_eq!(p, path);
+                problem
+            }
+            other => panic!("expected a bad sample, got {other:?}"),
+        };
+        let payload = (good.len() - HEADER_LEN) as u64;
+        let recorded = u32::from_le_bytes(good[16..20].try_into().unwrap());
+        let mut flipped = good.clone();
+        *flipped.last_mut().unwrap() ^= 1;
+        match problem(&flipped) {
+            SampleProblem::Checksum {
+                computed,
+                recorded: r,
+            } => {
+                assert_eq!(r, recorded);
+                assert_eq!(computed, crc32fast::hash(&flipped[HEADER_LEN..]));
+                assert_ne!(computed, r);
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(
+            problem(&good[..good.len() - 7]),
+            SampleProblem::Length {
+                announced: payload,
+                found: payload - 7
+            }
+        );
+        assert_eq!(
+            problem(&good[..12]),
+            SampleProblem::ShortHeader {
+                len: 12,
+                header: HEADER_LEN
+            }
+        );
+        assert_eq!(problem(b"PNG and not a sample at all"), SampleProblem::NotASample);
+        let v1 = checkpoint::encode(&state, &scene, &[], &[]);
+        assert_eq!(problem(&v1), SampleProblem::OldFormat { version: 1 });
     }
 }

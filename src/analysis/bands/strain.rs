@@ -75,7 +75,7 @@ fn usable(d: &DiskRecord) -> bool {
 /// increment of disk k is only meaningful then.
 pub fn check_pair(a: &Snapshot, b: &Snapshot) -> Result<()> {
     if a.disks.len() != b.disks.len() {
-        return Err(Error::Other(format!(
+        return Err(Error::BandAnalysis(format!(
             "snapshots at strain {:.4} and {:.4} hold {} and {} disks: not the same sample",
             a.strain,
             b.strain,
@@ -84,7 +84,7 @@ pub fn check_pair(a: &Snapshot, b: &Snapshot) -> Result<()> {
         )));
     }
     if let Some(k) = (0..a.disks.len()).find(|&k| a.disks[k].r != b.disks[k].r) {
-        return Err(Error::Other(format!(
+        return Err(Error::BandAnalysis(format!(
             "disk {k} has radius {} m at strain {:.4} and {} m at strain {:.4}: not the same sample",
             a.disks[k].r, a.strain, b.disks[k].r, b.strain
         )));
@@ -162,7 +162,7 @@ pub fn strain_of_gradient(g: DMat2) -> (f64, f64) {
 pub fn local_strain(a: &Snapshot, b: &Snapshot, opts: &StrainOptions) -> Result<Vec<Option<LocalStrain>>> {
     check_pair(a, b)?;
     let d_mean = mean_diameter(&a.disks)
-        .ok_or_else(|| Error::Other("no disk with a finite positive radius in the snapshot".into()))?;
+        .ok_or_else(|| Error::BandAnalysis("no disk with a finite positive radius in the snapshot".into()))?;
     let nbrs = neighbours(&a.disks, opts.gap_diameters * d_mean);
     let pos = |d: &DiskRecord| DVec2::new(d.x, d.y);
     // The increment is the change of position, which during the compression is exactly the

@@ -1,0 +1,296 @@
+//! Files written so that a crash, a full disk or a kill at any instant leaves either the
+//! old complete file or the new complete one under the real name, never a torn one: the
+//! bytes go to a temporary name in the same directory, are synced, and the temporary file
+//! is renamed over the real one (a rename within a directory is atomic on POSIX file
+//! systems), then the directory is synced so the rename itself survives a power cut.
+//!
+//! Every file cdlab writes goes through [`write_file`] (whole files: summaries, figures,
+//! sample files) or, for a file that grows while a run goes (the record and its CSV copy),
+//! through `crate::record::Recorder`, which stages its start with [`tmp_path`],
+//! `FaultFile` and [`rename`]. The fault hooks of [`fault`] sit under both, so tests can
+//! fail or kill the process at any of their writes. This module sits low in the module
+//! map (it knows only [`crate::error`]) so that every module that writes can use it.
+
+use std::fs::File;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+
+/// Suffix of the temporary names.
+pub const TMP_SUFFIX: &str = ".tmp";
+
+/// `path` with [`TMP_SUFFIX`] appended to its file name (same directory, so the rename
+/// stays within one file system). Only for a writer that alone writes its directory (the
+/// recorder holds the run's lock); [`write_file`] takes [`process_tmp_path`].
+pub fn tmp_path(path: &Path) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(TMP_SUFFIX);
+    path.with_file_name(name)
+}
+
+/// `path`'s temporary name unique to this process, `NAME.PID.tmp` in the same directory:
+/// two processes writing the same file (two shards of a sweep writing a shared sample)
+/// each write their own temporary file, and the last rename wins whole.
+pub fn process_tmp_path(path: &Path) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(format!(".{}{TMP_SUFFIX}", std::process::id()));
+    path.with_file_name(name)
+}
+
+/// Writes `bytes` as the file `path`: to its temporary name ([`process_tmp_path`]),
+/// synced, renamed into place, the directory synced. On error the real file is untouched
+/// and the temporary one removed. A path that names no file (`/`, `..`) is refused.
+pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
+    if path.file_name().is_none() {
+        return Err(Error::NotAFile {
+            path: path.to_path_buf(),
+        });
+    }
+    let tmp = process_tmp_path(path);
+    let written = (|| -> std::io::Result<()> {
+        let mut f = FaultFile::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync()
+    })();
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(Error::io(&tmp, e));
+    }
+    rename(&tmp, path)
+}
+
+/// Renames `from` to `to` (replacing it) and syncs the directory of `to`.
+pub fn rename(from: &Path, to: &Path) -> Result<()> {
+    fault::point(false).map_err(|e| Error::io(to, e))?;
+    std::fs::rename(from, to).map_err(|e| Error::io(to, e))?;
+    sync_dir(to)
+}
+
+/// Removes `path` if it exists and syncs its directory, so that the removal is on disk
+/// before whatever follows (a stale summary must be gone before a new run starts).
+pub fn remove_file(path: &Path) -> Result<()> {
+    match std::fs::remove_file(path) {
+        Ok(()) => sync_dir(path),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(Error::io(path, e)),
+    }
+}
+
+/// Syncs the directory holding `path` (its entries: creations, renames, removals). Where
+/// directories cannot be opened for syncing (not Unix), does nothing.
+pub fn sync_dir(path: &Path) -> Result<()> {
+    #[cfg(unix)]
+    {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        File::open(dir)
+            .and_then(|d| d.sync_all())
+            .map_err(|e| Error::io(dir, e))?;
+    }
+    #[cfg(not(unix))]
+    let _ = path;
+    Ok(())
+}
+
+/// A file whose writes pass through the [`fault`] hooks.
+pub(crate) struct FaultFile(pub(crate) File);
+
+impl FaultFile {
+    /// Creates (truncates) `path` for writing.
+    pub(crate) fn create(path: &Path) -> std::io::Result<Self> {
+        Ok(FaultFile(File::create(path)?))
+    }
+
+    /// Syncs the data and metadata of the file.
+    pub(crate) fn sync(&self) -> std::io::Result<()> {
+        self.0.sync_all()
+    }
+}
+
+impl Write for FaultFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        match fault::point(true) {
+            Ok(()) => self.0.write(buf),
+            // A torn write: the first half lands, then the process dies or the disk is full.
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {
+                let half = buf.len() / 2;
+                self.0.write_all(&buf[..half])?;
+                if fault::abort_now() {
+                    std::process::abort();
+                }
+                Ok(half)
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.0.flush()
+    }
+}
+
+/// Fault injection for the reliability tests: makes the n-th write of a record or summary
+/// fail as on a full disk, or aborts the process there as `kill -9` would. Nothing in
+/// cdlab sets a plan; only tests do, through this hidden API, so that the fault lands on
+/// a chosen write rather than at a time.
+#[doc(hidden)]
+pub mod fault {
+    use std::sync::atomic::{AtomicU64, Ordering};
+
+    const NONE: u64 = 0;
+    const ENOSPC: u64 = 1;
+    const ABORT: u64 = 2;
+
+    static MODE: AtomicU64 = AtomicU64::new(NONE);
+    static AT: AtomicU64 = AtomicU64::new(0);
+    static COUNT: AtomicU64 = AtomicU64::new(0);
+
+    /// What to do at the fault points (each write to a record, CSV or summary file, and
+    /// each rename into place), counted from 1 since the last [`set`].
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub enum Plan {
+        /// Nothing (the default).
+        None,
+        /// The `n`-th point writes half its bytes, every later write fails with ENOSPC
+        /// (the disk stays full; renames still pass).
+        DiskFull(u64),
+        /// The `n`-th point writes half its bytes (a rename: nothing) and aborts the
+        /// process.
+        Abort(u64),
+    }
+
+    /// Installs `plan` and restarts the count.
+    pub fn set(plan: Plan) {
+        let (mode, at) = match plan {
+            Plan::None => (NONE, 0),
+            Plan::DiskFull(n) => (ENOSPC, n),
+            Plan::Abort(n) => (ABORT, n),
+        };
+        COUNT.store(0, Ordering::SeqCst);
+        AT.store(at, Ordering::SeqCst);
+        MODE.store(mode, Ordering::SeqCst);
+    }
+
+    /// Fault points passed since the last [`set`].
+    pub fn count() -> u64 {
+        COUNT.load(Ordering::SeqCst)
+    }
+
+    pub(super) fn abort_now() -> bool {
+        MODE.load(Ordering::SeqCst) == ABORT
+    }
+
+    /// Passes one point. `Err(Interrupted)` asks a write to tear (write half, then abort
+    /// or report a short write); a rename at its abort point aborts here.
+    pub(crate) fn point(write: bool) -> std::io::Result<()> {
+        let mode = MODE.load(Ordering::Relaxed);
+        if mode == NONE {
+            return Ok(());
+        }
+        let k = COUNT.fetch_add(1, Ordering::SeqCst) + 1;
+        let at = AT.load(Ordering::SeqCst);
+        if k < at {
+            return Ok(());
+        }
+        match (mode, k == at, write) {
+            (ABORT, true, true) | (ENOSPC, true, true) => {
+                Err(std::io::Error::from(std::io::ErrorKind::Interrupted))
+            }
+            (ABORT, true, false) => std::process::abort(),
+            (ENOSPC, false, true) => Err(disk_full()),
+            _ => Ok(()),
+        }
+    }
+
+    fn disk_full() -> std::io::Error {
+        #[cfg(unix)]
+        {
+            std::io::Error::from_raw_os_error(libc::ENOSPC)
+        }
+        #[cfg(not(unix))]
+        {
+            std::io::Error::from(std::io::ErrorKind::StorageFull)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fresh directory under the system temp dir, removed when dropped.
+    struct TempDir(PathBuf);
+
+    impl TempDir {
+        fn new(name: &str) -> Self {
+            let p = std::env::temp_dir().join(format!("cdlab-fsio-{name}-{}", std::process::id()));
+            let _ = std::fs::remove_dir_all(&p);
+            std::fs::create_dir_all(&p).unwrap();
+            TempDir(p)
+        }
+
+        fn names(&self) -> Vec<String> {
+            let mut v: Vec<String> = std::fs::read_dir(&self.0)
+                .unwrap()
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect();
+            v.sort();
+            v
+        }
+    }
+
+    impl Drop for TempDir {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+
+    /// The temporary name is in the target's directory and carries this process's id (two
+    /// shards writing one sample each write their own), and a write leaves the new content
+    /// under the real name and nothing else.
+    #[test]
+    fn write_file_replaces_whole_through_a_temporary_of_this_process() {
+        let tmp = TempDir::new("write");
+        let f = tmp.0.join("seed1.bin");
+        let t = process_tmp_path(&f);
+        assert_eq!(t.parent(), Some(tmp.0.as_path()));
+        assert_eq!(
+            t.file_name().unwrap().to_string_lossy(),
+            format!("seed1.bin.{}.tmp", std::process::id())
+        );
+        write_file(&f, b"old").unwrap();
+        write_file(&f, b"new content").unwrap();
+        assert_eq!(std::fs::read(&f).unwrap(), b"new content");
+        assert_eq!(tmp.names(), vec!["seed1.bin".to_string()]);
+    }
+
+    /// A write that fails (here its temporary name is taken by a directory) leaves the old
+    /// file as it was and names the temporary file in the error.
+    #[test]
+    fn a_failed_write_leaves_the_old_file() {
+        let tmp = TempDir::new("fail");
+        let f = tmp.0.join("summary.json");
+        write_file(&f, b"old").unwrap();
+        std::fs::create_dir(process_tmp_path(&f)).unwrap();
+        let e = write_file(&f, b"new").unwrap_err();
+        match &e {
+            Error::Io { path, .. } => assert_eq!(path, &process_tmp_path(&f)),
+            other => panic!("expected an I/O error on the temporary file, got {other:?}"),
+        }
+        assert_eq!(std::fs::read(&f).unwrap(), b"old");
+    }
+
+    /// A path that names no file is refused before anything is created.
+    #[test]
+    fn a_path_without_a_file_name_is_refused() {
+        let e = write_file(Path::new("/"), b"x").unwrap_err();
+        assert!(
+            matches!(&e, Error::NotAFile { path } if path == Path::new("/")),
+            "{e:?}"
+        );
+        assert_eq!(e.to_string(), "/: not a file name");
+    }
+}
