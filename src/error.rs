@@ -167,9 +167,52 @@ pub enum Error {
     /// the same sample, too few local strain values).
     #[error("{0}")]
     BandAnalysis(String),
+    // Runs and campaigns (`crate::run`, `crate::campaign`): what a caller can act on.
+    /// A run directory, record or file that does not allow what was asked: `fault` says
+    /// why in a form a program can match, `message` says it to a person.
+    #[error("{message}")]
+    Run {
+        /// The run directory or file concerned.
+        path: PathBuf,
+        /// What is in the way.
+        fault: RunFault,
+        /// The full message, naming the path and what to do.
+        message: String,
+    },
+    /// A campaign that cannot run as asked: its sweep file, grid or directory, or tests
+    /// that failed.
+    #[error("{message}")]
+    Campaign {
+        /// The sweep file or campaign directory.
+        path: PathBuf,
+        /// The tests concerned, with why, when the fault is theirs (failed tests).
+        tests: Vec<(PathBuf, String)>,
+        /// The full message.
+        message: String,
+    },
     /// Any other failure, with its message.
     #[error("{0}")]
     Other(String),
+}
+
+/// Why a run directory or file cannot be used as asked ([`Error::Run`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RunFault {
+    /// No run directory, or no record in it.
+    NoRun,
+    /// The output (a run directory, a sample file) already holds another test's files:
+    /// replace them, resume, or write elsewhere.
+    Occupied,
+    /// The record holds no intact checkpoint: the run can only start again.
+    NoCheckpoint,
+    /// The run is already complete (with a sound summary): nothing to resume.
+    Complete,
+    /// The record is not finished: resume it before summarising.
+    Unfinished,
+    /// A test, sample or record of other settings than those asked for.
+    OtherSettings,
+    /// A record or file whose content cannot be used (damaged, or not what it should be).
+    Damaged,
 }
 
 /// What makes a prepared-sample file unusable ([`Error::BadSample`]).

@@ -5,7 +5,12 @@
 //! compute shaders, and runs the biaxial test of Taboada, Chang, Radjai and Bouchette (2005).
 //!
 //! Module map (dependencies point down the list):
-//! - [`cli`]: the `cdlab` command line;
+//! - [`cli`]: the `cdlab` command line: parses arguments, calls [`run`] and [`campaign`],
+//!   prints;
+//! - [`campaign`]: campaign grids (sweep files), their worker pool, shards and tests held
+//!   by other processes;
+//! - [`run`]: the library face of a test: configure, prepare a sample, run or resume with a
+//!   progress callback and a cancellation token, open a finished run (`docs/library.md`);
 //! - [`figures`]: PNG and SVG figures of runs, snapshots and campaign reports;
 //! - [`analysis`]: fits of the campaign (Mohr-Coulomb envelopes, friction saturation), and the
 //!   shear bands of a run found in its snapshots;
@@ -27,10 +32,12 @@
 //! - [`model`]: disks, walls, material (the state a backend steps);
 //! - [`fsio`]: files written whole or not at all (temporary name, fsync, rename);
 //! - [`error`]: the error type;
-//! - [`interrupt`]: stopping a run at a checkpoint on SIGINT or SIGTERM.
+//! - [`interrupt`]: the cancellation token that stops a run at a checkpoint, and SIGINT or
+//!   SIGTERM as one source of it (installed only by the command line).
 
 pub mod analysis;
 pub mod backend;
+pub mod campaign;
 pub mod cli;
 pub mod config;
 pub mod contact;
@@ -45,6 +52,7 @@ pub mod measure;
 pub mod model;
 pub mod protocol;
 pub mod record;
+pub mod run;
 pub mod sample;
 pub mod solver;
 

@@ -13,20 +13,7 @@ use crate::figures::rose::{ForcePdfFigure, RoseFigure};
 use crate::measure::micro::{Analysis, PDF_BINS, PDF_MAX, ROSE_BINS};
 use crate::record::{MCAP_FILE, SeriesRow, Snapshot, read_run, read_series};
 
-/// The last snapshot of a run kept by `cdlab archive --keep-last-snapshot` in an archived
-/// test's directory: one snapshot in the `/snapshot` layout (`crate::record::snapshot`).
-pub const LAST_SNAPSHOT_FILE: &str = "last_snapshot.bin";
-
-/// Writes the last snapshot of the run in `src` into the archived test `dest`, through a
-/// temporary file synced and renamed; nothing when the record holds no snapshot.
-pub fn keep_last_snapshot(src: &std::path::Path, dest: &std::path::Path) -> Result<()> {
-    let rec = read_run(src)?;
-    let Some(snap) = rec.snapshots.last() else {
-        return Ok(());
-    };
-    let bytes = snap.encode()?;
-    crate::record::atomic::write_file(&dest.join(LAST_SNAPSHOT_FILE), &bytes)
-}
+pub use crate::campaign::archive::{LAST_SNAPSHOT_FILE, keep_last_snapshot};
 
 /// The snapshots and series of a run directory, or of an archived test holding its last
 /// snapshot (with its thinned series).

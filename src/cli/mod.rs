@@ -1,10 +1,13 @@
 //! The `cdlab` command line. Each subcommand lives in its own file with an `Args` struct
-//! (clap) and a `run` function; this file only dispatches.
+//! (clap) and a `run` function; this file only dispatches. The work of running tests and
+//! campaigns is the library's ([`crate::run`], [`crate::campaign`]): the subcommands parse,
+//! call it and print, and their progress displays are implementations of its callbacks.
 
 pub mod archive;
 pub mod bands;
 pub mod bench;
 pub mod biaxial;
+mod campaign_display;
 pub mod compare;
 pub mod config;
 pub mod export;

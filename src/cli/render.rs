@@ -1,12 +1,11 @@
 //! `cdlab render RUN --at STRAIN --field NAME -o FIG` draws the snapshot nearest a strain;
 //! `cdlab render RUN --curves -o DIR` draws the stress-strain and contact-count curves.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use crate::config::Config;
 use crate::error::{Error, Result};
-use crate::figures::{self, ContactsFigure, Field, Format, ShearField, SnapshotFigure, StressStrainFigure};
-use crate::record::{Snapshot, read_run, read_series};
+use crate::figures::{self, Field, Format, ShearField, SnapshotFigure};
+use crate::record::{Snapshot, read_run};
 
 /// Options of `cdlab render`.
 #[derive(clap::Args, Debug)]
@@ -147,19 +146,6 @@ fn shear_field(snaps: &[Snapshot], k: usize) -> Result<ShearField> {
     })
 }
 
-/// A title naming the run's friction, confining stress and size.
-fn run_title(config: Result<Config>, run: &Path) -> String {
-    match config {
-        Ok(c) => format!(
-            "μ = {}, σ₃ = {} MPa, {} disks",
-            c.test.mu,
-            c.test.sigma3.0 / 1e6,
-            c.sample.disks
-        ),
-        Err(_) => run.display().to_string(),
-    }
-}
-
 fn curves(args: &Args) -> Result<()> {
     for p in write_curves(&args.run, &args.out)? {
         println!("{}", p.display());
@@ -167,27 +153,4 @@ fn curves(args: &Args) -> Result<()> {
     Ok(())
 }
 
-/// Draws a run's curves against axial strain into `out`: `stress_strain` (sigma_1 and
-/// dV/V0) and `contacts` (rolling, sliding, zero-force counts), each as PNG and SVG. `run`
-/// may be a run directory or an archived test (drawn from its thinned series). Returns the
-/// files written.
-pub fn write_curves(run: &Path, out: &Path) -> Result<Vec<PathBuf>> {
-    let (series, config) = read_series(run)?;
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let title = run_title(config, run);
-    let mut written = Vec::with_capacity(4);
-    written.extend(figures::save_both(
-        &StressStrainFigure {
-            rows: &series,
-            title: title.clone(),
-        },
-        out,
-        "stress_strain",
-    )?);
-    written.extend(figures::save_both(
-        &ContactsFigure { rows: &series, title },
-        out,
-        "contacts",
-    )?);
-    Ok(written)
-}
+pub use crate::run::write_curves;

@@ -159,9 +159,14 @@ impl<B: Backend> Lab<B> {
     /// the run after the current window of steps with a checkpoint, as
     /// [`Error::Interrupted`].
     pub fn run(&mut self, obs: &mut dyn Observer) -> Result<()> {
+        self.run_until(obs, &crate::interrupt::Cancel::with_signals())
+    }
+
+    /// [`Lab::run`], stopped by `cancel` instead of by the process's signals alone.
+    pub fn run_until(&mut self, obs: &mut dyn Observer, cancel: &crate::interrupt::Cancel) -> Result<()> {
         while self.state.phase != Phase::Done {
             self.advance(obs)?;
-            if let Some(signal) = crate::interrupt::requested()
+            if let Some(signal) = cancel.requested()
                 && self.state.phase != Phase::Done
             {
                 let step = self.checkpoint(obs)?;

@@ -1,0 +1,204 @@
+//! Running biaxial tests from a program: the library face of what `cdlab biaxial`,
+//! `cdlab prepare` and `cdlab summarize` do, with typed outcomes instead of printed text.
+//!
+//! - [`configure`] builds a configuration (a TOML file or the default, then overrides);
+//! - [`prepare`] deposits and compacts a sample and writes it, [`read_sample`] reads one back
+//!   and [`adopt_sample`] makes a configuration describe it;
+//! - [`start`] runs a new test into the configuration's output directory, [`resume`]
+//!   continues one from its last checkpoint; both report their progress to a [`Progress`]
+//!   (any `FnMut(&Event)` closure is one) and stop at a checkpoint when their
+//!   [`Cancel`] token is set, returning [`crate::Error::Interrupted`];
+//! - [`open`] reads a finished run back: configuration, summary, series and snapshots;
+//! - [`write_curves`] draws a run's figures, [`summarize`] writes its summary again from its
+//!   record.
+//!
+//! Nothing here installs a signal handler: a caller that wants Ctrl-C to stop a run at a
+//! checkpoint calls [`crate::interrupt::install`] and passes the token it returns, as the
+//! command line does.
+//!
+//! ```no_run
+//! use cdlab::config::Overrides;
+//! use cdlab::interrupt::Cancel;
+//! use cdlab::run::{self, Event};
+//!
+//! let config = run::configure(None, &Overrides {
+//!     disks: Some(300),
+//!     strain: Some(0.002),
+//!     backend: Some("cpu".into()),
+//!     out: Some("runs/tiny".into()),
+//!     ..Default::default()
+//! })?;
+//! let mut rows = 0;
+//! let mut progress = |e: &Event| {
+//!     if let Event::Row { .. } = e {
+//!         rows += 1;
+//!     }
+//! };
+//! let outcome = run::start(&config, None, true, &mut progress, &Cancel::new())?;
+//! println!("peak sigma1 {:.3} MPa after {rows} rows", outcome.summary.sigma1_peak_mpa);
+//! let finished = run::open(&outcome.dir)?;
+//! println!("{} snapshots", finished.record.snapshots.len());
+//! # Ok::<(), cdlab::Error>(())
+//! ```
+//!
+//! `examples/run_test.rs` is the same, runnable (`cargo run --release --example run_test`),
+//! and `docs/library.md` describes the API.
+
+mod backend;
+mod open;
+mod recording;
+mod sample;
+mod summary;
+mod test;
+
+use std::path::{Path, PathBuf};
+
+pub use crate::interrupt::Cancel;
+pub use backend::open_backend;
+pub use open::{FinishedRun, open, write_curves};
+pub use recording::{Recording, snapshot};
+pub use sample::{
+    Prepared, PreparedSample, adopt_sample, differences, prepare, read_sample, sample_differences,
+};
+pub use summary::{Summarized, rebuild_summary, summarize, summary_fault, summary_of, write_summary};
+pub use test::{RESULT_FILES, check_out_dir, clear_results, resume, run_fresh, run_resume, start};
+
+use crate::config::units::{Dimension, parse_with_unit};
+use crate::config::{Config, Overrides, Pressure};
+use crate::error::{Error, Result};
+use crate::measure::SeriesRow;
+use crate::measure::summary::Summary;
+use crate::protocol::prepare::DepositionReport;
+use crate::protocol::{Phase, PhaseEnd};
+
+/// What a run reports while it goes, in the order it happens. Borrowed: a receiver that
+/// keeps something copies it.
+#[derive(Debug)]
+#[non_exhaustive]
+pub enum Event<'a> {
+    /// The grains were deposited (a test without a prepared sample, or [`prepare`]).
+    Deposited {
+        /// Number of disks.
+        disks: usize,
+        /// Packing, coordination, grading and wall time of the deposit.
+        report: &'a DepositionReport,
+    },
+    /// A resume could not use the whole record: it continues from the last intact
+    /// checkpoint before the damage, and recomputes the run from there.
+    FellBack {
+        /// The record file.
+        file: &'a Path,
+        /// What is wrong with the record.
+        why: &'a str,
+        /// The checkpoint's step.
+        step: u64,
+        /// The checkpoint's phase.
+        phase: Phase,
+        /// The axial strain at the checkpoint, when it is in the compression.
+        strain: Option<f64>,
+    },
+    /// A complete record's summary was missing or could not stand, and was written again
+    /// from the record; nothing is run.
+    SummaryRewritten {
+        /// The run directory.
+        dir: &'a Path,
+        /// What was wrong with the summary ("is missing", "is damaged (...)").
+        fault: &'a str,
+    },
+    /// A resumed run goes on from its checkpoint.
+    Resuming {
+        /// The run directory.
+        dir: &'a Path,
+        /// The checkpoint's step.
+        step: u64,
+        /// Simulated time at the checkpoint (s).
+        time_s: f64,
+        /// The phase the run resumes in.
+        phase: Phase,
+    },
+    /// The steps begin.
+    Running {
+        /// The backend's name, with its device.
+        backend: &'a str,
+        /// The run directory.
+        dir: &'a Path,
+    },
+    /// A row of the series, as recorded (its `wall_s` counts the run's earlier parts).
+    Row {
+        /// The row.
+        row: &'a SeriesRow,
+        /// The axial strain at which the test ends: the compression's progress is
+        /// `row.strain_axial / strain_end`.
+        strain_end: f64,
+    },
+    /// The largest overlap passed docs/method.md's bound ([`crate::analysis::report::OVERLAP_BOUND_REL`]
+    /// of r_min) for the first time in this run (or this part of it).
+    OverlapBound {
+        /// The row where it did.
+        row: &'a SeriesRow,
+        /// Step and axial strain of the last row whose largest overlap was within half the
+        /// bound, if one was: how fast it then grew tells a small step from slow sinking.
+        within_half: Option<(u64, f64)>,
+    },
+    /// A phase ended (settled or at its time cap; the compression at its end strain).
+    PhaseEnd(&'a PhaseEnd),
+    /// No more steps run (the test ended, failed or was stopped): a display can close.
+    StepsEnded,
+    /// The summary has no shear-band analysis, for this reason.
+    NoShearBands(&'a Error),
+}
+
+/// Receives a run's [`Event`]s. Any `FnMut(&Event)` closure is one; [`Silent`] ignores them.
+pub trait Progress {
+    /// Called for each event, on the thread that runs the test.
+    fn event(&mut self, event: &Event<'_>);
+}
+
+impl<F: FnMut(&Event<'_>)> Progress for F {
+    fn event(&mut self, event: &Event<'_>) {
+        self(event)
+    }
+}
+
+/// A [`Progress`] that ignores every event.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Silent;
+
+impl Progress for Silent {
+    fn event(&mut self, _: &Event<'_>) {}
+}
+
+/// A test that ran to its end (or whose complete record got its summary back).
+#[derive(Clone, Debug)]
+pub struct RunOutcome {
+    /// The run directory: record, `summary.json`, `summary.txt`.
+    pub dir: PathBuf,
+    /// The summary written there.
+    pub summary: Summary,
+    /// The checkpoint step a resumed run continued from; `None` for a new test.
+    pub resumed_from: Option<u64>,
+    /// True when nothing ran: the record was complete and only its summary was written
+    /// again from it.
+    pub summary_only: bool,
+}
+
+/// The configuration of a new run: `file` (TOML) or the built-in default, then `overrides`,
+/// validated. A confining stress given as text with its unit (the command line's
+/// `--sigma3 8MPa`) is parsed with [`sigma3`].
+pub fn configure(file: Option<&Path>, overrides: &Overrides) -> Result<Config> {
+    let mut config = match file {
+        Some(p) => Config::load(p)?,
+        None => Config::default(),
+    };
+    config.apply(overrides)?;
+    config.validate()?;
+    Ok(config)
+}
+
+/// A confining stress written with its unit (`8MPa`, `500 kPa`), for [`Overrides::sigma3`];
+/// `field` names it in the error.
+pub fn sigma3(text: &str, field: &str) -> Result<Pressure> {
+    parse_with_unit(text, Dimension::Pressure)
+        .map(Pressure)
+        .map_err(|e| Error::invalid(field, text, &e.0))
+}

@@ -1,0 +1,244 @@
+//! A finished test's summary: derived from its rows, phase ends and snapshots, written
+//! beside its record, checked, and computed again from the record.
+
+use std::path::Path;
+
+use super::{Event, Progress};
+use crate::config::Config;
+use crate::error::{Error, Result, RunFault};
+use crate::measure::SeriesRow;
+use crate::measure::summary::Summary;
+use crate::protocol::checkpoint::decode;
+use crate::protocol::{Phase, PhaseEnd};
+use crate::record::{MCAP_FILE, RunRecord, atomic, read_run};
+
+/// The summary of a finished test from its rows and phase ends, with the shear bands of
+/// its record's snapshots: the same at the end of a run and in [`summarize`]. A band
+/// analysis that cannot be made is reported to `progress` ([`Event::NoShearBands`]).
+#[allow(clippy::too_many_arguments)]
+pub fn summary_of(
+    config: &Config,
+    rows: &[SeriesRow],
+    ends: &[PhaseEnd],
+    backend: String,
+    wall_s: f64,
+    record: &Result<RunRecord>,
+    progress: &mut dyn Progress,
+) -> Summary {
+    let mut summary = Summary::new(
+        rows,
+        ends,
+        config.test.sigma3.si(),
+        config.test.mu,
+        config.sample.disks,
+        backend,
+        wall_s,
+    );
+    summary.dt_s = Some(config.solver.dt.si());
+    summary.deep_contacts = crate::measure::summary::DeepContacts::of_run(
+        config.solver.deep_overlap,
+        config.solver.deep_sweeps,
+        rows,
+    );
+    summary.record_id = record.as_ref().ok().and_then(|r| r.run_id.clone());
+    let bands = record
+        .as_ref()
+        .map(|rec| crate::analysis::bands::analyse_run(rec, None, None, &Default::default()));
+    summary.shear_bands = match bands {
+        Ok(Ok(b)) => Some(b),
+        Ok(Err(e)) => {
+            progress.event(&Event::NoShearBands(&e));
+            None
+        }
+        Err(e) => {
+            progress.event(&Event::NoShearBands(e));
+            None
+        }
+    };
+    summary
+}
+
+/// Writes `summary.txt` and then `summary.json` into `dir`, each to a temporary name,
+/// synced and renamed into place ([`atomic::write_file`]): `summary.json` marks the test
+/// finished, so it comes last and is never seen half-written.
+pub fn write_summary(dir: &Path, summary: &Summary) -> Result<()> {
+    let json = serde_json::to_string_pretty(summary).map_err(|e| unwritable(dir, e))?;
+    atomic::write_file(&dir.join("summary.txt"), summary.table().as_bytes())?;
+    atomic::write_file(&dir.join("summary.json"), json.as_bytes())
+}
+
+/// A summary that cannot be put into JSON: the error of writing `dir`'s `summary.json`.
+fn unwritable(dir: &Path, e: serde_json::Error) -> Error {
+    Error::io(dir.join("summary.json"), std::io::Error::other(e))
+}
+
+/// Why the `summary.json` beside a complete record cannot stand, if it cannot: missing,
+/// empty or unreadable, or computed from another record (its `record_id`).
+pub fn summary_fault(dir: &Path, rec: &RunRecord) -> Option<String> {
+    let path = dir.join("summary.json");
+    let text = match std::fs::read_to_string(&path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Some("is missing".into()),
+        Err(e) => return Some(format!("cannot be read ({e})")),
+    };
+    if text.trim().is_empty() {
+        return Some("is empty".into());
+    }
+    let value: serde_json::Value = match serde_json::from_str(&text) {
+        Ok(v) => v,
+        Err(e) => return Some(format!("is damaged ({e})")),
+    };
+    if serde_json::from_value::<Summary>(value.clone()).is_err() {
+        return Some("is not a cdlab summary".into());
+    }
+    match (value.get("record_id").and_then(|v| v.as_str()), &rec.run_id) {
+        (Some(theirs), Some(ours)) if theirs != ours => Some(format!(
+            "belongs to another record (record_id {theirs}, the record's run_id is {ours})"
+        )),
+        _ => None,
+    }
+}
+
+/// An [`Error::Run`] about the record file `file`.
+fn record_fault(file: &Path, fault: RunFault, what: impl std::fmt::Display) -> Error {
+    Error::Run {
+        path: file.to_path_buf(),
+        fault,
+        message: format!("{}: {what}", file.display()),
+    }
+}
+
+/// The summary of the complete record `rec` of `dir`, computed again from it. What the
+/// record does not hold is taken from `old` (a former summary) when given: the backend's
+/// name and the wall time; otherwise the record's backend and its last row's wall time.
+pub fn rebuild_summary(dir: &Path, rec: &RunRecord, old: Option<&serde_json::Value>) -> Result<Summary> {
+    let name = dir.join(MCAP_FILE);
+    let named = |e: Error| record_fault(&name, RunFault::Damaged, e);
+    let config = rec.config().map_err(named)?;
+    let Some((_, bytes)) = &rec.last_checkpoint else {
+        return Err(record_fault(
+            &name,
+            RunFault::NoCheckpoint,
+            "the record holds no intact checkpoint",
+        ));
+    };
+    // The phase ends are in the checkpoint the run wrote as it finished.
+    let state = decode(bytes).map_err(named)?.state;
+    if state.phase != Phase::Done {
+        return Err(record_fault(
+            &name,
+            RunFault::Unfinished,
+            format!(
+                "the record ends in phase {} (resume it with cdlab biaxial --resume)",
+                state.phase.name()
+            ),
+        ));
+    }
+    let old_text = |k: &str| {
+        old.and_then(|o| o.get(k))
+            .and_then(|v| v.as_str())
+            .map(str::to_string)
+    };
+    let backend = old_text("backend")
+        .or_else(|| rec.backend.clone())
+        .unwrap_or_else(|| "unknown (not in the record)".into());
+    let last_wall = rec.series.last().map(|r| r.wall_s).filter(|w| w.is_finite());
+    let wall_s = old
+        .and_then(|o| o.get("wall_time_s"))
+        .and_then(|v| v.as_f64())
+        .or(last_wall)
+        .unwrap_or(0.0);
+    let record = Ok(rec.clone());
+    Ok(summary_of(
+        &config,
+        &rec.series,
+        &state.ends,
+        backend,
+        wall_s,
+        &record,
+        &mut super::Silent,
+    ))
+}
+
+/// What [`summarize`] did with one test.
+#[derive(Debug, PartialEq)]
+pub enum Summarized {
+    /// The summary was written again (or would be, in a dry run); the top-level keys
+    /// whose values changed.
+    Rewritten(Vec<String>),
+    /// The recomputed summary equals the one there (nothing written).
+    Unchanged,
+}
+
+/// Computes the summary of the finished test in `dir` from its record and writes it (unless
+/// `dry_run`) when it differs from the one there. A missing, empty or damaged summary, or
+/// one of another record, is rebuilt from the record. A test without its record (an
+/// archived one) or not finished is an error naming why.
+pub fn summarize(dir: &Path, dry_run: bool) -> Result<Summarized> {
+    if !dir.join(MCAP_FILE).exists() {
+        return Err(Error::Run {
+            path: dir.to_path_buf(),
+            fault: RunFault::NoRun,
+            message: format!(
+                "no record ({MCAP_FILE}): an archived test keeps the summary it was archived with"
+            ),
+        });
+    }
+    let record = read_run(dir)?;
+    if let Some(why) = &record.damaged {
+        let file = dir.join(MCAP_FILE);
+        return Err(record_fault(
+            &file,
+            RunFault::Damaged,
+            format!(
+                "{why}: `cdlab biaxial --resume {}` recomputes the run from its last intact \
+                 checkpoint",
+                dir.display()
+            ),
+        ));
+    }
+    let fault = summary_fault(dir, &record);
+    let old = match &fault {
+        None => {
+            let old_path = dir.join("summary.json");
+            let text = std::fs::read_to_string(&old_path).map_err(|e| Error::io(&old_path, e))?;
+            Some(
+                serde_json::from_str::<serde_json::Value>(&text)
+                    .map_err(|e| record_fault(&old_path, RunFault::Damaged, e))?,
+            )
+        }
+        // The figures of another record's summary are not this one's.
+        Some(_) => None,
+    };
+    let summary = rebuild_summary(dir, &record, old.as_ref())?;
+    let new = serde_json::to_value(&summary).map_err(|e| unwritable(dir, e))?;
+    let changed = match (&old, &fault) {
+        (Some(old), None) => changed_keys(old, &new),
+        _ => vec![format!("all (summary.json {})", fault.unwrap_or_default())],
+    };
+    // Which version wrote it is no change of the test's figures.
+    if changed.iter().all(|k| k == "version") {
+        return Ok(Summarized::Unchanged);
+    }
+    if !dry_run {
+        write_summary(dir, &summary)?;
+    }
+    Ok(Summarized::Rewritten(changed))
+}
+
+/// The top-level keys of `new` whose values differ in `old` (or that `old` lacks), and the
+/// keys `old` has that `new` lacks.
+fn changed_keys(old: &serde_json::Value, new: &serde_json::Value) -> Vec<String> {
+    let empty = serde_json::Map::new();
+    let (o, n) = (
+        old.as_object().unwrap_or(&empty),
+        new.as_object().unwrap_or(&empty),
+    );
+    let mut keys: Vec<String> = n
+        .iter()
+        .filter(|(k, v)| o.get(*k) != Some(v))
+        .map(|(k, _)| k.clone())
+        .collect();
+    keys.extend(o.keys().filter(|k| !n.contains_key(*k)).cloned());
+    keys
+}
