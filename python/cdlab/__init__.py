@@ -35,6 +35,8 @@ from ._cdlab import (
     NoAdapterError,
     NumericalError,
     ParseError,
+    RunError,
+    CampaignError,
     StoppedError,
 )
 
@@ -55,6 +57,8 @@ __all__ = [
     "NumericalError",
     "ParseError",
     "StoppedError",
+    "RunError",
+    "CampaignError",
 ]
 
 __version__: str = _cdlab.library_version()

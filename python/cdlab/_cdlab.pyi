@@ -48,6 +48,18 @@ class StoppedError(CdlabError):
     signal: int
     step: int
 
+class RunError(CdlabError):
+    """A run directory or file that cannot be used as asked."""
+
+    path: str
+    #: NoRun, Occupied, NoCheckpoint, Complete, Unfinished, OtherSettings or Damaged.
+    fault: str
+
+class CampaignError(CdlabError):
+    """A campaign that cannot run as asked (sweep file, grid, failed tests)."""
+
+    path: str
+
 class Record:
     """A run or an archived test read whole by :func:`open_record`."""
 

@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 
 use cdlab::Error;
 use cdlab::config::Config;
-use cdlab::measure::micro::{Analysis, from_snapshot};
+use cdlab::measure::micro::Analysis;
 use cdlab::measure::summary::Summary;
 use cdlab::record::{
     ARCHIVED_CONFIG_FILE, MCAP_FILE, SERIES_FIELDS, SeriesRow, Snapshot, read_run, read_series,
@@ -76,6 +76,20 @@ create_exception!(
     "A run stopped by a signal; attributes `signal` and `step` (0 when nothing to resume)."
 );
 
+create_exception!(
+    cdlab,
+    RunError,
+    CdlabError,
+    "A run directory or file that cannot be used as asked; attributes `path` and `fault` \
+     (NoRun, Occupied, NoCheckpoint, Complete, Unfinished, OtherSettings, Damaged)."
+);
+create_exception!(
+    cdlab,
+    CampaignError,
+    CdlabError,
+    "A campaign that cannot run as asked (sweep file, grid, failed tests); attribute `path`."
+);
+
 /// A cdlab error as the matching Python exception, its fields set as attributes.
 fn py_err(py: Python<'_>, e: Error) -> PyErr {
     let msg = e.to_string();
@@ -113,7 +127,40 @@ fn py_err(py: Python<'_>, e: Error) -> PyErr {
                 ("step", step.into_pyobject(py).unwrap().into_any().unbind()),
             ],
         ),
-        Error::Other(_) => (CdlabError::new_err(msg), vec![]),
+        Error::GpuLimit { .. } | Error::GpuShader { .. } => (GpuError::new_err(msg), vec![]),
+        Error::NotAFile { path } | Error::BadSample { path, .. } => {
+            (FileError::new_err(msg), vec![("path", path_obj(py, &path))])
+        }
+        Error::InUse { dir, .. } | Error::Archived { dir, .. } => {
+            (FileError::new_err(msg), vec![("path", path_obj(py, &dir))])
+        }
+        Error::BadRecord { path, .. } => {
+            let path = match path {
+                Some(p) => path_obj(py, &p),
+                None => py.None(),
+            };
+            (DamagedRecordError::new_err(msg), vec![("path", path)])
+        }
+        Error::Run { path, fault, .. } => (
+            RunError::new_err(msg),
+            vec![
+                ("path", path_obj(py, &path)),
+                (
+                    "fault",
+                    format!("{fault:?}")
+                        .into_pyobject(py)
+                        .unwrap()
+                        .into_any()
+                        .unbind(),
+                ),
+            ],
+        ),
+        Error::Campaign { path, .. } => (CampaignError::new_err(msg), vec![("path", path_obj(py, &path))]),
+        Error::BadCheckpoint { .. }
+        | Error::NothingToDraw(_)
+        | Error::Drawing(_)
+        | Error::BandAnalysis(_)
+        | Error::Other(_) => (CdlabError::new_err(msg), vec![]),
     };
     set_attrs(py, err, attrs)
 }
@@ -222,7 +269,7 @@ fn read_record(path: &Path, allow_damaged: bool) -> Result<Record, ReadError> {
     if archived {
         let (series, config) = read_series(path)?;
         let config = config?;
-        let kept = path.join(cdlab::cli::fabric::LAST_SNAPSHOT_FILE);
+        let kept = path.join(cdlab::campaign::archive::LAST_SNAPSHOT_FILE);
         let snapshots = if kept.exists() {
             let bytes = std::fs::read(&kept).map_err(|e| Error::io(&kept, e))?;
             vec![
@@ -505,7 +552,7 @@ impl Record {
         }
         let json = py.detach(|| {
             let radius: Vec<f64> = s.disks.iter().map(|d| d.r).collect();
-            let a = Analysis::of(&from_snapshot(s), &radius, area);
+            let a = Analysis::of(&s.micro_contacts(), &radius, area);
             if a.sums.n_force == 0 {
                 return Err(format!(
                     "{}: the snapshot at strain {} has no force-carrying contact",
@@ -577,5 +624,7 @@ fn _cdlab(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("FileError", py.get_type::<FileError>())?;
     m.add("DamagedRecordError", py.get_type::<DamagedRecordError>())?;
     m.add("StoppedError", py.get_type::<StoppedError>())?;
+    m.add("RunError", py.get_type::<RunError>())?;
+    m.add("CampaignError", py.get_type::<CampaignError>())?;
     Ok(())
 }
