@@ -147,7 +147,7 @@ pub enum Error {
         /// What is wrong.
         message: String,
     },
-    /// A prepared-sample file that cannot be used (`crate::sample::file`): prepare it
+    /// A prepared-sample file that cannot be used (`crate::protocol::sample_file`): prepare it
     /// again.
     #[error("{}: {}", path.display(), problem.describe(path))]
     BadSample {

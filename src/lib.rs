@@ -18,10 +18,10 @@
 //!   serialise the types of [`measure`];
 //! - [`fc2d`]: Siconos frictional contact problems, an outside test of the local law;
 //! - [`config`]: the run configuration (TOML with units);
-//! - [`protocol`]: the biaxial test's phases (preparation, confinement, compression), and
-//!   the gauge that turns a backend's reductions into series rows;
-//! - [`sample`]: grain sizes, geometric deposition, and the prepared-sample file (which holds
-//!   a [`protocol`] checkpoint: the one import that still runs up the list);
+//! - [`protocol`]: the biaxial test's phases (preparation, confinement, compression), the
+//!   gauge that turns a backend's reductions into series rows, and the prepared-sample file
+//!   (a checkpoint of the compacted sample);
+//! - [`sample`]: grain sizes and geometric deposition;
 //! - [`gpu`]: the GPU backend (wgpu, WGSL shaders in `shaders/`);
 //! - [`backend`]: the interface the protocol drives, and the CPU backend;
 //! - [`measure`]: what is measured, types and their maths: series rows, phases, micromechanics

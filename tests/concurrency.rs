@@ -9,8 +9,8 @@ use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
+use cdlab::protocol::sample_file::{SampleLock, read_sample, write_atomic};
 use cdlab::record::RunLock;
-use cdlab::sample::file::{SampleLock, read_sample, write_atomic};
 use common::cdlab;
 
 /// A fresh directory holding a base configuration of small, short tests (300 disks to

@@ -9,7 +9,7 @@ use cdlab::config::units::{Dimension, parse_quantity, parse_with_unit};
 use cdlab::config::{Config, Duration, Length, Pressure};
 use cdlab::model::Scene;
 use cdlab::protocol::LabState;
-use cdlab::sample::file::{HEADER_LEN, decode_sample, encode_sample};
+use cdlab::protocol::sample_file::{HEADER_LEN, decode_sample, encode_sample};
 use glam::DVec2;
 use proptest::prelude::*;
 use proptest::test_runner::Config as Cases;

@@ -328,8 +328,9 @@ fn sample(
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     // Held while the sample is looked for and, when absent, prepared and written: the file
     // appears whole (temporary name, fsync, rename) and only once.
-    let _lock =
-        crate::sample::file::SampleLock::acquire(&path, || watch.event(&Event::WaitingForSample(&path)))?;
+    let _lock = crate::protocol::sample_file::SampleLock::acquire(&path, || {
+        watch.event(&Event::WaitingForSample(&path))
+    })?;
     let scene = if path.exists() {
         let sample = run::read_sample(&path)?;
         // A samples directory left by a campaign with other sample settings must not

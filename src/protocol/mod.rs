@@ -10,6 +10,7 @@ pub mod biaxial;
 pub mod checkpoint;
 mod gauge;
 pub mod prepare;
+pub mod sample_file;
 
 pub use gauge::Gauge;
 

@@ -11,7 +11,7 @@ use crate::model::Scene;
 use crate::protocol::biaxial::Lab;
 use crate::protocol::{Collect, Phase, PhaseEnd, ProtocolParams, prepare as protocol_prepare};
 
-pub use crate::sample::file::PreparedSample;
+pub use crate::protocol::sample_file::PreparedSample;
 
 /// A sample prepared by [`prepare`] and written.
 #[derive(Clone, Debug)]
@@ -75,7 +75,7 @@ pub fn prepare(
         message: "the compaction ended without reporting its end".into(),
     })?;
     let scene = crate::backend::Backend::scene(&mut lab.backend)?;
-    crate::sample::file::write_sample(path, &lab.state, &scene)?;
+    crate::protocol::sample_file::write_sample(path, &lab.state, &scene)?;
     let last = obs.rows.last();
     Ok(Prepared {
         path: path.to_path_buf(),
@@ -90,7 +90,7 @@ pub fn prepare(
 /// Reads a sample written by [`prepare`] (or `cdlab prepare`), checking that its scene
 /// holds the disks its parameters announce.
 pub fn read_sample(path: &Path) -> Result<PreparedSample> {
-    crate::sample::file::read_sample(path)
+    crate::protocol::sample_file::read_sample(path)
 }
 
 /// The `[sample]` and `[compaction]` settings of `config` that differ from those a sample

@@ -2,7 +2,6 @@
 //! packing (packing fraction, coordination, D10/D60).
 
 pub mod deposit;
-pub mod file;
 pub mod psd;
 pub mod rng;
 

@@ -28,9 +28,9 @@
 use std::fs::{File, OpenOptions, TryLockError};
 use std::path::{Path, PathBuf};
 
+use super::{LabState, ProtocolParams, checkpoint};
 use crate::error::{Error, Result, SampleProblem};
 use crate::model::Scene;
-use crate::protocol::{LabState, ProtocolParams, checkpoint};
 
 /// Magic of the current sample format (version 2, with a CRC-32 of the payload).
 pub const MAGIC: &[u8; 8] = b"CDLABSP2";
