@@ -152,3 +152,23 @@ def test_prepare_then_run_from_the_sample_equals_the_cli(tmp_path):
     assert done.returncode == 0, done.stdout + done.stderr
     assert_same_series(tmp_path / "cli", tmp_path / "py")
     assert stable(t.summary) == stable(load_json(tmp_path / "cli" / "summary.json"))
+
+
+def test_campaign_shards_split_the_grid(tmp_path):
+    (tmp_path / "base.toml").write_text(SMALL_CONFIG)
+    out = tmp_path / "campaign"
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(f'base = "base.toml"\nout = "{out}"\nmu = [0.3, 0.5]\nsigma3 = ["1 MPa"]\nseeds = [1]\n')
+    plan = cdlab.campaign(sweep, dry_run=True)
+    assert (plan.grid, plan.total) == (2, 2)
+    first = cdlab.campaign(sweep, shard="0/2")
+    assert (first.grid, first.total, first.ended, first.failed) == (2, 1, 1, [])
+    second = cdlab.campaign(sweep, jobs=2, shard=(1, 2))
+    assert (second.total, second.ended, second.failed) == (1, 1, [])
+    finished = sorted(p.parent.name for p in out.rglob("summary.json"))
+    assert len(finished) == 2, finished
+    # Both shards done: the whole grid is found finished, nothing runs again.
+    again = cdlab.campaign(sweep)
+    assert (again.total, again.ended, again.failed) == (2, 2, [])
+    with pytest.raises(cdlab.InvalidParameterError):
+        cdlab.campaign(sweep, shard="2/2")
