@@ -370,7 +370,7 @@ class _TqdmBar:
             from tqdm.auto import tqdm
         except ImportError:  # pragma: no cover (depends on the environment)
             raise ImportError("progress=True needs tqdm (`pip install tqdm`); or pass a callable") from None
-        self._bar = tqdm(total=1.0, unit="strain", bar_format="{l_bar}{bar}| {n:.4f}/{total:.4f} [{elapsed}<{remaining}]")
+        self._bar = tqdm(total=1.0, unit="strain", bar_format="{l_bar}{bar}| strain {n:.4f}/{total:.4f} [{elapsed}<{remaining}{postfix}]")
 
     def __call__(self, event: Dict[str, Any]) -> None:
         if event["event"] != "row":
