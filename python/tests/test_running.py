@@ -3,9 +3,13 @@ a resumable record, and configuration errors that name the field."""
 
 from __future__ import annotations
 
+import _thread
+import os
 import signal
 import subprocess
 import sys
+import threading
+import time
 
 import pytest
 
@@ -70,19 +74,24 @@ def test_run_into_an_occupied_directory_needs_force(small_run, tmp_path):
 
 def interrupt_at_confinement(how):
     """A progress callback that interrupts the run at its first confinement row: by raising
-    KeyboardInterrupt itself, or by raising SIGINT, which Python's own handler turns into
-    KeyboardInterrupt when cdlab runs the pending signals."""
+    KeyboardInterrupt itself, by raising SIGINT (Python's own handler turns it into
+    KeyboardInterrupt), or by `_thread.interrupt_main()`, which only marks SIGINT pending as
+    a signal from outside would: its handler then runs when cdlab runs Python's pending
+    signals after the callback returns."""
 
     def callback(event):
         if event["event"] == "row" and event["phase"] == "confinement":
             if how == "raise":
                 raise KeyboardInterrupt
-            signal.raise_signal(signal.SIGINT)
+            if how == "sigint":
+                signal.raise_signal(signal.SIGINT)
+            else:
+                _thread.interrupt_main()
 
     return callback
 
 
-@pytest.mark.parametrize("how", ["raise", "sigint"])
+@pytest.mark.parametrize("how", ["raise", "sigint", "interrupt_main"])
 def test_keyboard_interrupt_leaves_a_record_resume_finishes(small_run, tmp_path, how):
     out = tmp_path / "run"
     with pytest.raises(KeyboardInterrupt) as e:
@@ -103,6 +112,33 @@ def test_keyboard_interrupt_leaves_a_record_resume_finishes(small_run, tmp_path,
     with pytest.raises(cdlab.RunError) as again:
         cdlab.resume(out)
     assert again.value.fault == "Complete"
+
+
+def test_sigint_while_the_run_computes_without_a_callback(small_run, tmp_path):
+    """SIGINT from another thread while the GIL is released and no Python code runs: only
+    cdlab's check of Python's pending signals between rows can turn it into the stop."""
+    out = tmp_path / "run"
+
+    def send_sigint_once_the_record_exists():
+        # Waits for the run's record file (not for a time): the run is then computing.
+        for _ in range(200_000):
+            if (out / "run.mcap").exists():
+                os.kill(os.getpid(), signal.SIGINT)
+                return
+            time.sleep(0.0005)
+
+    sender = threading.Thread(target=send_sigint_once_the_record_exists)
+    sender.start()
+    try:
+        with pytest.raises(KeyboardInterrupt) as e:
+            cdlab.run(SMALL_DICT, out)
+    finally:
+        sender.join()
+    assert e.value.path == str(out) and e.value.step > 0
+    assert not (out / "summary.json").exists()
+    t = cdlab.resume(out)
+    assert stable(t.summary) == stable(load_json(small_run / "summary.json"))
+    assert_same_series(small_run, out)
 
 
 def test_other_callback_exceptions_stop_the_run_and_propagate(tmp_path):
