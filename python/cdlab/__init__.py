@@ -1,7 +1,10 @@
-"""Read cdlab runs, archived tests and campaign reports from Python.
+"""Run cdlab tests and read runs, archived tests and campaign reports from Python.
 
 ``cdlab.open(path)`` opens a run directory (or its ``run.mcap``) or a test archived by
 ``cdlab archive``; ``cdlab.report(paths)`` gives the campaign analysis of ``cdlab report``.
+``cdlab.run``, ``cdlab.resume``, ``cdlab.prepare`` and ``cdlab.campaign`` run tests through
+the library calls of ``cdlab biaxial``, ``cdlab prepare`` and ``cdlab sweep``, without the
+GIL, with a progress callback, and stopping at a checkpoint on Ctrl-C (KeyboardInterrupt).
 Every file is read and checked by the cdlab library itself (the compiled module
 ``cdlab._cdlab``): this package only turns what it reads into dicts, NumPy arrays and
 pandas DataFrames. Units are SI, and every column name carries its unit as in
