@@ -1,7 +1,10 @@
-"""Read cdlab runs, archived tests and campaign reports from Python.
+"""Run cdlab tests and read runs, archived tests and campaign reports from Python.
 
 ``cdlab.open(path)`` opens a run directory (or its ``run.mcap``) or a test archived by
 ``cdlab archive``; ``cdlab.report(paths)`` gives the campaign analysis of ``cdlab report``.
+``cdlab.run``, ``cdlab.resume``, ``cdlab.prepare`` and ``cdlab.campaign`` run tests through
+the library calls of ``cdlab biaxial``, ``cdlab prepare`` and ``cdlab sweep``, without the
+GIL, with a progress callback, and stopping at a checkpoint on Ctrl-C (KeyboardInterrupt).
 Every file is read and checked by the cdlab library itself (the compiled module
 ``cdlab._cdlab``): this package only turns what it reads into dicts, NumPy arrays and
 pandas DataFrames. Units are SI, and every column name carries its unit as in
@@ -20,7 +23,7 @@ import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Dict, Iterable, List, Optional, Tuple, Union
+from typing import Any, Callable, Dict, Iterable, List, Optional, Tuple, Union
 
 import numpy as np
 import pandas as pd
@@ -43,6 +46,11 @@ from ._cdlab import (
 __all__ = [
     "open",
     "report",
+    "run",
+    "resume",
+    "prepare",
+    "campaign",
+    "Campaign",
     "Test",
     "Snapshot",
     "Report",
@@ -324,3 +332,200 @@ def _frame_from_csv(csv_text: str, *, text: Tuple[str, ...] = ()) -> pd.DataFram
         else:
             data[name] = np.array([float(c) if c else np.nan for c in cells], dtype=np.float64)
     return pd.DataFrame(data, columns=header)
+
+
+# ---------------------------------------------------------------------------------------
+# Running tests: cdlab.run, cdlab.resume, cdlab.prepare, cdlab.campaign.
+# ---------------------------------------------------------------------------------------
+
+#: What :func:`run` accepts as a configuration: a dict with the TOML file's sections, keys
+#: and unit strings (``{"test": {"sigma3": "1 MPa"}}``), the path of a TOML file, or None
+#: (the built-in default configuration).
+ConfigLike = Union[None, Dict[str, Any], str, "os.PathLike[str]"]
+
+#: A progress callback: called with a dict at each recorded series row (``event`` "row",
+#: ``phase``, ``step``, ``time_s``, ``strain``, ``strain_end``, ``sigma1_pa``,
+#: ``sigma3_pa``, ``volumetric_strain``, ``coordination``, ``wall_s``) and at each phase's
+#: end (``event`` "phase_end", ``phase``). ``True`` draws a tqdm bar (tqdm must be
+#: installed); None reports nothing.
+ProgressLike = Union[None, bool, Callable[[Dict[str, Any]], Any]]
+
+
+def _config_args(config: ConfigLike) -> Dict[str, Any]:
+    """The configuration as the keyword arguments of the compiled calls."""
+    if config is None:
+        return {}
+    if isinstance(config, dict):
+        try:
+            text = json.dumps(config, allow_nan=False)
+        except (TypeError, ValueError) as e:
+            raise ParseError(f"<config dict>: {e}") from None
+        return {"config_json": text}
+    return {"config_path": os.fspath(config)}
+
+
+class _TqdmBar:
+    """A tqdm bar over the compression's axial strain (the phases before it are shown by
+    name), closed when the run ends."""
+
+    def __init__(self) -> None:
+        try:
+            from tqdm.auto import tqdm
+        except ImportError:  # pragma: no cover (depends on the environment)
+            raise ImportError("progress=True needs tqdm (`pip install tqdm`); or pass a callable") from None
+        self._bar = tqdm(total=1.0, unit="strain", bar_format="{l_bar}{bar}| strain {n:.4f}/{total:.4f} [{elapsed}<{remaining}{postfix}]")
+
+    def __call__(self, event: Dict[str, Any]) -> None:
+        if event["event"] != "row":
+            return
+        bar = self._bar
+        bar.set_description(event["phase"], refresh=False)
+        if event["phase"] == "compression":
+            bar.total = event["strain_end"]
+            bar.n = min(max(event["strain"], 0.0), event["strain_end"])
+        bar.set_postfix_str(f"sigma1 {event['sigma1_pa'] / 1e6:.3f} MPa", refresh=False)
+        bar.refresh()
+
+    def close(self) -> None:
+        self._bar.close()
+
+
+def _with_progress(progress: ProgressLike, call: Callable[[Any], Any]) -> Any:
+    """Runs ``call(callback)`` with the callback that ``progress`` asks for."""
+    if progress is True:
+        bar = _TqdmBar()
+        try:
+            return call(bar)
+        finally:
+            bar.close()
+    if progress is False or progress is None:
+        return call(None)
+    if not callable(progress):
+        raise TypeError(f"progress must be a callable, True or None, not {type(progress).__name__}")
+    return call(progress)
+
+
+def run(
+    config: ConfigLike = None,
+    out: PathLike = "runs/biaxial",
+    *,
+    backend: Optional[str] = None,
+    progress: ProgressLike = None,
+    force: bool = False,
+    sample: Optional[PathLike] = None,
+) -> Test:
+    """Runs a biaxial test into the directory ``out`` and returns it opened (:func:`open`).
+
+    ``config`` is a dict with the TOML file's sections, keys and unit strings, the path of a
+    TOML file, or None for the built-in default (``cdlab config --print-default``);
+    ``backend`` ("cpu", "gpu" or "auto") replaces its ``solver.backend``. ``force``
+    replaces a run already in ``out``. ``sample`` starts from a sample written by
+    :func:`prepare` instead of depositing one. A run from the same configuration gives the
+    same record, bit for bit on the CPU, as ``cdlab biaxial --config FILE --out DIR``.
+
+    The GIL is released while the test computes. ``progress`` is a callable receiving a dict
+    at each recorded row (see :data:`ProgressLike`), or True for a tqdm bar.
+
+    Ctrl-C: cdlab installs no signal handler. Python's pending signals are run at each
+    recorded row; a KeyboardInterrupt raised there (or any exception the callback raises)
+    stops the test at its next checkpoint and is raised here with attributes ``path`` (the
+    run directory) and ``step`` (the checkpoint's step, None if the run had ended):
+    ``cdlab.resume(e.path)`` continues it.
+
+    Errors: :class:`InvalidParameterError` (``.field`` names the key) or
+    :class:`ParseError` for a bad configuration, :class:`RunError` when ``out`` holds a run
+    (``fault`` "Occupied") and ``force`` is false, :class:`GpuError`, :class:`NumericalError`.
+    """
+    args = _config_args(config)
+    smp = None if sample is None else os.fspath(sample)
+    d = _with_progress(
+        progress,
+        lambda cb: _cdlab.run_test(os.fspath(out), backend=backend, force=force, progress=cb, sample=smp, **args),
+    )
+    return open(d)
+
+
+def resume(path: PathLike, *, backend: Optional[str] = None, progress: ProgressLike = None) -> Test:
+    """Continues the run in ``path`` from its last intact checkpoint to its end (what
+    ``cdlab biaxial --resume PATH`` does) and returns it opened. A complete run whose
+    summary is missing gets it written again. ``progress`` and Ctrl-C work as in
+    :func:`run`. :class:`RunError` says why a directory cannot be resumed (``fault``
+    "NoRun", "NoCheckpoint", "Complete", ...)."""
+    d = _with_progress(progress, lambda cb: _cdlab.resume_run(os.fspath(path), backend=backend, progress=cb))
+    return open(d)
+
+
+@dataclass(frozen=True)
+class PreparedSample:
+    """A sample written by :func:`prepare`."""
+
+    #: The sample file.
+    path: Path
+    #: Number of disks.
+    disks: int
+    #: Sample width and height at the end of the compaction (m).
+    width_m: float
+    height_m: float
+    #: Wall-clock time of the preparation (s).
+    wall_s: float
+
+
+def prepare(config: ConfigLike = None, out: PathLike = "sample.cdlab", *, progress: ProgressLike = None) -> PreparedSample:
+    """Deposits and compacts a sample of ``config`` (dict, TOML path or None, as in
+    :func:`run`) and writes it to ``out`` (what ``cdlab prepare`` does); ``cdlab.run(...,
+    sample=out)`` starts tests from it."""
+    args = _config_args(config)
+    p, n, w, h, t = _with_progress(progress, lambda cb: _cdlab.prepare_sample(os.fspath(out), progress=cb, **args))
+    return PreparedSample(Path(p), n, w, h, t)
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """What :func:`campaign` did in its shard."""
+
+    #: Tests in the whole grid, and in this shard.
+    grid: int
+    total: int
+    #: Tests ended or found finished (failures included).
+    ended: int
+    #: Tests that failed, as (directory, why).
+    failed: List[Tuple[Path, str]]
+    #: Tests stopped at a checkpoint (or not begun) by a cancellation.
+    stopped: List[Path]
+    #: Tests that another process runs.
+    elsewhere: List[Path]
+
+
+def _shard(shard: Union[None, str, Tuple[int, int]]) -> Tuple[int, int]:
+    if shard is None:
+        return (0, 1)
+    if isinstance(shard, str):
+        parts = shard.split("/")
+        try:
+            i, n = (int(p) for p in parts)
+        except ValueError:
+            raise InvalidParameterError(f"shard: {shard!r} is not I/N with 0 <= I < N") from None
+        return (i, n)
+    i, n = shard
+    return (int(i), int(n))
+
+
+def campaign(
+    sweep: PathLike,
+    *,
+    jobs: int = 1,
+    shard: Union[None, str, Tuple[int, int]] = None,
+    dry_run: bool = False,
+) -> Campaign:
+    """Runs the campaign of the sweep file ``sweep`` (what ``cdlab sweep`` does) with
+    ``jobs`` tests at once; ``shard`` ``(I, N)`` or ``"I/N"`` runs only the tests whose index
+    in the grid is I modulo N. Finished tests are skipped, interrupted ones resumed.
+    Ctrl-C stops the running tests at their checkpoints and raises KeyboardInterrupt; a
+    later call continues. Tests that failed are listed in :attr:`Campaign.failed`; a sweep
+    file that cannot run raises :class:`CampaignError`."""
+    g, total, ended, failed, stopped, elsewhere = _cdlab.run_campaign(
+        os.fspath(sweep), jobs=int(jobs), shard=_shard(shard), dry_run=dry_run
+    )
+    return Campaign(
+        g, total, ended, [(Path(d), w) for d, w in failed], [Path(d) for d in stopped], [Path(d) for d in elsewhere]
+    )

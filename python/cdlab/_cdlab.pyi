@@ -3,7 +3,7 @@
 Arrays come as little-endian bytes; ``cdlab`` wraps them as NumPy arrays.
 """
 
-from typing import Dict, List, Optional, Tuple, Union
+from typing import Any, Callable, Dict, List, Optional, Tuple, Union
 
 class CdlabError(Exception):
     """Base class of every error cdlab raises; ``str(e)`` names the field or file at fault."""
@@ -91,3 +91,25 @@ def open_record(path: str, allow_damaged: bool = False) -> Record: ...
 def campaign_report(paths: List[str]) -> Tuple[str, str, str]: ...
 def series_fields() -> List[Tuple[str, str, str]]: ...
 def library_version() -> str: ...
+
+_Callback = Optional[Callable[[Dict[str, Any]], Any]]
+
+def run_test(
+    out: str,
+    config_json: Optional[str] = None,
+    config_path: Optional[str] = None,
+    backend: Optional[str] = None,
+    force: bool = False,
+    progress: _Callback = None,
+    sample: Optional[str] = None,
+) -> str: ...
+def resume_run(path: str, backend: Optional[str] = None, progress: _Callback = None) -> str: ...
+def prepare_sample(
+    out: str,
+    config_json: Optional[str] = None,
+    config_path: Optional[str] = None,
+    progress: _Callback = None,
+) -> Tuple[str, int, float, float, float]: ...
+def run_campaign(
+    sweep: str, jobs: int = 1, shard: Tuple[int, int] = (0, 1), dry_run: bool = False
+) -> Tuple[int, int, int, List[Tuple[str, str]], List[str], List[str]]: ...

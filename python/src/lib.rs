@@ -12,6 +12,8 @@
 //! `numpy.frombuffer`: no copy per element through Python objects, and no dependency on a
 //! NumPy crate whose version would have to follow PyO3's.
 
+mod run;
+
 use std::path::{Path, PathBuf};
 
 use cdlab::Error;
@@ -615,6 +617,10 @@ fn _cdlab(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(campaign_report, m)?)?;
     m.add_function(wrap_pyfunction!(series_fields, m)?)?;
     m.add_function(wrap_pyfunction!(library_version, m)?)?;
+    m.add_function(wrap_pyfunction!(run::run_test, m)?)?;
+    m.add_function(wrap_pyfunction!(run::resume_run, m)?)?;
+    m.add_function(wrap_pyfunction!(run::prepare_sample, m)?)?;
+    m.add_function(wrap_pyfunction!(run::run_campaign, m)?)?;
     m.add("CdlabError", py.get_type::<CdlabError>())?;
     m.add("InvalidParameterError", py.get_type::<InvalidParameterError>())?;
     m.add("ParseError", py.get_type::<ParseError>())?;
