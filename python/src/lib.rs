@@ -533,14 +533,7 @@ impl Record {
     /// no contact carries force.
     fn snapshot_fabric_json(&self, py: Python<'_>, index: usize) -> PyResult<String> {
         let s = self.snapshot(index)?;
-        let row = self
-            .series
-            .iter()
-            .min_by(|a, b| {
-                (a.time_s - s.time_s)
-                    .abs()
-                    .total_cmp(&(b.time_s - s.time_s).abs())
-            })
+        let row = cdlab::measure::SeriesRow::nearest(&self.series, s.time_s)
             .ok_or_else(|| CdlabError::new_err(format!("{}: no series row", self.path.display())))?;
         let area = row.height_m * row.width_m;
         if !(area.is_finite() && area > 0.0) {

@@ -64,13 +64,7 @@ pub fn run(args: &Args) -> Result<()> {
     // The sample's area and boundary stresses from the series row recorded at the
     // snapshot's step (the snapshot holds no walls); an archived test's thinned series
     // gives the nearest row it kept.
-    let row = series
-        .iter()
-        .min_by(|a, b| {
-            (a.time_s - snap.time_s)
-                .abs()
-                .total_cmp(&(b.time_s - snap.time_s).abs())
-        })
+    let row = SeriesRow::nearest(&series, snap.time_s)
         .ok_or_else(|| Error::Other(format!("{}: the record holds no series row", args.run.display())))?;
     let area = row.height_m * row.width_m;
     if !(area > 0.0 && area.is_finite()) {

@@ -130,4 +130,13 @@ impl SeriesRow {
             f64::NAN
         }
     }
+
+    /// The row of `series` recorded nearest in time to `time_s` (s), `None` for an empty
+    /// series. A snapshot holds no walls: its sample area and boundary stresses come from
+    /// this row (an archived test's thinned series gives the nearest row it kept).
+    pub fn nearest(series: &[SeriesRow], time_s: f64) -> Option<&SeriesRow> {
+        series
+            .iter()
+            .min_by(|a, b| (a.time_s - time_s).abs().total_cmp(&(b.time_s - time_s).abs()))
+    }
 }
