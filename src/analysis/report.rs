@@ -210,7 +210,8 @@ pub fn tests(n: usize) -> String {
 }
 
 /// Adds `tests` to `dir`'s [`GRID_FILE`] (created if absent; adding none writes nothing).
-/// The file is replaced in one rename, so that a reader never sees half of it. An
+/// The file is replaced in one synced rename ([`crate::fsio::write_file`]), so that a reader
+/// never sees half of it. An
 /// unreadable file is an error rather than overwritten: it may list tests this grid does
 /// not.
 pub fn add_to_grid(dir: &Path, tests: &[String]) -> Result<()> {
@@ -221,11 +222,10 @@ pub fn add_to_grid(dir: &Path, tests: &[String]) -> Result<()> {
     all.extend(tests.iter().cloned());
     all.sort_by(|a, b| natural_order(a, b));
     all.dedup();
-    let path = dir.join(GRID_FILE);
-    let tmp = dir.join(format!("{GRID_FILE}.{}.tmp", std::process::id()));
     let json = serde_json::to_string_pretty(&GridFile { tests: all }).expect("a list of names serializes");
-    std::fs::write(&tmp, json).map_err(|e| Error::io(&tmp, e))?;
-    std::fs::rename(&tmp, &path).map_err(|e| Error::io(&path, e))
+    // Synced before and after the rename, like every file cdlab writes: a crash must not
+    // leave a grid that forgot tests already run.
+    crate::fsio::write_file(&dir.join(GRID_FILE), json.as_bytes())
 }
 
 /// Orders test names as a reader expects the grid: the numbers in them compared as numbers
