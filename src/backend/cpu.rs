@@ -32,6 +32,11 @@ impl CpuBackend {
     pub fn engine(&self) -> &CpuEngine {
         &self.engine
     }
+
+    /// The engine, to change what it keeps (e.g. [`CpuEngine::capture`]).
+    pub fn engine_mut(&mut self) -> &mut CpuEngine {
+        &mut self.engine
+    }
 }
 
 impl Backend for CpuBackend {

@@ -9,6 +9,7 @@ use crate::contact::detect::Neighbours;
 use crate::error::{Error, Result, check_non_negative, check_positive, check_range};
 use crate::model::{BodyKind, NOT_GLUED, Scene, WallDrive};
 use crate::solver::{SolveStats, SolverParams, sweep};
+use crate::solver::space::Captured;
 
 /// Parameters of the time stepping.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -65,6 +66,8 @@ pub struct CpuEngine {
     gv: Vec<DVec3>,
     work: sweep::Workspace,
     wall_impulse: Vec<DVec2>,
+    /// The contact problem of the last step, kept when capture is on ([`Self::capture`]).
+    captured: Option<Box<Captured>>,
 }
 
 impl CpuEngine {
@@ -81,6 +84,7 @@ impl CpuEngine {
             gv: Vec::new(),
             work: sweep::Workspace::default(),
             wall_impulse: Vec::new(),
+            captured: None,
         })
     }
 
@@ -120,6 +124,18 @@ impl CpuEngine {
         self.previous.clear();
     }
 
+    /// Keeps (or stops keeping) a copy of each step's contact problem as the solver
+    /// receives it, for solver studies ([`Captured`]); off by default, as it copies every
+    /// contact each step.
+    pub fn capture(&mut self, on: bool) {
+        self.captured = on.then(Box::default);
+    }
+
+    /// The contact problem of the last step, when capture is on and a step ran.
+    pub fn captured(&self) -> Option<&Captured> {
+        self.captured.as_deref().filter(|c| !c.gv0.is_empty())
+    }
+
     /// Advances `scene` by one step.
     pub fn step(&mut self, scene: &mut Scene) -> Result<StepStats> {
         let p = self.params;
@@ -134,6 +150,11 @@ impl CpuEngine {
         self.velocities(scene);
         let worst = self.prepare_contacts(scene);
         let max_overlap = self.check_overlap(worst, scene)?;
+        if let Some(c) = self.captured.as_deref_mut() {
+            c.contacts.clone_from(&self.contacts);
+            c.gv0.clone_from(&self.gv0);
+            c.gv.clone_from(&self.gv);
+        }
         let t_solve = std::time::Instant::now();
         let solve = sweep::solve(
             &p.solver,

@@ -8,6 +8,7 @@ mod parse;
 pub use parse::{parse, read};
 
 use crate::solver::law::solve_block;
+use crate::solver::space::ContactSpace;
 
 /// A sparse square matrix in compressed columns.
 #[derive(Clone, Debug, PartialEq)]
@@ -180,5 +181,76 @@ pub fn solve(p: &Problem, opts: &SolveOptions) -> Report {
         converged: error < opts.tol,
         seconds: t0.elapsed().as_secs_f64(),
         r,
+    }
+}
+
+/// A problem with its current impulses `r` and velocities `u = W r + q`, as the iterative
+/// solvers of [`crate::solver`] see it (the engine's solvers run on it unchanged).
+#[derive(Clone, Debug)]
+pub struct Space<'a> {
+    p: &'a Problem,
+    blocks: Vec<(f64, f64, f64)>,
+    r: Vec<f64>,
+    u: Vec<f64>,
+}
+
+impl<'a> Space<'a> {
+    /// The problem with every impulse 0 (`u = q`). The local solves assume symmetric
+    /// blocks: the two off-diagonal terms of each are averaged.
+    pub fn new(p: &'a Problem) -> Self {
+        let blocks = (0..p.nc)
+            .map(|c| {
+                let (a, b) = (2 * c, 2 * c + 1);
+                (p.w.get(a, a), p.w.get(b, b), 0.5 * (p.w.get(a, b) + p.w.get(b, a)))
+            })
+            .collect();
+        Space {
+            p,
+            blocks,
+            r: vec![0.0; 2 * p.nc],
+            u: p.q.clone(),
+        }
+    }
+
+    /// The impulses, `(r_n, r_t)` of each contact in turn.
+    pub fn impulses(&self) -> &[f64] {
+        &self.r
+    }
+}
+
+impl ContactSpace for Space<'_> {
+    fn len(&self) -> usize {
+        self.p.nc
+    }
+    fn block(&self, c: usize) -> (f64, f64, f64) {
+        self.blocks[c]
+    }
+    fn mu(&self, c: usize) -> f64 {
+        self.p.mu[c]
+    }
+    fn impulse(&self, c: usize) -> (f64, f64) {
+        (self.r[2 * c], self.r[2 * c + 1])
+    }
+    fn velocity(&self, c: usize) -> (f64, f64) {
+        (self.u[2 * c], self.u[2 * c + 1])
+    }
+    fn set(&mut self, c: usize, rn: f64, rt: f64) {
+        let (a, b) = (2 * c, 2 * c + 1);
+        let (dn, dt) = (rn - self.r[a], rt - self.r[b]);
+        if dn != 0.0 {
+            self.p.w.axpy_col(a, dn, &mut self.u);
+        }
+        if dt != 0.0 {
+            self.p.w.axpy_col(b, dt, &mut self.u);
+        }
+        self.r[a] = rn;
+        self.r[b] = rt;
+    }
+    fn set_all(&mut self, r: &[(f64, f64)]) {
+        for (c, &(rn, rt)) in r.iter().enumerate() {
+            self.r[2 * c] = rn;
+            self.r[2 * c + 1] = rt;
+        }
+        self.u = velocities(self.p, &self.r);
     }
 }

@@ -13,6 +13,7 @@ mod quads;
 mod rows;
 #[cfg(target_arch = "x86_64")]
 mod simd;
+pub mod space;
 pub mod sweep;
 mod team;
 mod update;
