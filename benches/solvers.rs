@@ -138,12 +138,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for _ in 0..windows {
             lab.advance(&mut obs)?;
         }
-        let p = lab
-            .backend
-            .engine()
-            .captured()
-            .ok_or("no step ran")?
-            .clone();
+        let p = lab.backend.engine().captured().ok_or("no step ran")?.clone();
         problems.push((lab.backend.scene_ref().step, p));
     }
 
@@ -158,18 +153,23 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     println!(
         "{:>10} {:>7} {:>12} {:>6} {:>10} {:>11} {:>13} {:>11} {:>11} {:>10}",
-        "step", "contacts", "method", "iter", "updates", "wall (ms)", "local resid.", "change", "sink max", "sink mean"
+        "step",
+        "contacts",
+        "method",
+        "iter",
+        "updates",
+        "wall (ms)",
+        "local resid.",
+        "change",
+        "sink max",
+        "sink mean"
     );
     for (step, p) in &problems {
         let nc = p.contacts.len();
         for &method in &methods {
             // The configuration's spelling (`solver.method`), from the serialised form.
             let name = serde_json::to_string(&method)?.trim_matches('"').to_string();
-            let to_tol = SolverParams {
-                method,
-                tol,
-                ..base
-            };
+            let to_tol = SolverParams { method, tol, ..base };
             let pt = measure(p, &to_tol);
             let row = |kind: &str, cap: u32, pt: &Point| {
                 format!(

@@ -8,8 +8,8 @@ use crate::contact::Contact;
 use crate::contact::detect::Neighbours;
 use crate::error::{Error, Result, check_non_negative, check_positive, check_range};
 use crate::model::{BodyKind, NOT_GLUED, Scene, WallDrive};
-use crate::solver::{SolveStats, SolverParams, sweep};
 use crate::solver::space::Captured;
+use crate::solver::{SolveStats, SolverParams, sweep};
 
 /// Parameters of the time stepping.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]

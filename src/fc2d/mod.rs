@@ -201,7 +201,11 @@ impl<'a> Space<'a> {
         let blocks = (0..p.nc)
             .map(|c| {
                 let (a, b) = (2 * c, 2 * c + 1);
-                (p.w.get(a, a), p.w.get(b, b), 0.5 * (p.w.get(a, b) + p.w.get(b, a)))
+                (
+                    p.w.get(a, a),
+                    p.w.get(b, b),
+                    0.5 * (p.w.get(a, b) + p.w.get(b, a)),
+                )
             })
             .collect();
         Space {
