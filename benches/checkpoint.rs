@@ -6,7 +6,8 @@
 //! (default 30 windows of the run's series interval), `CDLAB_THREADS` (team size, default 1),
 //! `CDLAB_TOL` (solver tolerance, default the run's), `CDLAB_MAX_ITER` (iteration cap),
 //! `CDLAB_GS_RELAX` (Gauss-Seidel relaxation after `gs_relax_after` iterations), `CDLAB_METHOD` (gs, colored-gs,
-//! jacobi), `CDLAB_ALERT` (alert distance as a fraction of the smallest radius) and
+//! jacobi, and the other methods of `solver.method`), `CDLAB_DT` (time step in ms),
+//! `CDLAB_MU` (disk-disk friction), `CDLAB_ALERT` (alert distance as a fraction of the smallest radius) and
 //! `CDLAB_OPEN_SKIP` (the `solver.open_skip_gap` of the configuration: a fraction of the
 //! smallest radius; 0 sweeps every candidate). Without `CDLAB_RUN` it says so and measures nothing.
 //!
@@ -94,6 +95,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(gap) = env::<f64>("CDLAB_OPEN_SKIP") {
         let step = &mut ck.state.params.step;
         step.solver.open_skip = gap * r_min / step.dt;
+    }
+    if let Some(ms) = env::<f64>("CDLAB_DT") {
+        ck.state.params.step.dt = ms * 1e-3;
+    }
+    if let Some(mu) = env::<f64>("CDLAB_MU") {
+        ck.scene.material.mu_disk = mu;
+        ck.state.params.mu = mu;
     }
     if let Some(alert) = env::<f64>("CDLAB_ALERT") {
         ck.state.params.step.alert = alert * r_min;
