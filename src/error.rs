@@ -190,9 +190,36 @@ pub enum Error {
         /// The full message.
         message: String,
     },
+    /// A recorded snapshot that cannot be analysed or drawn as asked
+    /// (`crate::record::Snapshot::fabric`, `cdlab render`): `fault` says why, so a caller
+    /// can pick another snapshot or another test.
+    #[error("{message}")]
+    Snapshot {
+        /// The run directory or archived test.
+        path: PathBuf,
+        /// What is missing.
+        fault: SnapshotFault,
+        /// The full message, naming the path.
+        message: String,
+    },
     /// Any other failure, with its message.
     #[error("{0}")]
     Other(String),
+}
+
+/// Why a recorded snapshot cannot be analysed or drawn ([`Error::Snapshot`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SnapshotFault {
+    /// The test holds no snapshot (an archived test kept without `--keep-last-snapshot`).
+    NoSnapshot,
+    /// The test holds no series row to take the sample's area from.
+    NoSeriesRow,
+    /// The series row nearest the snapshot gives no finite positive area.
+    NoArea,
+    /// No disk-disk contact of the snapshot carries force.
+    NoForce,
+    /// What was asked compares the snapshot with an earlier one, and it is the first.
+    NoEarlier,
 }
 
 /// Why a run directory or file cannot be used as asked ([`Error::Run`]).

@@ -12,6 +12,7 @@ pub mod compare;
 pub mod config;
 pub mod export;
 pub mod fabric;
+mod fabric_report;
 pub mod fc2d;
 pub mod info;
 pub mod overlaps;

@@ -3,9 +3,9 @@
 
 use std::path::PathBuf;
 
-use super::render::nearest_snapshot;
 use crate::analysis::overlaps::{PairOverlap, deepest_pairs};
 use crate::error::{Error, Result};
+use crate::record::nearest_snapshot;
 use crate::record::read_run;
 
 /// Options of `cdlab overlaps`.
