@@ -54,6 +54,22 @@ pub enum Error {
     /// A GPU adapter or device problem.
     #[error("GPU: {0}")]
     Gpu(String),
+    /// The environment variable `WGPU_BACKEND` names a backend wgpu does not know: wgpu
+    /// would ignore it and find no adapter. Unset it, or name those of `accepted`.
+    #[error(
+        "GPU: the environment variable WGPU_BACKEND = `{value}` names no GPU backend ({}): use one \
+         or more, comma-separated, of {} (e.g. WGPU_BACKEND=vulkan), or unset it to try them all",
+        unknown.iter().map(|b| format!("`{b}`")).collect::<Vec<_>>().join(", "),
+        accepted.join(", ")
+    )]
+    GpuBackendEnv {
+        /// The variable's value.
+        value: String,
+        /// The names in it that are no backend.
+        unknown: Vec<String>,
+        /// The names wgpu accepts (`crate::gpu::device::BACKEND_NAMES`).
+        accepted: &'static [&'static str],
+    },
     /// No GPU adapter at all: the machine has no driver wgpu can use. Kept apart from
     /// [`Error::Gpu`] so that a caller can tell "no GPU here" (a test may skip) from a GPU
     /// that fails (a shader rejected, a buffer over a limit: always an error).

@@ -128,7 +128,9 @@ fn py_err(py: Python<'_>, e: Error) -> PyErr {
                 ("step", step.into_pyobject(py).unwrap().into_any().unbind()),
             ],
         ),
-        Error::GpuLimit { .. } | Error::GpuShader { .. } => (GpuError::new_err(msg), vec![]),
+        Error::GpuLimit { .. } | Error::GpuShader { .. } | Error::GpuBackendEnv { .. } => {
+            (GpuError::new_err(msg), vec![])
+        }
         Error::NotAFile { path } | Error::BadSample { path, .. } => {
             (FileError::new_err(msg), vec![("path", path_obj(py, &path))])
         }
@@ -564,7 +566,8 @@ impl Record {
 /// names a path that is not a directory, or says that none holds a finished test.
 #[pyfunction]
 fn campaign_report(py: Python<'_>, paths: Vec<PathBuf>) -> PyResult<(String, String, String)> {
-    use cdlab::analysis::report::{analyse, collect};
+    use cdlab::analysis::report::analyse;
+    use cdlab::campaign::collect;
     for p in &paths {
         if !p.is_dir() {
             return Err(file_error(py, p, format!("{}: not a directory", p.display())));

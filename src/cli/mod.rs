@@ -6,8 +6,10 @@
 pub mod archive;
 pub mod bands;
 pub mod bench;
+mod bench_report;
 pub mod biaxial;
 mod campaign_display;
+mod campaign_messages;
 pub mod compare;
 pub mod config;
 pub mod export;
@@ -20,6 +22,7 @@ pub mod prepare;
 pub mod render;
 pub mod report;
 pub mod run;
+mod run_events;
 pub mod summarize;
 pub mod sweep;
 
