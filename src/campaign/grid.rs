@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 /// stopped before them). It names the tests of every sweep run into the directory.
 pub const GRID_FILE: &str = "campaign_grid.json";
 
-/// The reason [`collect`] gives a test of a [`GRID_FILE`] that has no record.
+/// The reason [`super::collect()`] gives a test of a [`GRID_FILE`] that has no record.
 pub const NOT_RUN: &str = "not run: listed in campaign_grid.json, no record of it";
 
 #[derive(serde::Serialize, serde::Deserialize)]

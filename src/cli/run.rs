@@ -54,7 +54,7 @@ impl Progress {
     }
 }
 
-/// Shows a test's [`Event`]s as its [`Progress`] mode says.
+/// Shows a test's [`crate::run::Event`]s as its [`Progress`] mode says.
 pub struct Display {
     pub(super) mode: Progress,
     pub(super) bar: Option<ProgressBar>,
