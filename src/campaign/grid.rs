@@ -161,4 +161,11 @@ mod tests {
         assert!(natural_order("t1", "t1").is_eq());
         assert!(natural_order("mu1", "mu1.0").is_lt() && natural_order("a", "a1").is_lt());
     }
+
+    /// The reason given to a test never run names the grid file by its name (a constant
+    /// cannot format another, so the two are checked to agree).
+    #[test]
+    fn the_not_run_reason_names_the_grid_file() {
+        assert!(NOT_RUN.contains(GRID_FILE), "{NOT_RUN}");
+    }
 }

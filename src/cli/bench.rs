@@ -81,7 +81,7 @@ pub fn run(args: &Args) -> Result<()> {
     let json = serde_json::to_string_pretty(&cases).map_err(|e| Error::Other(e.to_string()))?;
     let p = args.out.join("bench.json");
     crate::record::atomic::write_file(&p, json.as_bytes())?;
-    let mut md = markdown(&cases, args);
+    let mut md = markdown(&cases, args.tol, args.warmup, args.steps);
     for f in &failures {
         md.push_str(&format!("\nFAILED: {f}\n"));
     }

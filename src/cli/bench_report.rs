@@ -1,7 +1,6 @@
 //! What `cdlab bench` prints and writes: one line per case, and `bench.md`'s table with
 //! the cost per contact update against the smallest size.
 
-use super::bench::Args;
 use crate::run::bench::Case;
 
 /// One case on one line, every figure with its unit.
@@ -26,11 +25,12 @@ pub fn line(c: &Case) -> String {
     )
 }
 
-/// `bench.md`: the cases as a table, and how the cost scales with the size.
-pub fn markdown(cases: &[Case], args: &Args) -> String {
+/// `bench.md`: the cases as a table (solver tolerance `tol`, `warmup` and `steps` steps
+/// per case), and how the cost scales with the size.
+pub fn markdown(cases: &[Case], tol: f64, warmup: u32, steps: u32) -> String {
     let mut s = format!(
         "# cdlab bench\n\nConfined dense sample under shear (deposit closed by walls, top wall at 0.5 m/s, friction 0.3), tolerance {}, {} warm-up and {} measured steps per case.\n\n",
-        args.tol, args.warmup, args.steps
+        tol, warmup, steps
     );
     s.push_str("| backend | disks | contacts | iterations/step | ms/step | ns/contact update | colors | coloring rounds/step | steps redone | dispatches/step | fixed dispatches/step | submissions/step | readbacks/step | host peak (MiB) | device (MiB) |\n");
     s.push_str(

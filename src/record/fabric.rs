@@ -1,7 +1,8 @@
-//! The microstructure of one recorded snapshot (`crate::measure::micro`,
-//! docs/micromechanics.md), as `cdlab fabric` prints it and the Python package's
-//! `Snapshot.fabric()` returns it: one call, so that both divide the stress by the same
-//! area and refuse the same snapshots.
+//! Recorded snapshots picked and analysed: a run's (or an archived test's kept) snapshots
+//! with its series, the one nearest a strain, and the microstructure of one
+//! (`crate::measure::micro`, docs/micromechanics.md) as `cdlab fabric` prints it and the
+//! Python package's `Snapshot.fabric()` returns it: one call, so that both divide the
+//! stress by the same area and refuse the same snapshots.
 
 use std::path::Path;
 
