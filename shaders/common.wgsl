@@ -28,6 +28,37 @@ const ST_ARGS: u32 = 8u;          // indirect dispatch size of per-contact kerne
 const ST_DEEP: u32 = 11u;         // contacts marked for local updates (solve.wgsl, deep_mark)
 const ST_WORDS: u32 = 16u;        // status words; color offsets follow them
 
+// Slots of the float regions the host reads back (buffers::float_slot): floats[f_red + FR_*]
+// (reduce.wgsl), floats[f_grid + FG_*] (grid.wgsl), floats[f_conv + FC_*] (solve.wgsl).
+const FR_MEAN_RN: u32 = 0u;             // mean R_n of the loaded contacts
+const FR_ROLLING: u32 = 1u;             // rolling contacts (u32 bits)
+const FR_SLIDING: u32 = 2u;             // sliding contacts (u32 bits)
+const FR_ZERO_FORCE: u32 = 3u;          // zero-force contacts (u32 bits)
+const FR_CONNECTED: u32 = 4u;           // free disks with >= 2 force-carrying contacts (u32 bits)
+const FR_FREE: u32 = 5u;                // free disks (u32 bits)
+const FR_OVERLAP_COUNT: u32 = 6u;       // overlapping contacts
+const FR_OVERLAP_SUM: u32 = 7u;         // their overlap sum
+const FR_OVERLAP_MAX: u32 = 8u;         // largest overlap
+const FR_KINETIC: u32 = 9u;             // kinetic energy
+const FR_STRIP_X_LEFT: u32 = 10u;       // x sum of the left strip
+const FR_STRIP_X_RIGHT: u32 = 11u;      // x sum of the right strip
+const FR_STRIP_N_LEFT: u32 = 12u;       // disks of the left strip
+const FR_STRIP_N_RIGHT: u32 = 13u;      // disks of the right strip
+const FR_TRANSLATIONAL: u32 = 14u;      // translational kinetic energy
+const FR_CONNECTED_ENERGY: u32 = 15u;   // that of the connected disks
+const FR_MICRO: u32 = 16u;              // micromechanical counts (reduce.wgsl, micro_sums)
+const FR_MICRO_SUMS: u32 = 36u;         // micromechanical sums, after the counts
+const FR_MICRO_COUNTS: u32 = 20u;       // the counts: force-carrying, strong, 18 bins
+const FR_MICRO_SUM_COUNT: u32 = 19u;    // the sums
+const FG_ORIGIN_X: u32 = 0u;            // grid origin x
+const FG_ORIGIN_Y: u32 = 1u;            // grid origin y
+const FG_CELL: u32 = 2u;                // cell size
+const FG_NX: u32 = 3u;                  // cells along x (u32 bits)
+const FG_NY: u32 = 4u;                  // cells along y (u32 bits)
+const FC_D2: u32 = 0u;                  // sum |dR|^2 of the last iteration
+const FC_R2: u32 = 1u;                  // sum |R|^2
+const FC_DV: u32 = 2u;                  // largest velocity change since save_iterate
+
 // Internal to the shaders.
 const UNSET: u32 = 0xffffffffu;
 

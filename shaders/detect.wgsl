@@ -7,7 +7,7 @@
 // in the CPU's key order (i, partner). Walls are partners n_disks + w, after every disk.
 
 fn grid_dims_d() -> vec2<u32> {
-    return vec2<u32>(bitcast<u32>(floats[sim.f_grid + 3u]), bitcast<u32>(floats[sim.f_grid + 4u]));
+    return vec2<u32>(bitcast<u32>(floats[sim.f_grid + FG_NX]), bitcast<u32>(floats[sim.f_grid + FG_NY]));
 }
 
 // Inserts `q` in disk i's sorted slot list of current length n (when it fits).

@@ -51,21 +51,21 @@ fn grid_bounds(@builtin(local_invocation_index) t: u32) {
             nx = u32(ext.x / cell) + 1u;
             ny = u32(ext.y / cell) + 1u;
         }
-        floats[sim.f_grid] = o.x;
-        floats[sim.f_grid + 1u] = o.y;
-        floats[sim.f_grid + 2u] = cell;
-        floats[sim.f_grid + 3u] = bitcast<f32>(nx);
-        floats[sim.f_grid + 4u] = bitcast<f32>(ny);
+        floats[sim.f_grid + FG_ORIGIN_X] = o.x;
+        floats[sim.f_grid + FG_ORIGIN_Y] = o.y;
+        floats[sim.f_grid + FG_CELL] = cell;
+        floats[sim.f_grid + FG_NX] = bitcast<f32>(nx);
+        floats[sim.f_grid + FG_NY] = bitcast<f32>(ny);
     }
 }
 
 fn grid_dims() -> vec2<u32> {
-    return vec2<u32>(bitcast<u32>(floats[sim.f_grid + 3u]), bitcast<u32>(floats[sim.f_grid + 4u]));
+    return vec2<u32>(bitcast<u32>(floats[sim.f_grid + FG_NX]), bitcast<u32>(floats[sim.f_grid + FG_NY]));
 }
 
 fn cell_coords(k: u32) -> vec2<u32> {
-    let o = vec2<f32>(floats[sim.f_grid], floats[sim.f_grid + 1u]);
-    let cell = floats[sim.f_grid + 2u];
+    let o = vec2<f32>(floats[sim.f_grid + FG_ORIGIN_X], floats[sim.f_grid + FG_ORIGIN_Y]);
+    let cell = floats[sim.f_grid + FG_CELL];
     let dims = grid_dims();
     let p = (vec2<f32>(disks[k].x, disks[k].y) - o) / cell;
     return min(vec2<u32>(max(p, vec2<f32>(0.0))), dims - vec2<u32>(1u));

@@ -45,7 +45,7 @@ var<workgroup> cnt: array<atomic<u32>, 8>;
 var<workgroup> ov_max: atomic<u32>;
 // Micromechanical counts: 0 force-carrying disk-disk contacts, 1 strong ones, 2.. the
 // orientation histogram's MICRO_BINS bins.
-var<workgroup> mcnt: array<atomic<u32>, 20>;
+var<workgroup> mcnt: array<atomic<u32>, FR_MICRO_COUNTS>;
 
 const MICRO_PI: f32 = 3.14159265358979;
 const MICRO_BINS: u32 = 18u;
@@ -58,18 +58,15 @@ fn sym_outer(a: vec2<f32>, b: vec2<f32>) -> vec3<f32> {
 const SLIDE_EPS: f32 = 1e-6;
 const FORCE_THRESHOLD: f32 = 1e-6;
 
-// Counts, overlaps, kinetic energy and strip positions of the last step, to floats[f_red..]:
-// 0 mean R_n of loaded contacts, 1 rolling, 2 sliding, 3 zero-force, 4 disks with >= 2
-// force-carrying contacts, 5 free disks, 6 overlapping contacts, 7 overlap sum, 8 overlap
-// max, 9 kinetic energy, 10-11 strip x sums, 12-13 strip counts (counts as u32 bits),
-// 14 translational kinetic energy, 15 that of the disks with two or more force contacts;
-// 16.. the micromechanical sums (see micro_sums).
+// Counts, overlaps, kinetic energy and strip positions of the last step, to
+// floats[f_red + FR_*] (the slots are named in common.wgsl; counts as u32 bits), then
+// the micromechanical counts and sums from FR_MICRO on (see micro_sums).
 @compute @workgroup_size(256)
 fn reduce_final(@builtin(local_invocation_index) t: u32) {
     let nd = sim.n_disks;
     let n = n_contacts();
     if t < 8u { atomicStore(&cnt[t], 0u); }
-    if t < 20u { atomicStore(&mcnt[t], 0u); }
+    if t < FR_MICRO_COUNTS { atomicStore(&mcnt[t], 0u); }
     if t == 0u { atomicStore(&ov_max, 0u); }
     for (var k = t; k < nd; k += 256u) { st(sim.o_per_disk + k, 0u); }
     storageBarrier();
@@ -134,32 +131,32 @@ fn reduce_final(@builtin(local_invocation_index) t: u32) {
     let sxs = wg_sum2(t, sx);
     let scs = wg_sum2(t, sc);
     if t == 0u {
-        let r = sim.f_red;
-        floats[r] = mean_rn;
-        floats[r + 1u] = bitcast<f32>(atomicLoad(&cnt[0]));
-        floats[r + 2u] = bitcast<f32>(atomicLoad(&cnt[1]));
-        floats[r + 3u] = bitcast<f32>(atomicLoad(&cnt[2]));
-        floats[r + 4u] = bitcast<f32>(atomicLoad(&cnt[3]));
-        floats[r + 5u] = bitcast<f32>(atomicLoad(&cnt[4]));
-        floats[r + 6u] = ovs.x;
-        floats[r + 7u] = ovs.y;
-        floats[r + 8u] = bitcast<f32>(atomicLoad(&ov_max));
-        floats[r + 9u] = kes.x;
-        floats[r + 10u] = sxs.x;
-        floats[r + 11u] = sxs.y;
-        floats[r + 12u] = scs.x;
-        floats[r + 13u] = scs.y;
-        floats[r + 14u] = kes.y;
-        floats[r + 15u] = kcs.x;
+        floats[sim.f_red + FR_MEAN_RN] = mean_rn;
+        floats[sim.f_red + FR_ROLLING] = bitcast<f32>(atomicLoad(&cnt[0]));
+        floats[sim.f_red + FR_SLIDING] = bitcast<f32>(atomicLoad(&cnt[1]));
+        floats[sim.f_red + FR_ZERO_FORCE] = bitcast<f32>(atomicLoad(&cnt[2]));
+        floats[sim.f_red + FR_CONNECTED] = bitcast<f32>(atomicLoad(&cnt[3]));
+        floats[sim.f_red + FR_FREE] = bitcast<f32>(atomicLoad(&cnt[4]));
+        floats[sim.f_red + FR_OVERLAP_COUNT] = ovs.x;
+        floats[sim.f_red + FR_OVERLAP_SUM] = ovs.y;
+        floats[sim.f_red + FR_OVERLAP_MAX] = bitcast<f32>(atomicLoad(&ov_max));
+        floats[sim.f_red + FR_KINETIC] = kes.x;
+        floats[sim.f_red + FR_STRIP_X_LEFT] = sxs.x;
+        floats[sim.f_red + FR_STRIP_X_RIGHT] = sxs.y;
+        floats[sim.f_red + FR_STRIP_N_LEFT] = scs.x;
+        floats[sim.f_red + FR_STRIP_N_RIGHT] = scs.y;
+        floats[sim.f_red + FR_TRANSLATIONAL] = kes.y;
+        floats[sim.f_red + FR_CONNECTED_ENERGY] = kcs.x;
     }
 }
 
 // The micromechanical sums of the last step's contacts (CPU twin:
 // measure::micro::MicroSums::of, in impulses: the host divides by dt), to
-// floats[f_red + 16 ..]: 16 force-carrying disk-disk contacts, 17 strong ones (u32 bits),
-// 18-35 orientation bins over [0, pi) (u32 bits), then sums over the force-carrying
-// contacts as (xx, xy, yy): 36 n n, 39 R_n, 40 R_n n n, 43 R_t sym(t n), 46 R l over every
-// contact (walls included), 49 R l over the disk-disk ones, 52 R l over the strong ones.
+// floats[f_red + FR_MICRO ..]: +0 force-carrying disk-disk contacts, +1 strong ones (u32
+// bits), +2..+19 orientation bins over [0, pi) (u32 bits); then from FR_MICRO_SUMS the sums
+// over the force-carrying contacts as (xx, xy, yy): +0 n n, +3 R_n, +4 R_n n n, +7 R_t
+// sym(t n), +10 R l over every contact (walls included), +13 R l over the disk-disk ones,
+// +16 R l over the strong ones.
 // `threshold` is the force-carrying threshold of reduce_final; the strong threshold, the
 // mean R_n of the force-carrying disk-disk contacts, takes a first pass.
 fn micro_sums(t: u32, threshold: f32) {
@@ -219,16 +216,15 @@ fn micro_sums(t: u32, threshold: f32) {
     let s9 = wg_sum2(t, vec2<f32>(sst.z, 0.0));
     workgroupBarrier();
     if t == 0u {
-        let r = sim.f_red + 16u;
-        for (var b = 0u; b < 20u; b++) {
-            floats[r + b] = bitcast<f32>(atomicLoad(&mcnt[b]));
+        for (var b = 0u; b < FR_MICRO_COUNTS; b++) {
+            floats[sim.f_red + FR_MICRO + b] = bitcast<f32>(atomicLoad(&mcnt[b]));
         }
         var v = array<f32, 19>(
             s0.x, s0.y, s1.x, s1.y, s2.x, s2.y, s3.x, s3.y, s4.x, s4.y,
             s5.x, s5.y, s6.x, s6.y, s7.x, s7.y, s8.x, s8.y, s9.x,
         );
-        for (var k = 0u; k < 19u; k++) {
-            floats[r + 20u + k] = v[k];
+        for (var k = 0u; k < FR_MICRO_SUM_COUNT; k++) {
+            floats[sim.f_red + FR_MICRO_SUMS + k] = v[k];
         }
     }
 }

@@ -130,7 +130,7 @@ fn save_iterate(@builtin(global_invocation_id) gid: vec3<u32>) {
 var<workgroup> red_a: array<f32, 256>;
 var<workgroup> red_b: array<f32, 256>;
 
-// sum |dR|^2 and sum |R|^2 of the last iteration, to floats[f_conv], [f_conv + 1].
+// sum |dR|^2 and sum |R|^2 of the last iteration, to floats[f_conv + FC_D2], [f_conv + FC_R2].
 @compute @workgroup_size(256)
 fn conv_reduce(@builtin(local_invocation_index) t: u32) {
     var a = 0.0;
@@ -151,13 +151,13 @@ fn conv_reduce(@builtin(local_invocation_index) t: u32) {
         workgroupBarrier();
     }
     if t == 0u {
-        floats[sim.f_conv] = red_a[0];
-        floats[sim.f_conv + 1u] = red_b[0];
+        floats[sim.f_conv + FC_D2] = red_a[0];
+        floats[sim.f_conv + FC_R2] = red_b[0];
     }
 }
 
 // Largest change of a body's velocity since save_iterate, rim speed r |omega| included (walls
-// have no rim), to floats[f_conv + 2]. One workgroup.
+// have no rim), to floats[f_conv + FC_DV]. One workgroup.
 @compute @workgroup_size(256)
 fn velocity_change(@builtin(local_invocation_index) t: u32) {
     var m = 0.0;
@@ -176,6 +176,6 @@ fn velocity_change(@builtin(local_invocation_index) t: u32) {
         workgroupBarrier();
     }
     if t == 0u {
-        floats[sim.f_conv + 2u] = red_a[0];
+        floats[sim.f_conv + FC_DV] = red_a[0];
     }
 }

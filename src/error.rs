@@ -54,6 +54,22 @@ pub enum Error {
     /// A GPU adapter or device problem.
     #[error("GPU: {0}")]
     Gpu(String),
+    /// The environment variable `WGPU_BACKEND` names a backend wgpu does not know: wgpu
+    /// would ignore it and find no adapter. Unset it, or name those of `accepted`.
+    #[error(
+        "GPU: the environment variable WGPU_BACKEND = `{value}` names no GPU backend ({}): use one \
+         or more, comma-separated, of {} (e.g. WGPU_BACKEND=vulkan), or unset it to try them all",
+        unknown.iter().map(|b| format!("`{b}`")).collect::<Vec<_>>().join(", "),
+        accepted.join(", ")
+    )]
+    GpuBackendEnv {
+        /// The variable's value.
+        value: String,
+        /// The names in it that are no backend.
+        unknown: Vec<String>,
+        /// The names wgpu accepts (`crate::gpu::device::BACKEND_NAMES`).
+        accepted: &'static [&'static str],
+    },
     /// No GPU adapter at all: the machine has no driver wgpu can use. Kept apart from
     /// [`Error::Gpu`] so that a caller can tell "no GPU here" (a test may skip) from a GPU
     /// that fails (a shader rejected, a buffer over a limit: always an error).
@@ -190,9 +206,36 @@ pub enum Error {
         /// The full message.
         message: String,
     },
+    /// A recorded snapshot that cannot be analysed or drawn as asked
+    /// (`crate::record::Snapshot::fabric`, `cdlab render`): `fault` says why, so a caller
+    /// can pick another snapshot or another test.
+    #[error("{message}")]
+    Snapshot {
+        /// The run directory or archived test.
+        path: PathBuf,
+        /// What is missing.
+        fault: SnapshotFault,
+        /// The full message, naming the path.
+        message: String,
+    },
     /// Any other failure, with its message.
     #[error("{0}")]
     Other(String),
+}
+
+/// Why a recorded snapshot cannot be analysed or drawn ([`Error::Snapshot`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SnapshotFault {
+    /// The test holds no snapshot (an archived test kept without `--keep-last-snapshot`).
+    NoSnapshot,
+    /// The test holds no series row to take the sample's area from.
+    NoSeriesRow,
+    /// The series row nearest the snapshot gives no finite positive area.
+    NoArea,
+    /// No disk-disk contact of the snapshot carries force.
+    NoForce,
+    /// What was asked compares the snapshot with an earlier one, and it is the first.
+    NoEarlier,
 }
 
 /// Why a run directory or file cannot be used as asked ([`Error::Run`]).

@@ -234,7 +234,7 @@ fn bit_flips_and_cuts_resume_to_the_same_end_or_are_refused() {
 /// record is not counted by the report, being another record's.
 #[test]
 fn stale_or_lost_summaries_are_removed_refused_or_rebuilt() {
-    use cdlab::analysis::report::collect;
+    use cdlab::campaign::collect;
     let base = scratch("stale");
     let cfg = config(10);
     let run = base.join("run");

@@ -1,8 +1,9 @@
-//! The WGSL local law and normal offset, run on the device over thousands of random inputs
-//! (edge cases included), against their CPU twins `solver::law` and `engine::normal_bias`.
-//! The kernels are the test-only entry points of tests/gpu_kernels.wgsl, composed with the
-//! shared shader code exactly as the phase shaders are. Skips visibly without an adapter
-//! (see `gpu_support::device_or_skip`).
+//! The WGSL local law, normal offset and Delassus block, run on the device over thousands
+//! of random inputs (edge cases included), against their CPU twins `solver::law`,
+//! `engine::normal_bias` and `contact::Contact::compute_delassus`. The kernels are the
+//! test-only entry points of tests/gpu_kernels.wgsl, composed with the shared shader code
+//! and detect.wgsl (where the Delassus block is) exactly as the phase shaders are. Skips
+//! visibly without an adapter (see `gpu_support::device_or_skip`).
 //!
 //! Inputs are drawn in f32 and widened, so both sides see the same numbers and every
 //! difference comes from the GPU's f32 arithmetic. Tolerances, with u = 2^-24 the f32 unit
@@ -40,7 +41,12 @@ fn f(x: f64) -> f64 {
 /// of group 0, bytes) and returns the bytes of binding `out` after the dispatch.
 fn run(gpu: &GpuDevice, entry: &str, n: u32, bindings: &[(u32, Vec<u8>)], out: u32) -> Vec<u8> {
     use wgpu::util::DeviceExt;
-    let source = cdlab::gpu::compose(include_str!("gpu_kernels.wgsl"));
+    let detect = cdlab::gpu::SHADERS
+        .iter()
+        .find(|(name, _)| *name == "detect.wgsl")
+        .expect("detect.wgsl is a phase shader")
+        .1;
+    let source = cdlab::gpu::compose(&format!("{detect}\n{}", include_str!("gpu_kernels.wgsl")));
     let d = &gpu.device;
     let module = d.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("probe"),
@@ -396,4 +402,148 @@ fn gpu_normal_offset_matches_the_engine() {
     for (what, count) in [("clamped", clamped), ("shifted", shifted), ("closed", closed)] {
         assert!(count >= n / 20, "only {count} {what} records of {n}");
     }
+}
+
+/// The kinds of contact whose Delassus block detection builds (src/contact/detect.rs,
+/// `make_contact` and the wall loop; detect.wgsl, `build_contacts`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum BlockKind {
+    /// Two free disks: diagonal block.
+    Disks,
+    /// A free disk and a disk glued to a force-driven wall: the wall's axis on side j.
+    GluedToForced,
+    /// A free disk and a disk glued to a kinematic wall: side j does not move.
+    GluedToKinematic,
+    /// A disk against a kinematic wall.
+    KinematicWall,
+    /// A disk against a force-driven wall: the axis is the contact normal.
+    ForcedWall,
+    /// A disk glued to a force-driven wall (side i, as the CPU builds it: no mass, lever or
+    /// spin) against a free disk.
+    GluedFirst,
+}
+
+/// Random contacts of every [`BlockKind`], built with the sides the CPU's detection gives
+/// them, values drawn in f32: unit normals at every angle, wall normals and axes at every
+/// angle, inverse masses and levers over an order of magnitude.
+fn block_cases(n: usize, rng: &mut Rng) -> Vec<(BlockKind, Contact)> {
+    use BlockKind::*;
+    let kinds = [
+        Disks,
+        GluedToForced,
+        GluedToKinematic,
+        KinematicWall,
+        ForcedWall,
+        GluedFirst,
+    ];
+    (0..n)
+        .map(|k| {
+            let kind = kinds[k % kinds.len()];
+            let mut unit = || {
+                let a = rng.range(0.0, std::f64::consts::TAU);
+                DVec2::new(f(a.cos()), f(a.sin()))
+            };
+            let (normal, wall_axis) = (unit(), unit());
+            let mut c = Contact {
+                n: normal,
+                ..Default::default()
+            };
+            let mut free = |c_r: &mut f64, c_m: &mut f64, c_k: &mut f64| {
+                *c_r = f(rng.range(0.05, 1.5));
+                *c_m = f(rng.range(0.1, 10.0));
+                *c_k = f(*c_r * rng.range(1.0, 20.0));
+            };
+            if kind != GluedFirst {
+                free(&mut c.ri, &mut c.mi, &mut c.ki);
+            }
+            match kind {
+                Disks | GluedFirst => free(&mut c.rj, &mut c.mj, &mut c.kj),
+                GluedToForced => {
+                    c.ma = f(rng.range(0.01, 1.0));
+                    c.a = wall_axis;
+                }
+                GluedToKinematic => c.a = wall_axis,
+                KinematicWall => c.a = normal,
+                ForcedWall => {
+                    c.ma = f(rng.range(0.01, 1.0));
+                    c.a = normal;
+                }
+            }
+            (kind, c)
+        })
+        .collect()
+}
+
+#[test]
+fn gpu_delassus_block_matches_compute_delassus() {
+    let Some(gpu) = device_or_skip("Delassus block kernel") else {
+        return;
+    };
+    let n = 6 * 1024;
+    let cases = block_cases(n, &mut Rng(1979));
+    let contacts: Vec<GpuContact> = cases.iter().map(|(_, c)| gpu_contact(c)).collect();
+    let out = vec![f32::NAN; 3 * n];
+    let bytes = run(
+        &gpu,
+        "probe_delassus",
+        n as u32,
+        &[
+            (5, bytemuck::cast_slice(&contacts).to_vec()),
+            (6, bytemuck::cast_slice(&out).to_vec()),
+        ],
+        6,
+    );
+    let got: &[f32] = bytemuck::cast_slice(&bytes);
+    let mut worst: f64 = 0.0;
+    let mut bad = Vec::new();
+    let mut full = 0;
+    for (k, (kind, c)) in cases.iter().enumerate() {
+        let mut cpu = *c;
+        cpu.compute_delassus();
+        // Tolerance: each entry is a sum of at most five rounded products (two for each
+        // projection of the axis, one square or product of them, one with the mass, the
+        // lever terms) and its additions, about seven f32 roundings, each at most u times
+        // the sum S of the magnitudes of the terms: 32 u S leaves a factor 4 for fused
+        // multiply-adds and reassociation, while a wrong field or sign errs by a whole term.
+        let pn = (c.a.x * c.n.x).abs() + (c.a.y * c.n.y).abs();
+        let pt = (c.a.x * c.n.y).abs() + (c.a.y * c.n.x).abs();
+        let s = [
+            c.mi + c.mj + c.ma * pn * pn,
+            c.mi + c.mj + c.ma * pt * pt + c.ri * c.ki + c.rj * c.kj,
+            c.ma * pn * pt,
+        ];
+        let want = [cpu.wnn, cpu.wtt, cpu.wnt];
+        for q in 0..3 {
+            let g = got[3 * k + q] as f64;
+            let tol = 32.0 * U * s[q];
+            let ratio = (g - want[q]).abs() / tol.max(f64::MIN_POSITIVE);
+            worst = worst.max(ratio);
+            // Written so that a NaN fails too.
+            let within = ratio <= 1.0;
+            if !within && bad.len() < 10 {
+                bad.push(format!(
+                    "case {k} ({kind:?}), {}: CPU {:e} m/kg, GPU {g:e} m/kg, tolerance {tol:e} m/kg",
+                    ["W_nn", "W_tt", "W_nt"][q],
+                    want[q]
+                ));
+            }
+        }
+        // Beyond round-off: the off-diagonal term of a force-driven wall seen through a glued
+        // disk at an oblique axis.
+        if cpu.wnt.abs() > 1e-3 * cpu.wnn {
+            full += 1;
+        }
+    }
+    println!(
+        "Delassus block: {n} contacts ({} of each of 6 kinds, {full} full blocks); largest error / tolerance = {worst:.3}",
+        n / 6
+    );
+    assert!(
+        bad.is_empty(),
+        "GPU Delassus block differs from Contact::compute_delassus:\n  {}",
+        bad.join("\n  ")
+    );
+    // The glued-to-force-driven cases give full blocks, or the comparison of W_nt proves
+    // little.
+    assert!(full >= n / 12, "only {full} full blocks of {n}");
 }

@@ -468,6 +468,57 @@ fn no_shader_spells_a_status_word_or_kernel_width_as_a_literal() {
     }
 }
 
+/// The lines of `src` that use a float region the host reads back (`f_red`, `f_grid`,
+/// `f_conv`) without one of its slot constants (`FR_*`, `FG_*`, `FC_*`), and how many uses
+/// there are.
+fn float_slot_faults(name: &str, src: &str) -> (Vec<String>, usize) {
+    let regions = [("f_red", "FR_"), ("f_grid", "FG_"), ("f_conv", "FC_")];
+    let (mut faults, mut uses) = (Vec::new(), 0);
+    for (n, line) in src.lines().enumerate() {
+        let code = line.split("//").next().unwrap_or("");
+        for (region, prefix) in regions {
+            let field = format!("sim.{region}");
+            for (at, _) in code.match_indices(&field) {
+                uses += 1;
+                if !code[at + field.len()..].starts_with(&format!(" + {prefix}")) {
+                    faults.push(format!(
+                        "{name}:{}: {region} without a {prefix}* slot: {line}",
+                        n + 1
+                    ));
+                }
+            }
+        }
+    }
+    (faults, uses)
+}
+
+/// The float regions the host reads back are indexed by name: every use of `f_red`,
+/// `f_grid` or `f_conv` in a shader adds one of the slot constants of its region (checked
+/// against `gpu::buffers::float_slot` above), never a number and never through an alias
+/// that would hide the slot.
+#[test]
+fn no_shader_spells_a_float_region_slot_as_a_literal() {
+    let mut uses = 0;
+    for (name, src) in SHADERS.iter() {
+        let (faults, n) = float_slot_faults(name, src);
+        assert!(faults.is_empty(), "{faults:#?}");
+        uses += n;
+    }
+    // grid.wgsl, detect.wgsl, solve.wgsl and reduce.wgsl read or write the regions.
+    assert!(
+        uses >= 20,
+        "{uses} uses of the float regions found: the check reads nothing"
+    );
+    // The check itself: a numbered slot and an alias are refused, a named slot passes.
+    let bad = "floats[sim.f_grid + 3u] = 1.0;\nlet r = sim.f_red;\nfloats[sim.f_conv] = 0.0;";
+    assert_eq!(float_slot_faults("bad", bad).0.len(), 3);
+    assert!(
+        float_slot_faults("good", "floats[sim.f_grid + FG_NX] = 1.0;")
+            .0
+            .is_empty()
+    );
+}
+
 #[test]
 fn every_kernel_is_a_compute_entry_point_of_its_shader() {
     let modules = modules();

@@ -2,7 +2,8 @@
 
 use std::path::PathBuf;
 
-use cdlab::analysis::report::{analyse, collect};
+use cdlab::analysis::report::analyse;
+use cdlab::campaign::collect;
 use cdlab::measure::summary::Summary;
 
 /// Writes a summary whose peak obeys sin(phi) = s and residual sin(phi_r) = sr.
@@ -73,7 +74,7 @@ fn shipped_5000_disk_report_is_the_report_of_the_shipped_archive() {
     let shipped: cdlab::analysis::report::Report =
         serde_json::from_str(&std::fs::read_to_string(results.join("campaign5000_report.json")).unwrap())
             .unwrap();
-    let (points, missing) = cdlab::analysis::report::collect(&[results.join("campaign5000")]);
+    let (points, missing) = cdlab::campaign::collect(&[results.join("campaign5000")]);
     let now = cdlab::analysis::report::analyse(&points, missing);
     // The paper's grid, whole: 13 frictions of 5 pressures, nothing missing.
     assert_eq!(shipped.tests.len(), 65);

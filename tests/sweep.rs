@@ -230,7 +230,7 @@ fn an_archived_campaign_reports_and_resumes_without_its_records() {
     }
     // The campaign's list of tests goes with the archive.
     assert_eq!(
-        cdlab::analysis::report::read_grid(&archive).unwrap(),
+        cdlab::campaign::read_grid(&archive).unwrap(),
         ["seed1_mu0.3_s1MPa", "seed1_mu0.3_s4MPa"]
     );
     // Archiving again finds the same tests in place.

@@ -18,7 +18,6 @@ use std::path::{Path, PathBuf};
 
 use cdlab::Error;
 use cdlab::config::Config;
-use cdlab::measure::micro::Analysis;
 use cdlab::measure::summary::Summary;
 use cdlab::record::{
     ARCHIVED_CONFIG_FILE, MCAP_FILE, SERIES_FIELDS, SeriesRow, Snapshot, read_run, read_series,
@@ -129,7 +128,9 @@ fn py_err(py: Python<'_>, e: Error) -> PyErr {
                 ("step", step.into_pyobject(py).unwrap().into_any().unbind()),
             ],
         ),
-        Error::GpuLimit { .. } | Error::GpuShader { .. } => (GpuError::new_err(msg), vec![]),
+        Error::GpuLimit { .. } | Error::GpuShader { .. } | Error::GpuBackendEnv { .. } => {
+            (GpuError::new_err(msg), vec![])
+        }
         Error::NotAFile { path } | Error::BadSample { path, .. } => {
             (FileError::new_err(msg), vec![("path", path_obj(py, &path))])
         }
@@ -158,6 +159,23 @@ fn py_err(py: Python<'_>, e: Error) -> PyErr {
             ],
         ),
         Error::Campaign { path, .. } => (CampaignError::new_err(msg), vec![("path", path_obj(py, &path))]),
+        // A snapshot that cannot be analysed: the base class, with the attributes a caller
+        // needs to pick another snapshot (`fault`: NoSnapshot, NoSeriesRow, NoArea, NoForce,
+        // NoEarlier).
+        Error::Snapshot { path, fault, .. } => (
+            CdlabError::new_err(msg),
+            vec![
+                ("path", path_obj(py, &path)),
+                (
+                    "fault",
+                    format!("{fault:?}")
+                        .into_pyobject(py)
+                        .unwrap()
+                        .into_any()
+                        .unbind(),
+                ),
+            ],
+        ),
         Error::BadCheckpoint { .. }
         | Error::NothingToDraw(_)
         | Error::Drawing(_)
@@ -528,36 +546,17 @@ impl Record {
     }
 
     /// The micromechanical analysis of snapshot `index` as JSON (what `cdlab fabric`
-    /// prints: [`Analysis`]), the stress divided by the sample area of the series row
-    /// nearest the snapshot's time. An error names the test when no row gives an area or
-    /// no contact carries force.
+    /// prints: [`cdlab::measure::micro::Analysis`], from the same library call,
+    /// [`Snapshot::fabric`]), the stress divided by the sample area of the series row
+    /// nearest the snapshot's time. An error (`CdlabError` with attributes `path` and `fault`) names the
+    /// test when no row gives an area or no contact carries force.
     fn snapshot_fabric_json(&self, py: Python<'_>, index: usize) -> PyResult<String> {
         let s = self.snapshot(index)?;
-        let row = cdlab::measure::SeriesRow::nearest(&self.series, s.time_s)
-            .ok_or_else(|| CdlabError::new_err(format!("{}: no series row", self.path.display())))?;
-        let area = row.height_m * row.width_m;
-        if !(area.is_finite() && area > 0.0) {
-            return Err(CdlabError::new_err(format!(
-                "{}: the series row at t = {} s gives no sample area (height {} m, width {} m)",
-                self.path.display(),
-                row.time_s,
-                row.height_m,
-                row.width_m
-            )));
-        }
         let json = py.detach(|| {
-            let radius: Vec<f64> = s.disks.iter().map(|d| d.r).collect();
-            let a = Analysis::of(&s.micro_contacts(), &radius, area);
-            if a.sums.n_force == 0 {
-                return Err(format!(
-                    "{}: the snapshot at strain {} has no force-carrying contact",
-                    self.path.display(),
-                    s.strain
-                ));
-            }
-            serde_json::to_string(&a).map_err(|e| e.to_string())
+            let fabric = s.fabric(&self.series, &self.path)?;
+            serde_json::to_string(&fabric.analysis).map_err(|e| Error::Other(e.to_string()))
         });
-        json.map_err(CdlabError::new_err)
+        json.map_err(|e| py_err(py, e))
     }
 }
 
@@ -567,7 +566,8 @@ impl Record {
 /// names a path that is not a directory, or says that none holds a finished test.
 #[pyfunction]
 fn campaign_report(py: Python<'_>, paths: Vec<PathBuf>) -> PyResult<(String, String, String)> {
-    use cdlab::analysis::report::{analyse, collect};
+    use cdlab::analysis::report::analyse;
+    use cdlab::campaign::collect;
     for p in &paths {
         if !p.is_dir() {
             return Err(file_error(py, p, format!("{}: not a directory", p.display())));

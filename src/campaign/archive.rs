@@ -15,9 +15,7 @@ use crate::record::{
     ARCHIVED_CONFIG_FILE, CSV_FILE, MCAP_FILE, Recorder, THINNED_SERIES_FILE, read_config, read_run,
 };
 
-/// The last snapshot of a run kept by `cdlab archive --keep-last-snapshot` in an archived
-/// test's directory: one snapshot in the `/snapshot` layout (`crate::record::snapshot`).
-pub const LAST_SNAPSHOT_FILE: &str = "last_snapshot.bin";
+pub use crate::record::LAST_SNAPSHOT_FILE;
 
 /// Writes the last snapshot of the run in `src` into the archived test `dest`, through a
 /// temporary file synced and renamed; nothing when the record holds no snapshot.

@@ -16,13 +16,19 @@
 //! # Ok::<(), cdlab::Error>(())
 //! ```
 //!
-//! The command line's `cdlab sweep FILE` is this call with a display; the grid's list file
-//! and the natural order of test names are those of `crate::analysis::report`, which reads
-//! campaigns back.
+//! The command line's `cdlab sweep FILE` is this call with a display. A campaign lists its
+//! tests in a grid file ([`grid`]); [`collect()`] reads a campaign back as the points of
+//! `crate::analysis::report`, whose text form ([`report_text`]) names the tests never run.
 
 pub mod archive;
+pub mod collect;
+pub mod grid;
 mod pool;
+pub mod report_text;
 mod sweep;
+
+pub use collect::collect;
+pub use grid::{GRID_FILE, NOT_RUN, add_to_grid, natural_order, read_grid, tests};
 
 pub use pool::{CampaignOutcome, Event, Options, Quiet, TestOutcome, Watch, run};
 pub use sweep::{Point, State, Sweep, check_point, point_config};

@@ -166,7 +166,7 @@ pub fn run(sweep: &Sweep, options: &Options, watch: &dyn Watch, cancel: &Cancel)
     if !options.dry_run {
         let written = std::fs::create_dir_all(&sweep.out)
             .map_err(|e| Error::io(&sweep.out, e))
-            .and_then(|()| crate::analysis::report::add_to_grid(&sweep.out, &sweep.names()));
+            .and_then(|()| super::grid::add_to_grid(&sweep.out, &sweep.names()));
         if let Err(e) = written {
             watch.event(&Event::GridNotWritten(&e));
         }

@@ -16,8 +16,8 @@
 
 use std::path::PathBuf;
 
-use crate::analysis::report::{GRID_FILE, NOT_RUN, add_to_grid, read_grid};
 use crate::campaign::archive::{Archived, archive_finished, archive_unfinished};
+use crate::campaign::{GRID_FILE, NOT_RUN, add_to_grid, read_grid};
 use crate::error::{Error, Result};
 use crate::record::MCAP_FILE;
 

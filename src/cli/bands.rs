@@ -36,8 +36,11 @@ pub fn run(args: &Args) -> Result<()> {
         opts.detect.min_contrast = c;
     }
     let rec = read_run(&args.run)?;
-    let rep = analyse_run(&rec, args.from, args.to, &opts)
-        .map_err(|e| Error::Other(format!("{}: {e}", args.run.display())))?;
+    let rep = analyse_run(&rec, args.from, args.to, &opts).map_err(|e| match e {
+        // Kept a band-analysis error, so that a caller can tell "no bands to find here".
+        Error::BandAnalysis(m) => Error::BandAnalysis(format!("{}: {m}", args.run.display())),
+        e => Error::Other(format!("{}: {e}", args.run.display())),
+    })?;
     if args.json {
         let json = serde_json::to_string_pretty(&rep).map_err(|e| Error::Other(e.to_string()))?;
         println!("{json}");

@@ -1,12 +1,12 @@
-//! The display of `cdlab sweep`: one implementation of [`crate::campaign::Watch`].
+//! The display of `cdlab sweep`: one implementation of [`crate::campaign::Watch`]; its
+//! bars here, its messages in `cli/campaign_messages.rs`.
 
 use std::io::IsTerminal;
 use std::sync::OnceLock;
 
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
-use crate::analysis::report::tests;
-use crate::campaign::{Event, Point, State, TestOutcome, Watch};
+use crate::campaign::{Event, Point, Watch};
 
 use super::run::{Display, Progress};
 
@@ -14,7 +14,7 @@ use super::run::{Display, Progress};
 /// test; in a log, each test's start and end, and a line per running test every
 /// `log_every` seconds.
 pub struct CampaignDisplay {
-    multi: Option<MultiProgress>,
+    pub(super) multi: Option<MultiProgress>,
     /// The bar of finished tests, set once the campaign knows its length.
     pub overall: OnceLock<ProgressBar>,
     log_every: f64,
@@ -31,41 +31,13 @@ impl CampaignDisplay {
         }
     }
 
-    fn say(&self, line: &str) {
+    /// Prints a line above the bars, or on stderr.
+    pub(super) fn say(&self, line: &str) {
         match &self.multi {
             Some(m) => {
                 let _ = m.println(line);
             }
             None => eprintln!("{line}"),
-        }
-    }
-
-    /// The one-line result of a test.
-    fn result(&self, outcome: &TestOutcome) -> String {
-        match outcome {
-            TestOutcome::Skipped => "already finished, skipped".into(),
-            TestOutcome::Checked { state, busy } => {
-                let note = if *busy {
-                    " (running now in another process)"
-                } else {
-                    ""
-                };
-                format!("{}{note}", state.dry_run())
-            }
-            TestOutcome::Finished(s) => format!(
-                "peak sigma1 {:.3} MPa, residual {}, {:.0} s",
-                s.sigma1_peak_mpa,
-                s.sigma1_residual_mpa.map_or(
-                    format!(
-                        "n/a (ended before strain {:.3})",
-                        crate::measure::derived::RESIDUAL_MIN_END
-                    ),
-                    |v| format!("{v:.3} MPa")
-                ),
-                s.wall_time_s
-            ),
-            TestOutcome::Failed(e) => format!("FAILED: {e}"),
-            TestOutcome::Elsewhere | TestOutcome::Stopped { .. } => String::new(),
         }
     }
 }
@@ -93,79 +65,8 @@ impl Drop for TestLine<'_> {
 
 impl Watch for CampaignDisplay {
     fn event(&self, event: &Event<'_>) {
-        match event {
-            Event::Planned {
-                grid,
-                tests: mine,
-                jobs,
-                out,
-            } => {
-                eprintln!(
-                    "sweep: {} in the grid, {mine} in this shard, {jobs} at a time -> {}",
-                    tests(*grid),
-                    out.display()
-                );
-                // Only now does the campaign's bar know its length; `overall` is set once.
-                if let Some(m) = &self.multi {
-                    let b = m.add(ProgressBar::new(*mine as u64));
-                    b.set_style(
-                        ProgressStyle::with_template(
-                            "campaign [{elapsed_precise}] {bar:30} {pos}/{len} tests",
-                        )
-                        .expect("valid template"),
-                    );
-                    let _ = self.overall.set(b);
-                }
-            }
-            Event::GridNotWritten(e) => eprintln!(
-                "warning: the campaign's list of tests ({}) was not updated: {e}; the report \
-                 will not name the tests that were never run",
-                crate::analysis::report::GRID_FILE
-            ),
-            Event::Starting { point, state } => {
-                let how = match state {
-                    State::Resumable => "resuming",
-                    State::Restart => "restarting (its record holds no checkpoint yet)",
-                    _ => "starting",
-                };
-                self.say(&format!("sweep: {how} {}", point.dir.display()));
-            }
-            Event::WaitingForSample(path) => eprintln!(
-                "sweep: another process is preparing {}; waiting for it",
-                path.display()
-            ),
-            Event::Ended {
-                point,
-                outcome,
-                ended,
-                total,
-                hours,
-            } => match outcome {
-                TestOutcome::Elsewhere => self.say(&format!(
-                    "{}: running in another process, skipped (its results appear when that \
-                     process ends it)",
-                    point.dir.display()
-                )),
-                TestOutcome::Stopped { step } => {
-                    let at = if *step > 0 {
-                        format!("stopped at its checkpoint of step {step}")
-                    } else {
-                        "stopped before its test began".to_string()
-                    };
-                    self.say(&format!("{}: {at}", point.dir.display()));
-                }
-                _ => {
-                    if let Some(b) = self.overall.get() {
-                        b.inc(1);
-                    }
-                    self.say(&format!(
-                        "[{ended}/{total}, campaign {hours:.2} h] {}: {}",
-                        point.dir.display(),
-                        self.result(outcome)
-                    ));
-                }
-            },
-        }
+        // The messages are in cli/campaign_messages.rs.
+        self.show(event);
     }
 
     fn test(&self, point: &Point) -> Box<dyn crate::run::Progress + '_> {

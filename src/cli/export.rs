@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, SnapshotFault};
 use crate::record::{read_run, vtk};
 
 /// Options of `cdlab export`.
@@ -19,10 +19,11 @@ pub struct Args {
 pub fn run(args: &Args) -> Result<()> {
     let rec = read_run(&args.run)?;
     if rec.snapshots.is_empty() {
-        return Err(Error::Other(format!(
-            "{}: the run holds no snapshot",
-            args.run.display()
-        )));
+        return Err(Error::Snapshot {
+            path: args.run.clone(),
+            fault: SnapshotFault::NoSnapshot,
+            message: format!("{}: the run holds no snapshot", args.run.display()),
+        });
     }
     let files = vtk::write_series(&rec.snapshots, &args.vtk)?;
     println!(

@@ -6,12 +6,15 @@
 pub mod archive;
 pub mod bands;
 pub mod bench;
+mod bench_report;
 pub mod biaxial;
 mod campaign_display;
+mod campaign_messages;
 pub mod compare;
 pub mod config;
 pub mod export;
 pub mod fabric;
+mod fabric_report;
 pub mod fc2d;
 pub mod info;
 pub mod overlaps;
@@ -19,6 +22,7 @@ pub mod prepare;
 pub mod render;
 pub mod report;
 pub mod run;
+mod run_events;
 pub mod summarize;
 pub mod sweep;
 

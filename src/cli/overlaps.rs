@@ -3,9 +3,9 @@
 
 use std::path::PathBuf;
 
-use super::render::nearest_snapshot;
 use crate::analysis::overlaps::{PairOverlap, deepest_pairs};
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, SnapshotFault};
+use crate::record::nearest_snapshot;
 use crate::record::read_run;
 
 /// Options of `cdlab overlaps`.
@@ -45,10 +45,14 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let rec = read_run(&args.run)?;
     if rec.snapshots.is_empty() {
-        return Err(Error::Other(format!(
-            "{}: the record holds no snapshot (an archived test keeps none)",
-            args.run.display()
-        )));
+        return Err(Error::Snapshot {
+            path: args.run.clone(),
+            fault: SnapshotFault::NoSnapshot,
+            message: format!(
+                "{}: the record holds no snapshot (an archived test keeps none)",
+                args.run.display()
+            ),
+        });
     }
     println!(
         "disk pairs only (a snapshot does not hold the walls' positions); normal velocity < 0: \

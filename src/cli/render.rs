@@ -3,9 +3,9 @@
 
 use std::path::PathBuf;
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, SnapshotFault};
 use crate::figures::{self, Field, Format, ShearField, SnapshotFigure};
-use crate::record::{Snapshot, read_run};
+use crate::record::{nearest_snapshot, read_run, rotation_reference};
 
 /// Options of `cdlab render`.
 #[derive(clap::Args, Debug)]
@@ -47,28 +47,6 @@ pub fn run(args: &Args) -> Result<()> {
     }
 }
 
-/// The index of the snapshot nearest `at`. Several snapshots share strain 0 (the end of
-/// each preparation phase): the last of them is the start of the compression.
-pub fn nearest_snapshot(snaps: &[Snapshot], at: f64) -> Option<usize> {
-    let mut best: Option<(usize, f64)> = None;
-    for (k, s) in snaps.iter().enumerate() {
-        let d = (s.strain - at).abs();
-        if best.is_none_or(|(_, b)| d <= b) {
-            best = Some((k, d));
-        }
-    }
-    best.map(|(k, _)| k)
-}
-
-/// The snapshot that rotations of snapshot `k` are measured from: the one of least strain
-/// before it (the last of equals, nearest the compression's start). None for the first.
-pub fn rotation_reference(snaps: &[Snapshot], k: usize) -> Option<&Snapshot> {
-    snaps[..k.min(snaps.len())]
-        .iter()
-        .rev()
-        .min_by(|a, b| a.strain.total_cmp(&b.strain))
-}
-
 fn snapshot(args: &Args, at: f64) -> Result<()> {
     if !at.is_finite() {
         return Err(Error::invalid("--at", at, "must be a finite axial strain"));
@@ -83,14 +61,27 @@ fn snapshot(args: &Args, at: f64) -> Result<()> {
         ));
     }
     let rec = read_run(&args.run)?;
-    let k = nearest_snapshot(&rec.snapshots, at)
-        .ok_or_else(|| Error::Other(format!("{}: the run holds no snapshot", args.run.display())))?;
+    let k = nearest_snapshot(&rec.snapshots, at).ok_or_else(|| Error::Snapshot {
+        path: args.run.clone(),
+        fault: SnapshotFault::NoSnapshot,
+        message: format!("{}: the run holds no snapshot", args.run.display()),
+    })?;
     let snap = &rec.snapshots[k];
     // Rotations count from the snapshot nearest the start of the compression recorded
     // before the one drawn (the record keeps total rotations since the deposition).
     let reference = rotation_reference(&rec.snapshots, k);
     let shear = match field {
-        Field::Shear => Some(shear_field(&rec.snapshots, k)?),
+        Field::Shear => {
+            let Some(prev) = k.checked_sub(1).map(|j| &rec.snapshots[j]) else {
+                return Err(Error::Snapshot {
+                    path: args.run.clone(),
+                    fault: SnapshotFault::NoEarlier,
+                    message: "the shear field needs a snapshot before the one drawn: ask for a larger --at"
+                        .into(),
+                });
+            };
+            Some(ShearField::between(prev, snap)?)
+        }
         _ => None,
     };
     let fig = SnapshotFigure {
@@ -124,26 +115,6 @@ fn snapshot(args: &Args, at: f64) -> Result<()> {
         args.out.display()
     );
     Ok(())
-}
-
-/// The local shear strain of snapshot `k` since the one before, and the bands in it: what
-/// the summary's band analysis computes for the run's last two snapshots.
-fn shear_field(snaps: &[Snapshot], k: usize) -> Result<ShearField> {
-    use crate::analysis::bands::{BandOptions, analyse_strain, local_strain};
-    let Some(prev) = k.checked_sub(1).map(|j| &snaps[j]) else {
-        return Err(Error::Other(
-            "the shear field needs a snapshot before the one drawn: ask for a larger --at".into(),
-        ));
-    };
-    let opts = BandOptions::default();
-    let local = local_strain(prev, &snaps[k], &opts.strain)?;
-    let bands = analyse_strain(prev, &snaps[k], &local, &opts)?.bands;
-    let values = local.iter().map(|s| s.map(|s| s.shear)).collect();
-    Ok(ShearField {
-        values,
-        strain_from: prev.strain,
-        bands,
-    })
 }
 
 fn curves(args: &Args) -> Result<()> {

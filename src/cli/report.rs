@@ -5,7 +5,8 @@
 
 use std::path::PathBuf;
 
-use crate::analysis::report::{analyse, collect};
+use crate::analysis::report::analyse;
+use crate::campaign::collect;
 use crate::error::{Error, Result};
 use crate::figures::{EnvelopeFigure, MuMacroFigure, save_both};
 
@@ -26,14 +27,19 @@ pub struct Args {
 pub(super) fn collect_dirs(dirs: &[PathBuf], need_one: bool) -> Result<Collected> {
     for d in dirs {
         if !d.is_dir() {
-            return Err(Error::Other(format!("{}: not a directory", d.display())));
+            return Err(Error::io(
+                d,
+                std::io::Error::new(std::io::ErrorKind::NotADirectory, "not a directory"),
+            ));
         }
     }
     let (points, missing) = collect(dirs);
     if points.is_empty() && need_one {
-        return Err(Error::Other(format!(
-            "no finished test (summary.json) below {dirs:?}"
-        )));
+        return Err(Error::Campaign {
+            path: dirs.first().cloned().unwrap_or_default(),
+            tests: Vec::new(),
+            message: format!("no finished test (summary.json) below {dirs:?}"),
+        });
     }
     Ok((points, missing))
 }

@@ -7,7 +7,7 @@
 
 use std::path::PathBuf;
 
-use crate::analysis::report::NOT_RUN;
+use crate::campaign::NOT_RUN;
 use crate::error::{Error, Result};
 use crate::record::MCAP_FILE;
 

@@ -5,7 +5,7 @@
 
 use std::path::PathBuf;
 
-use crate::analysis::report::tests;
+use crate::campaign::tests;
 use crate::campaign::{CampaignOutcome, Options, Sweep};
 use crate::error::{Error, Result};
 

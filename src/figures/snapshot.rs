@@ -97,6 +97,23 @@ pub struct ShearField {
     pub bands: Vec<crate::analysis::bands::Band>,
 }
 
+impl ShearField {
+    /// The local shear strain of `next` since `prev`, and the bands in it: what the
+    /// summary's band analysis computes for a run's last two snapshots.
+    pub fn between(prev: &Snapshot, next: &Snapshot) -> Result<ShearField> {
+        use crate::analysis::bands::{BandOptions, analyse_strain, local_strain};
+        let opts = BandOptions::default();
+        let local = local_strain(prev, next, &opts.strain)?;
+        let bands = analyse_strain(prev, next, &local, &opts)?.bands;
+        let values = local.iter().map(|s| s.map(|s| s.shear)).collect();
+        Ok(ShearField {
+            values,
+            strain_from: prev.strain,
+            bands,
+        })
+    }
+}
+
 /// A snapshot figure: the sample at one instant with one [`Field`].
 #[derive(Clone, Debug)]
 pub struct SnapshotFigure<'a> {

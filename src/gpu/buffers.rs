@@ -188,6 +188,76 @@ pub mod status {
     pub const WORDS: usize = 16;
 }
 
+/// Slots of the float regions that survive a growth (`floats[f_red ..]`, `floats[f_grid ..]`,
+/// `floats[f_conv ..]`), written by the shaders and read back by the host (the shaders'
+/// `FR_*`, `FG_*` and `FC_*` constants are checked against these, see
+/// [`super::wgsl_constants`]).
+pub mod float_slot {
+    /// `reduce_final`'s mean normal impulse of the contacts (the force-carrying threshold).
+    pub const RED_MEAN_RN: usize = 0;
+    /// Rolling contacts (u32 bits).
+    pub const RED_ROLLING: usize = 1;
+    /// Sliding contacts (u32 bits).
+    pub const RED_SLIDING: usize = 2;
+    /// Zero-force contacts (u32 bits).
+    pub const RED_ZERO_FORCE: usize = 3;
+    /// Free disks with two or more force-carrying contacts (u32 bits).
+    pub const RED_CONNECTED: usize = 4;
+    /// Free disks (u32 bits).
+    pub const RED_FREE: usize = 5;
+    /// Contacts that overlap.
+    pub const RED_OVERLAP_COUNT: usize = 6;
+    /// Sum of their overlaps relative to r_min.
+    pub const RED_OVERLAP_SUM: usize = 7;
+    /// Largest overlap relative to r_min.
+    pub const RED_OVERLAP_MAX: usize = 8;
+    /// Kinetic energy of the free disks (J/m).
+    pub const RED_KINETIC: usize = 9;
+    /// Sum of x of the left strip's disks (centred frame).
+    pub const RED_STRIP_X_LEFT: usize = 10;
+    /// Sum of x of the right strip's disks (centred frame).
+    pub const RED_STRIP_X_RIGHT: usize = 11;
+    /// Disks of the left strip.
+    pub const RED_STRIP_N_LEFT: usize = 12;
+    /// Disks of the right strip.
+    pub const RED_STRIP_N_RIGHT: usize = 13;
+    /// Translational kinetic energy of the free disks (J/m).
+    pub const RED_TRANSLATIONAL: usize = 14;
+    /// Translational kinetic energy of the connected disks (J/m).
+    pub const RED_CONNECTED_ENERGY: usize = 15;
+    /// The micromechanical counts (force-carrying, strong, then the orientation bins,
+    /// u32 bits; reduce.wgsl `micro_sums`).
+    pub const RED_MICRO: usize = 16;
+    /// The micromechanical counts: force-carrying, strong, and 18 orientation bins.
+    pub const MICRO_COUNTS: usize = 20;
+    /// The micromechanical sums (19 values) after the counts.
+    pub const RED_MICRO_SUMS: usize = RED_MICRO + MICRO_COUNTS;
+    /// Values of the micromechanical sums.
+    pub const MICRO_SUMS: usize = 19;
+    /// Words of the `f_red` region.
+    pub const RED_WORDS: usize = 56;
+    /// The grid's origin x (m, centred frame).
+    pub const GRID_ORIGIN_X: usize = 0;
+    /// The grid's origin y.
+    pub const GRID_ORIGIN_Y: usize = 1;
+    /// The grid's cell size (m).
+    pub const GRID_CELL: usize = 2;
+    /// Cells along x (u32 bits).
+    pub const GRID_NX: usize = 3;
+    /// Cells along y (u32 bits).
+    pub const GRID_NY: usize = 4;
+    /// Words of the `f_grid` region.
+    pub const GRID_WORDS: usize = 8;
+    /// Sum of the squared impulse changes of the last iteration.
+    pub const CONV_D2: usize = 0;
+    /// Sum of the squared impulses.
+    pub const CONV_R2: usize = 1;
+    /// Largest change of a body's velocity since the saved iterate (m/s).
+    pub const CONV_DV: usize = 2;
+    /// Words of the `f_conv` region.
+    pub const CONV_WORDS: usize = 4;
+}
+
 /// Stride of the per-dispatch argument table (the largest dynamic-offset alignment any
 /// adapter asks for).
 pub const ARGS_STRIDE: u64 = 256;
@@ -269,10 +339,11 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
     let ints_len = o.max(1);
     let mut f = 0u32;
     p.f_wall = take(&mut f, 2 * p.n_walls);
-    // 16 counts and energies, then 39 micromechanical sums (reduce.wgsl, micro_sums).
-    p.f_red = take(&mut f, 56);
-    p.f_grid = take(&mut f, 8);
-    p.f_conv = take(&mut f, 4);
+    // 16 counts and energies, then 20 micromechanical counts and 19 sums (reduce.wgsl).
+    const _: () = assert!(float_slot::RED_MICRO_SUMS + float_slot::MICRO_SUMS <= float_slot::RED_WORDS);
+    p.f_red = take(&mut f, float_slot::RED_WORDS as u32);
+    p.f_grid = take(&mut f, float_slot::GRID_WORDS as u32);
+    p.f_conv = take(&mut f, float_slot::CONV_WORDS as u32);
     p.f_deep = take(&mut f, 1);
     let floats_keep = f;
     p.f_d2 = take(&mut f, cap.contacts);

@@ -143,16 +143,11 @@ fn check_backend_env() -> Result<()> {
     if unknown.is_empty() {
         return Ok(());
     }
-    Err(Error::Gpu(format!(
-        "the environment variable WGPU_BACKEND = `{value}` names no GPU backend ({}): use one \
-         or more, comma-separated, of {} (e.g. WGPU_BACKEND=vulkan), or unset it to try them all",
-        unknown
-            .iter()
-            .map(|b| format!("`{b}`"))
-            .collect::<Vec<_>>()
-            .join(", "),
-        BACKEND_NAMES.join(", ")
-    )))
+    Err(Error::GpuBackendEnv {
+        value: value.to_string(),
+        unknown: unknown.iter().map(|b| b.to_string()).collect(),
+        accepted: BACKEND_NAMES,
+    })
 }
 
 /// Sort key of an adapter: hardware before software, and GL last within a type (its

@@ -37,13 +37,14 @@ pub const SHADERS: &[(&str, &str)] = &[
 pub const WG: u32 = 64;
 
 /// The constants the shaders share with Rust, as `(WGSL name, value)`: body kinds, the
-/// "not glued" sentinel, the status-word indices read back by the host, the warm-start
+/// "not glued" sentinel, the status-word indices read back by the host, the slots of the
+/// float regions it reads back (`FR_*`, `FG_*`, `FC_*`), the warm-start
 /// record stride and the workgroup size. `shaders/common.wgsl` declares each of them (it
 /// must parse on its own), and tests/gpu_layout.rs checks every declaration against this
 /// table, so the Rust constants stay the one source of these values.
 pub fn wgsl_constants() -> Vec<(&'static str, u32)> {
     use crate::model::{BodyKind, NOT_GLUED};
-    use buffers::{PREV_STRIDE, status};
+    use buffers::{PREV_STRIDE, float_slot as fs, status};
     vec![
         ("WG", WG),
         ("KIND_FREE", BodyKind::Free as u32),
@@ -59,6 +60,34 @@ pub fn wgsl_constants() -> Vec<(&'static str, u32)> {
         ("ST_ARGS", status::ARGS as u32),
         ("ST_DEEP", status::DEEP as u32),
         ("ST_WORDS", status::WORDS as u32),
+        ("FR_MEAN_RN", fs::RED_MEAN_RN as u32),
+        ("FR_ROLLING", fs::RED_ROLLING as u32),
+        ("FR_SLIDING", fs::RED_SLIDING as u32),
+        ("FR_ZERO_FORCE", fs::RED_ZERO_FORCE as u32),
+        ("FR_CONNECTED", fs::RED_CONNECTED as u32),
+        ("FR_FREE", fs::RED_FREE as u32),
+        ("FR_OVERLAP_COUNT", fs::RED_OVERLAP_COUNT as u32),
+        ("FR_OVERLAP_SUM", fs::RED_OVERLAP_SUM as u32),
+        ("FR_OVERLAP_MAX", fs::RED_OVERLAP_MAX as u32),
+        ("FR_KINETIC", fs::RED_KINETIC as u32),
+        ("FR_STRIP_X_LEFT", fs::RED_STRIP_X_LEFT as u32),
+        ("FR_STRIP_X_RIGHT", fs::RED_STRIP_X_RIGHT as u32),
+        ("FR_STRIP_N_LEFT", fs::RED_STRIP_N_LEFT as u32),
+        ("FR_STRIP_N_RIGHT", fs::RED_STRIP_N_RIGHT as u32),
+        ("FR_TRANSLATIONAL", fs::RED_TRANSLATIONAL as u32),
+        ("FR_CONNECTED_ENERGY", fs::RED_CONNECTED_ENERGY as u32),
+        ("FR_MICRO", fs::RED_MICRO as u32),
+        ("FR_MICRO_SUMS", fs::RED_MICRO_SUMS as u32),
+        ("FR_MICRO_COUNTS", fs::MICRO_COUNTS as u32),
+        ("FR_MICRO_SUM_COUNT", fs::MICRO_SUMS as u32),
+        ("FG_ORIGIN_X", fs::GRID_ORIGIN_X as u32),
+        ("FG_ORIGIN_Y", fs::GRID_ORIGIN_Y as u32),
+        ("FG_CELL", fs::GRID_CELL as u32),
+        ("FG_NX", fs::GRID_NX as u32),
+        ("FG_NY", fs::GRID_NY as u32),
+        ("FC_D2", fs::CONV_D2 as u32),
+        ("FC_R2", fs::CONV_R2 as u32),
+        ("FC_DV", fs::CONV_DV as u32),
     ]
 }
 

@@ -15,6 +15,12 @@
 
 use super::WG;
 use super::backend::GpuBackend;
+use super::buffers::float_slot::{
+    CONV_D2, CONV_DV, CONV_R2, CONV_WORDS, MICRO_COUNTS, MICRO_SUMS, RED_CONNECTED, RED_CONNECTED_ENERGY,
+    RED_FREE, RED_KINETIC, RED_MICRO, RED_MICRO_SUMS, RED_OVERLAP_COUNT, RED_OVERLAP_MAX, RED_OVERLAP_SUM,
+    RED_ROLLING, RED_SLIDING, RED_STRIP_N_LEFT, RED_STRIP_N_RIGHT, RED_STRIP_X_LEFT, RED_STRIP_X_RIGHT,
+    RED_TRANSLATIONAL, RED_ZERO_FORCE,
+};
 use super::buffers::{ARGS_STRIDE, SimParams, round_slot, status};
 use super::pipeline::Kernel;
 use crate::backend::{Loading, Reductions};
@@ -341,9 +347,9 @@ impl GpuBackend {
             self.submit(enc)?;
             done += batch;
             let floats = self.bufs.floats.clone();
-            let bytes = self.download(&floats, 4 * self.sim.f_conv as u64, 12)?;
+            let bytes = self.download(&floats, 4 * self.sim.f_conv as u64, 4 * CONV_WORDS as u64)?;
             let s: &[f32] = bytemuck::cast_slice(&bytes);
-            let (d2, r2, dv) = (s[0] as f64, s[1] as f64, s[2] as f64);
+            let (d2, r2, dv) = (s[CONV_D2] as f64, s[CONV_R2] as f64, s[CONV_DV] as f64);
             if !(d2.is_finite() && r2.is_finite()) {
                 return Err(Error::Numerical {
                     step: self.scene.step,
@@ -406,25 +412,29 @@ impl GpuBackend {
         red.candidates = self.n_contacts;
         let r = self.sim.f_red as usize;
         let u = |k: usize| f[r + k].to_bits();
-        red.rolling = u(1);
-        red.sliding = u(2);
-        red.zero_force = u(3);
+        red.rolling = u(RED_ROLLING);
+        red.sliding = u(RED_SLIDING);
+        red.zero_force = u(RED_ZERO_FORCE);
         red.force_carrying = red.rolling + red.sliding;
-        let (connected, free) = (u(4) as f64, u(5) as f64);
+        let (connected, free) = (u(RED_CONNECTED) as f64, u(RED_FREE) as f64);
         red.coordination = if connected > 0.0 {
             2.0 * red.force_carrying as f64 / connected
         } else {
             0.0
         };
         red.isolated_fraction = if free > 0.0 { 1.0 - connected / free } else { 0.0 };
-        let n_ov = f[r + 6] as f64;
-        red.overlap_mean = if n_ov > 0.0 { f[r + 7] as f64 / n_ov } else { 0.0 };
-        red.overlap_max = f[r + 8] as f64;
+        let n_ov = f[r + RED_OVERLAP_COUNT] as f64;
+        red.overlap_mean = if n_ov > 0.0 {
+            f[r + RED_OVERLAP_SUM] as f64 / n_ov
+        } else {
+            0.0
+        };
+        red.overlap_max = f[r + RED_OVERLAP_MAX] as f64;
         red.deep_sum = f[self.sim.f_deep as usize].to_bits() as u64;
-        red.kinetic_energy = f[r + 9] as f64;
-        red.translational_energy = f[r + 14] as f64;
-        red.connected_energy = f[r + 15] as f64;
-        red.micro = micro_sums(&f[r + 16..r + 55], dt);
+        red.kinetic_energy = f[r + RED_KINETIC] as f64;
+        red.translational_energy = f[r + RED_TRANSLATIONAL] as f64;
+        red.connected_energy = f[r + RED_CONNECTED_ENERGY] as f64;
+        red.micro = micro_sums(&f[r + RED_MICRO..r + RED_MICRO_SUMS + MICRO_SUMS], dt);
         let has = |s: i8| loading.strip.contains(&s);
         // The outer edges need the positions: one download at the output interval.
         if !loading.strip.is_empty() {
@@ -433,7 +443,11 @@ impl GpuBackend {
         } else {
             red.strip_edges = [f64::NAN; 2];
         }
-        red.strip_mean_x = [(-1i8, 10usize, 12usize), (1, 11, 13)].map(|(s, sx, sc)| {
+        red.strip_mean_x = [
+            (-1i8, RED_STRIP_X_LEFT, RED_STRIP_N_LEFT),
+            (1, RED_STRIP_X_RIGHT, RED_STRIP_N_RIGHT),
+        ]
+        .map(|(s, sx, sc)| {
             if has(s) && f[r + sc] > 0.0 {
                 f[r + sx] as f64 / f[r + sc] as f64 + self.centre.x
             } else {
@@ -458,16 +472,18 @@ fn micro_sums(m: &[f32], dt: f64) -> crate::measure::micro::MicroSums {
     for (b, r) in rose.iter_mut().enumerate() {
         *r = m[2 + b].to_bits();
     }
+    // The sums follow the counts, in the order micro_sums writes them.
+    let k = MICRO_COUNTS;
     MicroSums {
         n_force: m[0].to_bits(),
-        nn: sym(20, 1.0),
-        f_n: m[23] as f64 * per_dt,
-        fnn: sym(24, per_dt),
-        ftn: sym(27, per_dt),
-        stress: sym(30, per_dt),
-        stress_dd: sym(33, per_dt),
+        nn: sym(k, 1.0),
+        f_n: m[k + 3] as f64 * per_dt,
+        fnn: sym(k + 4, per_dt),
+        ftn: sym(k + 7, per_dt),
+        stress: sym(k + 10, per_dt),
+        stress_dd: sym(k + 13, per_dt),
         n_strong: m[1].to_bits(),
-        stress_strong: sym(36, per_dt),
+        stress_strong: sym(k + 16, per_dt),
         rose,
     }
 }

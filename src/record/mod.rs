@@ -22,6 +22,7 @@
 //! window in which none is complete: [`atomic`].
 
 pub mod atomic;
+mod fabric;
 mod lock;
 mod reader;
 mod series;
@@ -33,6 +34,7 @@ mod writer;
 mod tests;
 
 pub use crate::measure::SeriesRow;
+pub use fabric::{SnapshotFabric, nearest_snapshot, pick_snapshot, read_snapshots, rotation_reference};
 pub use lock::{LOCK_FILE, RunLock};
 pub use reader::{RunRecord, parse_run, read_config, read_run, read_run_id, read_series};
 pub use series::{SERIES_FIELDS, csv_header, parse_csv, series_json_schema};
@@ -46,6 +48,10 @@ pub const ARCHIVED_CONFIG_FILE: &str = "config.toml";
 /// The time series of a test kept by `cdlab archive`, thinned to a few hundred rows
 /// ([`read_series`] reads it when the directory holds no record).
 pub const THINNED_SERIES_FILE: &str = "series_thinned.csv";
+
+/// The last snapshot of a run kept by `cdlab archive --keep-last-snapshot` in an archived
+/// test's directory: one snapshot in the `/snapshot` layout ([`Snapshot::encode`]).
+pub const LAST_SNAPSHOT_FILE: &str = "last_snapshot.bin";
 
 /// File name of the MCAP record inside a run directory.
 pub const MCAP_FILE: &str = "run.mcap";

@@ -676,3 +676,97 @@ fn record_errors_are_variants_naming_the_place() {
         Err(Error::BadRecord { path: None, .. })
     ));
 }
+
+/// Two touching disks of radius 1 on the x axis pressed by 1e5 N/m, and one in contact
+/// with a wall.
+fn pressed_pair(time_s: f64, strain: f64) -> Snapshot {
+    let disk = |x: f64| DiskRecord {
+        x,
+        r: 1.0,
+        ..Default::default()
+    };
+    let contact = |i, j, f_n| ContactRecord {
+        i,
+        j,
+        nx: 1.0,
+        ny: 0.0,
+        f_n,
+        f_t: 0.0,
+        class: ContactClass::Rolling as u8,
+    };
+    Snapshot {
+        time_s,
+        strain,
+        disks: vec![disk(0.0), disk(2.0)],
+        contacts: vec![contact(1, 0, 1e5), contact(0, 2, 1e5)],
+    }
+}
+
+#[test]
+fn snapshot_fabric_takes_the_nearest_rows_area_and_names_what_is_missing() {
+    use crate::error::SnapshotFault;
+    use crate::measure::micro::Analysis;
+    let src = std::path::Path::new("runs/t1");
+    // Rows at t = 0, 5, 10 ms ...: the snapshot at t = 12 ms takes the row at 10 ms.
+    let series: Vec<SeriesRow> = (0..10).map(row).collect();
+    let snap = pressed_pair(0.012, 0.02);
+    let f = snap.fabric(&series, src).unwrap();
+    assert_eq!(f.row.time_s, series[2].time_s);
+    let area = series[2].height_m * series[2].width_m;
+    let radius = [1.0, 1.0];
+    assert_eq!(f.analysis, Analysis::of(&snap.micro_contacts(), &radius, area));
+    // One force-carrying disk-disk contact of 1e5 N/m along x, branch 2 m: the Love-Weber
+    // sigma_xx has the wall contact's share too (1e5 N/m x 1 m), so (2e5 + 1e5) / area.
+    assert_eq!(f.analysis.sums.n_force, 1);
+    let sxx = 3e5 / area;
+    assert!(
+        (f.analysis.sigma1_pa - sxx).abs() <= 1e-9 * sxx,
+        "{} Pa against {sxx} Pa",
+        f.analysis.sigma1_pa
+    );
+    let fault_of = |r: crate::Result<super::SnapshotFabric<'_>>| match r {
+        Err(Error::Snapshot { path, fault, message }) => {
+            assert_eq!(path, src);
+            assert!(message.starts_with("runs/t1: "), "{message}");
+            fault
+        }
+        other => panic!("{other:?}"),
+    };
+    assert_eq!(fault_of(snap.fabric(&[], src)), SnapshotFault::NoSeriesRow);
+    let mut flat = series.clone();
+    flat[2].height_m = 0.0;
+    assert_eq!(fault_of(snap.fabric(&flat, src)), SnapshotFault::NoArea);
+    flat[2].height_m = f64::NAN;
+    assert_eq!(fault_of(snap.fabric(&flat, src)), SnapshotFault::NoArea);
+    let mut idle = snap.clone();
+    idle.contacts.iter_mut().for_each(|c| c.f_n = 0.0);
+    assert_eq!(fault_of(idle.fabric(&series, src)), SnapshotFault::NoForce);
+}
+
+#[test]
+fn nearest_snapshot_takes_the_last_of_equal_strains() {
+    use crate::error::SnapshotFault;
+    let snaps: Vec<Snapshot> = [0.0, 0.0, 0.01, 0.03]
+        .iter()
+        .enumerate()
+        .map(|(k, &e)| pressed_pair(k as f64, e))
+        .collect();
+    // The snapshots at strain 0 end the preparation's phases: the last is the compression's start.
+    assert_eq!(nearest_snapshot(&snaps, 0.0), Some(1));
+    assert_eq!(nearest_snapshot(&snaps, 0.018), Some(2));
+    assert_eq!(nearest_snapshot(&snaps, 1.0), Some(3));
+    assert_eq!(nearest_snapshot(&[], 0.0), None);
+    let src = std::path::Path::new("t");
+    assert_eq!(pick_snapshot(&snaps, None, src).unwrap().time_s, 3.0);
+    assert_eq!(pick_snapshot(&snaps, Some(0.011), src).unwrap().time_s, 2.0);
+    assert!(matches!(
+        pick_snapshot(&[], None, src),
+        Err(Error::Snapshot {
+            fault: SnapshotFault::NoSnapshot,
+            ..
+        })
+    ));
+    // Rotations of snapshot 3 count from the least strain before it, the last of equals.
+    assert_eq!(rotation_reference(&snaps, 3).unwrap().time_s, 1.0);
+    assert!(rotation_reference(&snaps, 0).is_none());
+}

@@ -9,8 +9,8 @@
 //!   (any `FnMut(&Event)` closure is one) and stop at a checkpoint when their
 //!   [`Cancel`] token is set, returning [`crate::Error::Interrupted`];
 //! - [`open`] reads a finished run back: configuration, summary, series and snapshots;
-//! - [`write_curves`] draws a run's figures, [`summarize`] writes its summary again from its
-//!   record.
+//! - [`write_curves`] draws a run's figures, [`write_comparison`] several runs' curves on
+//!   common axes, [`summarize`] writes its summary again from its record.
 //!
 //! Nothing here installs a signal handler: a caller that wants Ctrl-C to stop a run at a
 //! checkpoint calls [`crate::interrupt::install`] and passes the token it returns, as the
@@ -45,6 +45,8 @@
 //! and `docs/library.md` describes the API.
 
 mod backend;
+pub mod bench;
+mod compare;
 mod open;
 mod recording;
 mod sample;
@@ -55,6 +57,7 @@ use std::path::{Path, PathBuf};
 
 pub use crate::interrupt::Cancel;
 pub use backend::open_backend;
+pub use compare::write_comparison;
 pub use open::{FinishedRun, open, write_curves};
 pub use recording::{Recording, snapshot};
 pub use sample::{
@@ -201,4 +204,27 @@ pub fn sigma3(text: &str, field: &str) -> Result<Pressure> {
     parse_with_unit(text, Dimension::Pressure)
         .map(Pressure)
         .map_err(|e| Error::invalid(field, text, &e.0))
+}
+
+/// Seconds left to axial strain `end` at the mean rate since (`w0` s of wall time, axial
+/// strain `e0`), at wall time `wall` (s) and axial strain `strain`, once the compression
+/// has gone a measurable way (none before): what a progress display shows as the time
+/// left.
+pub fn time_left(w0: f64, e0: f64, wall: f64, strain: f64, end: f64) -> Option<f64> {
+    let (done, spent) = (strain - e0, wall - w0);
+    (done > 1e-4 && spent > 0.0).then(|| (end - strain).max(0.0) * spent / done)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The estimate extrapolates the mean rate of this part: 0.01 of strain in 100 s leaves
+    /// 800 s for the remaining 0.08; none before the strain has moved, none past the end.
+    #[test]
+    fn time_left_follows_the_mean_rate_of_the_compression() {
+        assert_eq!(time_left(100.0, 0.01, 200.0, 0.02, 0.1), Some(800.0));
+        assert_eq!(time_left(100.0, 0.01, 100.5, 0.01, 0.1), None);
+        assert_eq!(time_left(100.0, 0.01, 300.0, 0.11, 0.1), Some(0.0));
+    }
 }

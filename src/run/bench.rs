@@ -1,0 +1,154 @@
+//! The cost of a step (`cdlab bench`): a confined dense sample under shear stepped on one
+//! backend, timed per step and per contact update, with the GPU's dispatches, submissions
+//! and readbacks per step and the memory used. Timings are measured here, never asserted:
+//! `cdlab bench` prints and writes them.
+
+use std::time::Instant;
+
+use glam::DVec2;
+
+use crate::backend::{Backend, CpuBackend, Loading};
+use crate::engine::StepParams;
+use crate::error::Result;
+use crate::gpu::backend::GpuBackend;
+use crate::model::{Scene, WallDrive};
+use crate::protocol::{ProtocolParams, prepare, walls};
+
+/// One measured case (`bench.json`).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct Case {
+    /// Backend and adapter.
+    pub backend: String,
+    /// Disks.
+    pub disks: usize,
+    /// Candidate contacts at the end.
+    pub contacts: u32,
+    /// Mean solver iterations per step.
+    pub iterations_per_step: f64,
+    /// Wall time per step (ms).
+    pub ms_per_step: f64,
+    /// Wall time per contact update (ns): time / (contacts x iterations), counting every
+    /// candidate, the open ones the CPU sweeps leave out (`solver.open_skip_gap`) included.
+    pub ns_per_contact_update: f64,
+    /// Mean colors per step.
+    pub colors_per_step: f64,
+    /// GPU: coloring rounds per step (0 when every contact kept its last color).
+    pub color_rounds_per_step: f64,
+    /// GPU: steps redone after a capacity grew or the coloring needed more rounds.
+    pub redone_steps: u64,
+    /// GPU: dispatches, submissions and readbacks per step (0 on the CPU).
+    pub dispatches_per_step: f64,
+    /// See `dispatches_per_step`.
+    pub submissions_per_step: f64,
+    /// See `dispatches_per_step`.
+    pub readbacks_per_step: f64,
+    /// GPU: dispatches per step beyond one per color per solver iteration and one
+    /// convergence reduction per check (the fixed phases of a step); constant across sizes
+    /// and iteration counts when each iteration costs one dispatch per color.
+    pub fixed_dispatches_per_step: f64,
+    /// Peak resident memory of the process so far (MiB, VmHWM).
+    pub host_peak_mib: f64,
+    /// Device buffers (MiB; 0 on the CPU).
+    pub device_mib: f64,
+}
+
+/// A confined dense sample under shear: the deposit of `n` disks, walls closed, the top
+/// wall moving down at 0.5 m/s, friction 0.3, no gravity.
+pub fn sheared_sample(n: usize) -> Result<Scene> {
+    let (mut s, _) = prepare::deposit_scene(&ProtocolParams::paper_defaults(n))?;
+    s.material.mu_disk = 0.3;
+    s.material.mu_wall = 0.3;
+    s.walls[walls::RIGHT].drive = WallDrive::Kinematic;
+    s.walls[walls::TOP].vel = DVec2::new(0.0, -0.5);
+    Ok(s)
+}
+
+fn host_peak_mib() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|t| t.lines().find(|l| l.starts_with("VmHWM:")).map(str::to_string))
+        .and_then(|l| l.split_whitespace().nth(1).and_then(|v| v.parse::<f64>().ok()))
+        .map_or(f64::NAN, |kib| kib / 1024.0)
+}
+
+/// GPU counters and device memory of a backend, when it has them.
+struct Probe<B> {
+    counters: fn(&B) -> Option<(crate::gpu::backend::GpuCounters, u32)>,
+    device_mib: fn(&B) -> f64,
+}
+
+fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, warmup: u32, steps: u32) -> Result<Case> {
+    backend.run(warmup, &Loading::default())?;
+    let before = (probe.counters)(backend);
+    let t0 = Instant::now();
+    let red = backend.run(steps, &Loading::default())?;
+    let secs = t0.elapsed().as_secs_f64();
+    let after = (probe.counters)(backend);
+    let steps = red.steps.max(1) as f64;
+    let iterations = red.iterations_sum as f64 / steps;
+    let (rounds, redone) = match (before, after) {
+        (Some((a, _)), Some((b, _))) => (
+            (b.color_rounds - a.color_rounds) as f64 / steps,
+            b.redone - a.redone,
+        ),
+        _ => (0.0, 0),
+    };
+    let (dispatches, submissions, readbacks, fixed) = match (before, after) {
+        (Some(a), Some(b)) => {
+            let ((a, every), (b, _)) = (a, b);
+            let d = (b.dispatches - a.dispatches) as f64 / steps;
+            // If every solver iteration costs one dispatch per color (and every `every`
+            // iterations one convergence reduction), what remains per step is a constant
+            // set of fixed dispatches, whatever the sample size.
+            let it = (b.iterations - a.iterations) as f64 / steps;
+            let solver = red.colors_mean * it + it / every.max(1) as f64;
+            (
+                d,
+                (b.submissions - a.submissions) as f64 / steps,
+                (b.readbacks - a.readbacks) as f64 / steps,
+                d - solver,
+            )
+        }
+        _ => (0.0, 0.0, 0.0, 0.0),
+    };
+    Ok(Case {
+        backend: backend.name(),
+        disks: n,
+        contacts: red.candidates,
+        iterations_per_step: iterations,
+        ms_per_step: secs / steps * 1e3,
+        ns_per_contact_update: secs * 1e9 / (red.iterations_sum.max(1) as f64 * red.candidates.max(1) as f64),
+        colors_per_step: red.colors_mean,
+        color_rounds_per_step: rounds,
+        redone_steps: redone,
+        dispatches_per_step: dispatches,
+        submissions_per_step: submissions,
+        readbacks_per_step: readbacks,
+        fixed_dispatches_per_step: fixed,
+        host_peak_mib: host_peak_mib(),
+        device_mib: (probe.device_mib)(backend),
+    })
+}
+
+/// Measures the CPU backend on `scene`: `warmup` steps (warm start, buffer growth), then
+/// `steps` timed ones; `n` is the sample's size as reported.
+pub fn measure_cpu(scene: Scene, params: StepParams, n: usize, warmup: u32, steps: u32) -> Result<Case> {
+    let probe = Probe {
+        counters: |_: &CpuBackend| None,
+        device_mib: |_: &CpuBackend| 0.0,
+    };
+    measure(&mut CpuBackend::new(scene, params)?, &probe, n, warmup, steps)
+}
+
+/// Measures the GPU backend as [`measure_cpu`] does the CPU's. `Err(Error::NoAdapter)`
+/// when the machine has no adapter (a caller may skip), any other error when opening it
+/// or stepping fails.
+///
+/// [`Error::NoAdapter`]: crate::Error::NoAdapter
+pub fn measure_gpu(scene: Scene, params: StepParams, n: usize, warmup: u32, steps: u32) -> Result<Case> {
+    let probe = Probe {
+        counters: |g: &GpuBackend| Some((g.counters(), g.conv_every)),
+        device_mib: |g: &GpuBackend| g.device_bytes() as f64 / (1024.0 * 1024.0),
+    };
+    measure(&mut GpuBackend::new(scene, params)?, &probe, n, warmup, steps)
+}
