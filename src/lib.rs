@@ -7,8 +7,9 @@
 //! Module map (dependencies point down the list):
 //! - [`cli`]: the `cdlab` command line: parses arguments, calls [`run`] and [`campaign`],
 //!   prints;
-//! - [`campaign`]: campaign grids (sweep files), their worker pool, shards and tests held
-//!   by other processes;
+//! - [`campaign`]: campaign grids (sweep files), their grid file and test names, worker
+//!   pool, shards and tests held by other processes, the collection of their summaries and
+//!   the report's text table;
 //! - [`run`]: the library face of a test: configure, prepare a sample, run or resume with a
 //!   progress callback and a cancellation token, open a finished run (`docs/library.md`);
 //! - [`figures`]: PNG and SVG figures of runs, snapshots and campaign reports;
