@@ -20,7 +20,11 @@
 //! the run's), `CDLAB_MU` (disk-disk friction for the continued steps; default the run's),
 //! `CDLAB_TOL` (tolerance of the solves to tolerance; default the run's),
 //! `CDLAB_CURVE_MAX` (last cap of the curves, default the run's iteration cap) and
-//! `CDLAB_OUT` (CSV file of every point, default `solvers.csv` in the current directory).
+//! `CDLAB_OUT` (CSV file of every point, default `solvers.csv` in the current directory)
+//! and `CDLAB_DIAG` (an iteration count: colored Gauss-Seidel is run that long on each kept
+//! problem and the contacts ranked by their share of the squared distance to the local
+//! solutions, grouped by partner and by the status of the impulse and of its local
+//! solution).
 //! Without `CDLAB_RUN` it says so and measures nothing.
 
 use std::time::Instant;
@@ -67,6 +71,70 @@ fn measure(problem: &Captured, params: &SolverParams) -> Point {
         closing_mean: c.mean,
         loaded: c.loaded,
         seconds,
+    }
+}
+
+/// Where the distance to the local solutions sits after `params.max_iter` iterations: the
+/// share of its square carried by the worst contacts, and what kind of contact they are
+/// (partner, status of the impulse and of its local solution).
+fn diagnose(step: u64, problem: &Captured, params: &SolverParams, disks: usize) {
+    use cdlab::solver::space::{ContactSpace, local_solution};
+    let (mut solved, _) = problem.solve(params);
+    let space = solved.space();
+    let status = |rn: f64, rt: f64, mu: f64| {
+        if rn <= 0.0 {
+            "open"
+        } else if rt.abs() >= mu * rn * (1.0 - 1e-9) {
+            "slide"
+        } else {
+            "stick"
+        }
+    };
+    let mut rows: Vec<(f64, usize)> = (0..space.len())
+        .map(|c| {
+            let (ln, lt) = local_solution(&space, c);
+            let (rn, rt) = space.impulse(c);
+            ((ln - rn).powi(2) + (lt - rt).powi(2), c)
+        })
+        .collect();
+    let total: f64 = rows.iter().map(|r| r.0).sum();
+    rows.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let share = |k: usize| rows.iter().take(k).map(|r| r.0).sum::<f64>() / total;
+    println!(
+        "step {step}, {} iterations of {:?}: the worst 10 contacts carry {:.0}% of the squared distance, the worst 1% ({}) {:.0}%",
+        params.max_iter,
+        params.method,
+        100.0 * share(10),
+        space.len() / 100,
+        100.0 * share(space.len() / 100)
+    );
+    let mut kinds = std::collections::BTreeMap::<String, (usize, f64)>::new();
+    for &(d2, c) in rows.iter().take(space.len() / 100) {
+        let k = &space.contacts[c];
+        let (ln, lt) = local_solution(&space, c);
+        let partner = if k.ma != 0.0 || k.wnt != 0.0 {
+            "force-driven wall"
+        } else if k.disk_j as usize >= disks {
+            "wall"
+        } else if !k.moves_j() {
+            "glued disk"
+        } else {
+            "disk"
+        };
+        let key = format!(
+            "{partner:>17}, {:>5} -> {:<5}",
+            status(k.rn, k.rt, k.mu),
+            status(ln, lt, k.mu)
+        );
+        let e = kinds.entry(key).or_default();
+        e.0 += 1;
+        e.1 += d2 / total;
+    }
+    for (k, (n, s)) in kinds {
+        println!(
+            "    {k}: {n:>5} contacts, {:.1}% of the squared distance",
+            100.0 * s
+        );
     }
 }
 
@@ -207,6 +275,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let pt = measure(p, &params);
                 csv.push_str(&row("curve", cap, &pt));
             }
+        }
+    }
+    if let Some(cap) = env::<u32>("CDLAB_DIAG") {
+        for (step, p) in &problems {
+            diagnose(
+                *step,
+                p,
+                &SolverParams {
+                    tol: f64::MIN_POSITIVE,
+                    max_iter: cap,
+                    velocity_tol: 0.0,
+                    ..base
+                },
+                disks,
+            );
         }
     }
     cdlab::fsio::write_file(std::path::Path::new(&out), csv.as_bytes())?;
