@@ -74,12 +74,14 @@ pub struct GpuBackend {
 impl GpuBackend {
     /// Opens the best adapter (see [`super::device::open`]) and uploads `scene`.
     pub fn new(scene: Scene, params: StepParams) -> Result<Self> {
+        refuse_cpu_only(&params)?;
         Self::with_device(open()?, scene, params)
     }
 
     /// A backend on an already opened device.
     pub fn with_device(gpu: GpuDevice, scene: Scene, params: StepParams) -> Result<Self> {
         params.validate()?;
+        refuse_cpu_only(&params)?;
         scene.validate()?;
         let pipes = Pipelines::new(&gpu)?;
         let cap = Capacity::initial(scene.disks.len(), scene.walls.len());
@@ -358,6 +360,18 @@ pub fn to_contact(g: &GpuContact) -> Contact {
     }
 }
 
+/// Solvers without a GPU form are refused by name rather than run as another method.
+fn refuse_cpu_only(params: &StepParams) -> Result<()> {
+    if params.solver.method == Method::Apgd {
+        return Err(crate::error::Error::invalid(
+            "solver.method",
+            "apgd",
+            "runs on the CPU backend only: set solver.backend = \"cpu\"",
+        ));
+    }
+    Ok(())
+}
+
 impl Backend for GpuBackend {
     fn name(&self) -> String {
         format!("gpu ({}, {:?})", self.gpu.info.name, self.gpu.info.backend)
@@ -369,6 +383,7 @@ impl Backend for GpuBackend {
 
     fn set_params(&mut self, params: StepParams) -> Result<()> {
         params.validate()?;
+        refuse_cpu_only(&params)?;
         self.params = params;
         self.fill_params();
         self.write_params();

@@ -2,6 +2,7 @@
 //! (Gauss-Seidel in plain or colored order, relaxed Jacobi) with the convergence test of
 //! docs/method.md, "Convergence".
 
+pub mod apgd;
 pub mod color;
 mod convergence;
 mod ctx;
@@ -30,6 +31,9 @@ pub enum Method {
     ColoredGs,
     /// Jacobi: every contact solved from the same velocities, impulses relaxed by `relax`.
     Jacobi,
+    /// Accelerated projected Jacobi on the Coulomb fixed point (`apgd.rs`,
+    /// docs/method.md, "Accelerated projected Jacobi (apgd)"); CPU only.
+    Apgd,
 }
 
 impl std::str::FromStr for Method {
@@ -39,10 +43,11 @@ impl std::str::FromStr for Method {
             "gs" => Ok(Method::Gs),
             "colored-gs" => Ok(Method::ColoredGs),
             "jacobi" => Ok(Method::Jacobi),
+            "apgd" => Ok(Method::Apgd),
             _ => Err(Error::invalid(
                 "solver.method",
                 s,
-                "one of gs, colored-gs, jacobi",
+                "one of gs, colored-gs, jacobi, apgd",
             )),
         }
     }
@@ -238,6 +243,13 @@ impl SolverParams {
                 "solver.deep_overlap",
                 self.deep_gap,
                 "applies to Gauss-Seidel only: 0 with method = \"jacobi\"",
+            ));
+        }
+        if self.deep_gap > 0.0 && self.method == Method::Apgd {
+            return Err(Error::invalid(
+                "solver.deep_overlap",
+                self.deep_gap,
+                "applies to Gauss-Seidel only: 0 with method = \"apgd\"",
             ));
         }
         Ok(())
