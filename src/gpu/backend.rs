@@ -38,6 +38,19 @@ pub struct GpuCounters {
     pub color_rounds: u64,
 }
 
+/// Rejects the solver methods that have no GPU form (Anderson-accelerated Gauss-Seidel),
+/// naming `solver.method`.
+fn refuse_cpu_only(params: &StepParams) -> Result<()> {
+    if params.solver.method == Method::AndersonGs {
+        return Err(crate::error::Error::invalid(
+            "solver.method",
+            "anderson-gs",
+            "the GPU backend runs colored-gs, gs or jacobi; anderson-gs runs with backend = \"cpu\"",
+        ));
+    }
+    Ok(())
+}
+
 /// The GPU backend (f32 kernels, positions relative to the sample centre).
 ///
 /// Differences from the CPU backend, by design: `Method::Gs` (sequential order) has no
@@ -74,12 +87,15 @@ pub struct GpuBackend {
 impl GpuBackend {
     /// Opens the best adapter (see [`super::device::open`]) and uploads `scene`.
     pub fn new(scene: Scene, params: StepParams) -> Result<Self> {
+        // Before opening a device: the method is wrong whatever the adapter.
+        refuse_cpu_only(&params)?;
         Self::with_device(open()?, scene, params)
     }
 
     /// A backend on an already opened device.
     pub fn with_device(gpu: GpuDevice, scene: Scene, params: StepParams) -> Result<Self> {
         params.validate()?;
+        refuse_cpu_only(&params)?;
         scene.validate()?;
         let pipes = Pipelines::new(&gpu)?;
         let cap = Capacity::initial(scene.disks.len(), scene.walls.len());

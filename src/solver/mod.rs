@@ -2,6 +2,7 @@
 //! (Gauss-Seidel in plain or colored order, relaxed Jacobi) with the convergence test of
 //! docs/method.md, "Convergence".
 
+pub mod anderson;
 pub mod color;
 mod convergence;
 mod ctx;
@@ -30,6 +31,9 @@ pub enum Method {
     ColoredGs,
     /// Jacobi: every contact solved from the same velocities, impulses relaxed by `relax`.
     Jacobi,
+    /// Plain Gauss-Seidel sweeps in contact order with Anderson mixing of the last
+    /// `anderson_depth + 1` iterates (CPU only; [`anderson`]).
+    AndersonGs,
 }
 
 impl std::str::FromStr for Method {
@@ -39,10 +43,11 @@ impl std::str::FromStr for Method {
             "gs" => Ok(Method::Gs),
             "colored-gs" => Ok(Method::ColoredGs),
             "jacobi" => Ok(Method::Jacobi),
+            "anderson-gs" => Ok(Method::AndersonGs),
             _ => Err(Error::invalid(
                 "solver.method",
                 s,
-                "one of gs, colored-gs, jacobi",
+                "one of gs, colored-gs, jacobi, anderson-gs",
             )),
         }
     }
@@ -110,6 +115,16 @@ pub struct SolverParams {
     /// See `deep_gap`.
     #[serde(default)]
     pub deep_sweeps: u32,
+    /// Anderson depth of `Method::AndersonGs`: the differences between the last
+    /// `anderson_depth + 1` iterates enter the mixing; 0 is plain Gauss-Seidel.
+    #[serde(default = "default_anderson_depth")]
+    pub anderson_depth: u32,
+}
+
+/// Default of [`SolverParams::anderson_depth`] (docs/method.md, "Anderson-accelerated
+/// Gauss-Seidel").
+pub fn default_anderson_depth() -> u32 {
+    5
 }
 
 fn unrelaxed() -> f64 {
@@ -159,6 +174,7 @@ impl Default for SolverParams {
             open_skip: 0.0,
             deep_gap: 0.0,
             deep_sweeps: 0,
+            anderson_depth: default_anderson_depth(),
         }
     }
 }
@@ -233,6 +249,20 @@ impl SolverParams {
                 "must be finite and >= 0",
             ));
         }
+        if self.deep_gap > 0.0 && self.method == Method::AndersonGs {
+            return Err(Error::invalid(
+                "solver.deep_overlap",
+                self.deep_gap,
+                "is not implemented with method = \"anderson-gs\": 0 with it",
+            ));
+        }
+        if self.anderson_depth > MAX_ANDERSON_DEPTH {
+            return Err(Error::invalid(
+                "solver.anderson_depth",
+                self.anderson_depth,
+                &format!("must be <= {MAX_ANDERSON_DEPTH}"),
+            ));
+        }
         if self.deep_gap > 0.0 && self.method == Method::Jacobi {
             return Err(Error::invalid(
                 "solver.deep_overlap",
@@ -243,6 +273,10 @@ impl SolverParams {
         Ok(())
     }
 }
+
+/// Largest [`SolverParams::anderson_depth`]: the history holds two vectors of all impulses per
+/// unit of depth, and beyond a few tens the fit is dominated by stale differences.
+pub const MAX_ANDERSON_DEPTH: u32 = 50;
 
 /// Default of the gap beyond which an open contact is left out of the sweeps, as a
 /// fraction of `r_min` ([`SolverParams::open_skip`] is this times `r_min / dt`): a contact

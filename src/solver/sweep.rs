@@ -9,7 +9,8 @@
 
 use glam::DVec3;
 
-use super::{Method, SolveStats, SolverParams, gauss_seidel, jacobi};
+use super::space::BodySpace;
+use super::{Method, SolveStats, SolverParams, anderson, gauss_seidel, jacobi};
 use crate::contact::Contact;
 
 pub use super::gauss_seidel::Workspace;
@@ -18,7 +19,8 @@ pub use super::lanes::colored_lanes;
 /// Solves the contact problem: plain Gauss-Seidel sweeps the contacts in their order,
 /// colored Gauss-Seidel colors them first and sweeps the colors in order, on a thread team
 /// when the problem is large enough; Jacobi rebuilds the velocities from the free
-/// velocities `gv0` every iteration.
+/// velocities `gv0` every iteration; Anderson-accelerated Gauss-Seidel sweeps in contact
+/// order and rebuilds them from `gv0` after each mixing.
 pub fn solve(
     params: &SolverParams,
     contacts: &mut [Contact],
@@ -29,6 +31,11 @@ pub fn solve(
     if params.method == Method::Jacobi {
         work.clear_coloring();
         return jacobi::solve(params, contacts, gv0, gv);
+    }
+    if params.method == Method::AndersonGs {
+        work.clear_coloring();
+        let mut s = BodySpace { contacts, gv0, gv };
+        return anderson::solve(&mut s, params);
     }
     gauss_seidel::solve(params, contacts, gv, work)
 }
