@@ -232,7 +232,7 @@ fn anderson_and_gauss_seidel_reach_the_same_law_and_velocities_on_a_packing() {
     );
     // Both satisfy the same law to the same tolerance: a relative change of 1e-9 per sweep
     // leaves the impulses within about 1e-9 / (1 - rate) of their local solutions, far below
-    // this bound (docs/method.md, "Comparing solvers").
+    // this bound (docs/method.md, "Anderson-accelerated Gauss-Seidel", on the two measures).
     let (rg, ra) = (local_residual(&gs.space()), local_residual(&aa.space()));
     println!("local residuals {rg:e} {ra:e}");
     assert!(
