@@ -254,6 +254,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 closing(&out2.space()).max,
             );
         }
+        if std::env::var("COST").is_ok() {
+            // Cost per iteration: 500 iterations at a tolerance no solve meets.
+            for d in [0u32, 1, 5, 10] {
+                let q = SolverParams {
+                    method: Method::AndersonGs,
+                    anderson_depth: d,
+                    tol: 1e-300,
+                    max_iter: 500,
+                    ..run_params
+                };
+                let t0 = Instant::now();
+                let (_, st) = c.solve(&q);
+                let secs = t0.elapsed().as_secs_f64();
+                println!(
+                    "{label}: depth {d}: {:.1} ns per contact and iteration ({} iterations)",
+                    secs / (st.iterations as f64 * c.contacts.len() as f64) * 1e9,
+                    st.iterations
+                );
+            }
+            continue;
+        }
         if let Ok(every) = std::env::var("CURVE") {
             for &d in &depths {
                 let mut cc = c.clone();

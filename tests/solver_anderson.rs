@@ -247,7 +247,11 @@ fn anderson_and_gauss_seidel_reach_the_same_law_and_velocities_on_a_packing() {
     // wall (its mass times its velocity change). Bound: both solvers stop at a relative
     // change of 1e-6 per sweep, but Gauss-Seidel converges at a rate close to 1 here (about
     // 17,000 sweeps), so its iterate may lie up to 1e-6 / (1 - rate), about 1e-2 in
-    // relative terms, from the solution; 1e-4 of the largest value is what both reach.
+    // relative terms, from the solution. Bounds: 1e-4 of the largest velocity; 1e-3 of the
+    // largest wall impulse (the total is the disks' momentum change, sum m (v - v_free),
+    // so it moves with the velocities: 1e-5 m/s on every one of 300 disks of about 10^4
+    // kg/m (radii 0.5-2 m, 2600 kg/m^3) would be 30 N s/m, 6e-3 of the 5000 N s/m on the
+    // bottom wall; the differences are smaller and mostly of one sign, 2e-4 here).
     let vmax = gs.gv.iter().map(|v| v.length()).fold(0.0, f64::max);
     let dv = gs
         .gv
@@ -268,12 +272,12 @@ fn anderson_and_gauss_seidel_reach_the_same_law_and_velocities_on_a_packing() {
     let total = |w: &[DVec2]| w.iter().copied().sum::<DVec2>();
     let (tg, ta) = (total(&wg), total(&wa));
     assert!(
-        (tg - ta).length() <= 1e-4 * scale,
+        (tg - ta).length() <= 1e-3 * scale,
         "total wall impulse: gauss-seidel {tg}, anderson {ta} N s/m"
     );
     let top = walls::TOP;
     assert!(
-        (wg[top] - wa[top]).length() <= 1e-4 * scale,
+        (wg[top] - wa[top]).length() <= 1e-3 * scale,
         "top wall: gauss-seidel {}, anderson {} N s/m",
         wg[top],
         wa[top]

@@ -260,8 +260,26 @@ impl History {
     }
 }
 
+/// Dot product in a fixed order: four interleaved partial sums (elements `i mod 4`), added
+/// as `(s0 + s1) + (s2 + s3)`, then the tail. Four independent sums let the additions
+/// overlap (a single running sum waits on each addition), and the order, hence the
+/// result, depends only on the length.
 fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
+    let n = a.len().min(b.len());
+    let (a, b) = (&a[..n], &b[..n]);
+    let mut s = [0.0; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ta, tb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for k in 0..4 {
+            s[k] += x[k] * y[k];
+        }
+    }
+    let mut total = (s[0] + s[1]) + (s[2] + s[3]);
+    for (x, y) in ta.iter().zip(tb) {
+        total += x * y;
+    }
+    total
 }
 
 /// Anderson-accelerated Gauss-Seidel from the impulses the space holds (warm start).
