@@ -7,6 +7,13 @@
 //!
 //! `cargo run --release --example anderson_measure -- RUN_DIR [DEPTHS] [START] [ACCEPT]`
 //! (DEPTHS comma-separated, default 0,3,5,10; depth 0 is plain Gauss-Seidel in contact order).
+//! Environment: `MUS` (frictions set on the captured contacts, comma-separated, `run` for
+//! the run's own; default run,3,12), `RUN_MU` (friction of the run itself before the
+//! capture) with `WINDOWS` (series windows advanced before the capture, default 1),
+//! `MAXIT` (sweep cap, default 20,000), `EVERY` and `DROP` (the solver's options),
+//! `SEARCH` (also find colored Gauss-Seidel's sweeps to the target by bisection over its
+//! cap), `CURVE=K` (print the convergence curve every K sweeps instead) and `COST` (print
+//! the cost per contact and iteration instead).
 
 use std::path::Path;
 use std::time::Instant;
@@ -214,17 +221,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             ..run_params
         };
         let t0 = Instant::now();
-        let (k, r) = if search {
-            colored_iterations(&c, &colored)
-        } else {
-            (0, f64::NAN)
-        };
-        println!(
-            "{label}: colored-gs (gs_relax {} after {}): {k} sweeps to local_residual {r:.2e} ({:.1} s search)",
-            colored.gs_relax,
-            colored.gs_relax_after,
-            t0.elapsed().as_secs_f64()
-        );
+        if search {
+            let (k, r) = colored_iterations(&c, &colored);
+            println!(
+                "{label}: colored-gs (gs_relax {} after {}): {k} sweeps to local_residual {r:.2e} ({:.1} s search)",
+                colored.gs_relax,
+                colored.gs_relax_after,
+                t0.elapsed().as_secs_f64()
+            );
+        }
         for tol in [3e-4, 1e-4] {
             let q = SolverParams { tol, ..colored };
             let t0 = Instant::now();
