@@ -288,12 +288,13 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// `|g - x| / |g|` is the stopping measure (the Gauss-Seidel one, docs/method.md,
 /// "Convergence"), and the solve ends on the sweep that meets `opts.tol`, so the space
 /// is left at a plain sweep's result with its velocities carried by the sweep. Otherwise,
-/// from sweep `opts.start` on, the next iterate is `g - dG gamma` with `gamma` minimising
-/// `|f - dF gamma|`, projected onto every contact's Coulomb cone and installed with
-/// [`ContactSpace::set_all`]. Safeguard: when the sweep from a mixed iterate changes the
-/// impulses by more than `opts.accept` times the change of the sweep before, that sweep
-/// is discarded, the space returns to the previous plain result and the history restarts
-/// from it.
+/// from sweep `opts.start` on and after every `opts.every` sweeps, the next iterate is
+/// `g - dG gamma` with `gamma` minimising `|f - dF gamma|`, projected onto every contact's
+/// Coulomb cone and installed with [`ContactSpace::set_all`]. Safeguard: when the sweep
+/// from a mixed iterate changes the impulses by more than `opts.accept` times the smallest
+/// change of an accepted sweep so far, that sweep is discarded (it still counts as an
+/// iteration), the space returns to the plain result the mixture came from and the
+/// history restarts from it.
 pub fn solve_with<S: ContactSpace + ?Sized>(s: &mut S, opts: &Options) -> Outcome {
     solve_until(s, opts, |_, _| false)
 }
