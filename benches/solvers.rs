@@ -101,9 +101,9 @@ fn diagnose(step: u64, problem: &Captured, params: &SolverParams, disks: usize) 
     rows.sort_by(|a, b| b.0.total_cmp(&a.0));
     let share = |k: usize| rows.iter().take(k).map(|r| r.0).sum::<f64>() / total;
     println!(
-        "step {step}, {} iterations of {:?}: the worst 10 contacts carry {:.0}% of the squared distance, the worst 1% ({}) {:.0}%",
+        "step {step}, {} iterations of {}: the worst 10 contacts carry {:.0}% of the squared distance, the worst 1% ({}) {:.0}%",
         params.max_iter,
-        params.method,
+        params.method.name(),
         100.0 * share(10),
         space.len() / 100,
         100.0 * share(space.len() / 100)
@@ -235,8 +235,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for (step, p) in &problems {
         let nc = p.contacts.len();
         for &method in &methods {
-            // The configuration's spelling (`solver.method`), from the serialised form.
-            let name = serde_json::to_string(&method)?.trim_matches('"').to_string();
+            let name = method.name();
             let to_tol = SolverParams { method, tol, ..base };
             let pt = measure(p, &to_tol);
             let row = |kind: &str, cap: u32, pt: &Point| {

@@ -223,6 +223,7 @@ impl Config {
                     open_skip: v.open_skip_gap * r_min / v.dt.si(),
                     deep_gap: v.deep_overlap * r_min,
                     deep_sweeps: v.deep_sweeps,
+                    anderson_depth: v.anderson_depth,
                 },
             },
             mu: t.mu,

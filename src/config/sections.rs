@@ -113,6 +113,8 @@ pub struct Solver {
     pub deep_overlap: f64,
     /// Local updates of each contact beyond `deep_overlap` after a solve.
     pub deep_sweeps: u32,
+    /// Anderson depth of `method = "anderson-gs"` (iterates mixed, minus one).
+    pub anderson_depth: u32,
 }
 
 impl Default for Solver {
@@ -135,6 +137,7 @@ impl Default for Solver {
             open_skip_gap: crate::solver::default_open_skip_gap(),
             deep_overlap: 0.0,
             deep_sweeps: 5,
+            anderson_depth: crate::solver::default_anderson_depth(),
         }
     }
 }

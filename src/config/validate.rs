@@ -4,6 +4,7 @@
 use crate::error::{Error, Result, check_non_negative, check_positive, check_range};
 
 use super::Config;
+use crate::solver::Method;
 
 /// Rejects a value outside the open interval `(lo, hi)` (and NaN).
 fn check_open(field: &str, value: f64, lo: f64, hi: f64) -> Result<()> {
@@ -168,6 +169,20 @@ impl Config {
         check_non_negative("solver.velocity_tol", v.velocity_tol)?;
         check_non_negative("solver.open_skip_gap", v.open_skip_gap)?;
         check_non_negative("solver.deep_overlap", v.deep_overlap)?;
+        if v.anderson_depth > crate::solver::MAX_ANDERSON_DEPTH {
+            return Err(Error::invalid(
+                "solver.anderson_depth",
+                v.anderson_depth,
+                &format!("must be <= {}", crate::solver::MAX_ANDERSON_DEPTH),
+            ));
+        }
+        if v.deep_overlap > 0.0 && v.method == Method::AndersonGs {
+            return Err(Error::invalid(
+                "solver.deep_overlap",
+                v.deep_overlap,
+                "is not implemented with method = \"anderson-gs\": 0 with it",
+            ));
+        }
         if v.deep_overlap > 0.0 {
             check_at_least("solver.deep_sweeps", v.deep_sweeps.into(), 1, "a local update")?;
             if v.deep_overlap >= v.overlap_limit {

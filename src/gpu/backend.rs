@@ -38,6 +38,20 @@ pub struct GpuCounters {
     pub color_rounds: u64,
 }
 
+/// Rejects the solver methods that have no GPU form (`Method::on_gpu`),
+/// naming `solver.method`.
+fn refuse_cpu_only(params: &StepParams) -> Result<()> {
+    let m = params.solver.method;
+    if !m.on_gpu() {
+        return Err(crate::error::Error::invalid(
+            "solver.method",
+            m.name(),
+            "the GPU backend runs colored-gs, gs or jacobi; this method runs with backend = \"cpu\"",
+        ));
+    }
+    Ok(())
+}
+
 /// The GPU backend (f32 kernels, positions relative to the sample centre).
 ///
 /// Differences from the CPU backend, by design: `Method::Gs` (sequential order) has no
@@ -74,6 +88,7 @@ pub struct GpuBackend {
 impl GpuBackend {
     /// Opens the best adapter (see [`super::device::open`]) and uploads `scene`.
     pub fn new(scene: Scene, params: StepParams) -> Result<Self> {
+        // Before opening a device: the method is wrong whatever the adapter.
         refuse_cpu_only(&params)?;
         Self::with_device(open()?, scene, params)
     }
@@ -358,18 +373,6 @@ pub fn to_contact(g: &GpuContact) -> Contact {
         rn: g.rn as f64,
         rt: g.rt as f64,
     }
-}
-
-/// Solvers without a GPU form are refused by name rather than run as another method.
-fn refuse_cpu_only(params: &StepParams) -> Result<()> {
-    if params.solver.method == Method::Apgd {
-        return Err(crate::error::Error::invalid(
-            "solver.method",
-            "apgd",
-            "runs on the CPU backend only: set solver.backend = \"cpu\"",
-        ));
-    }
-    Ok(())
 }
 
 impl Backend for GpuBackend {

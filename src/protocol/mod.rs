@@ -168,6 +168,7 @@ impl ProtocolParams {
                     open_skip: crate::solver::default_open_skip_gap() * r_min / dt,
                     deep_gap: 0.0,
                     deep_sweeps: 0,
+                    anderson_depth: crate::solver::default_anderson_depth(),
                 },
             },
             mu: 0.3,

@@ -2,6 +2,7 @@
 //! (Gauss-Seidel in plain or colored order, relaxed Jacobi) with the convergence test of
 //! docs/method.md, "Convergence".
 
+pub mod anderson;
 pub mod apgd;
 pub mod color;
 mod convergence;
@@ -34,6 +35,9 @@ pub enum Method {
     /// Accelerated projected Jacobi on the Coulomb fixed point (`apgd.rs`,
     /// docs/method.md, "Accelerated projected Jacobi (apgd)"); CPU only.
     Apgd,
+    /// Plain Gauss-Seidel sweeps in contact order with Anderson mixing of the last
+    /// `anderson_depth + 1` iterates (CPU only; [`anderson`]).
+    AndersonGs,
 }
 
 impl std::str::FromStr for Method {
@@ -44,12 +48,32 @@ impl std::str::FromStr for Method {
             "colored-gs" => Ok(Method::ColoredGs),
             "jacobi" => Ok(Method::Jacobi),
             "apgd" => Ok(Method::Apgd),
+            "anderson-gs" => Ok(Method::AndersonGs),
             _ => Err(Error::invalid(
                 "solver.method",
                 s,
-                "one of gs, colored-gs, jacobi, apgd",
+                "one of gs, colored-gs, jacobi, anderson-gs, apgd",
             )),
         }
+    }
+}
+
+impl Method {
+    /// The method's name in the configuration (`solver.method`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Gs => "gs",
+            Method::ColoredGs => "colored-gs",
+            Method::Jacobi => "jacobi",
+            Method::AndersonGs => "anderson-gs",
+            Method::Apgd => "apgd",
+        }
+    }
+
+    /// Whether the GPU path implements the method; the others run on the CPU only, and
+    /// `backend = "auto"` then takes the CPU.
+    pub fn on_gpu(self) -> bool {
+        matches!(self, Method::Gs | Method::ColoredGs | Method::Jacobi)
     }
 }
 
@@ -115,6 +139,16 @@ pub struct SolverParams {
     /// See `deep_gap`.
     #[serde(default)]
     pub deep_sweeps: u32,
+    /// Anderson depth of `Method::AndersonGs`: the differences between the last
+    /// `anderson_depth + 1` iterates enter the mixing; 0 is plain Gauss-Seidel.
+    #[serde(default = "default_anderson_depth")]
+    pub anderson_depth: u32,
+}
+
+/// Default of [`SolverParams::anderson_depth`] (docs/method.md, "Anderson-accelerated
+/// Gauss-Seidel").
+pub fn default_anderson_depth() -> u32 {
+    5
 }
 
 fn unrelaxed() -> f64 {
@@ -164,6 +198,7 @@ impl Default for SolverParams {
             open_skip: 0.0,
             deep_gap: 0.0,
             deep_sweeps: 0,
+            anderson_depth: default_anderson_depth(),
         }
     }
 }
@@ -238,6 +273,20 @@ impl SolverParams {
                 "must be finite and >= 0",
             ));
         }
+        if self.deep_gap > 0.0 && self.method == Method::AndersonGs {
+            return Err(Error::invalid(
+                "solver.deep_overlap",
+                self.deep_gap,
+                "is not implemented with method = \"anderson-gs\": 0 with it",
+            ));
+        }
+        if self.anderson_depth > MAX_ANDERSON_DEPTH {
+            return Err(Error::invalid(
+                "solver.anderson_depth",
+                self.anderson_depth,
+                &format!("must be <= {MAX_ANDERSON_DEPTH}"),
+            ));
+        }
         if self.deep_gap > 0.0 && self.method == Method::Jacobi {
             return Err(Error::invalid(
                 "solver.deep_overlap",
@@ -255,6 +304,10 @@ impl SolverParams {
         Ok(())
     }
 }
+
+/// Largest [`SolverParams::anderson_depth`]: the history holds two vectors of all impulses per
+/// unit of depth, and beyond a few tens the fit is dominated by stale differences.
+pub const MAX_ANDERSON_DEPTH: u32 = 50;
 
 /// Default of the gap beyond which an open contact is left out of the sweeps, as a
 /// fraction of `r_min` ([`SolverParams::open_skip`] is this times `r_min / dt`): a contact

@@ -10,7 +10,7 @@
 use glam::DVec3;
 
 use super::space::BodySpace;
-use super::{Method, SolveStats, SolverParams, apgd, gauss_seidel, jacobi};
+use super::{Method, SolveStats, SolverParams, anderson, apgd, gauss_seidel, jacobi};
 use crate::contact::Contact;
 
 pub use super::gauss_seidel::Workspace;
@@ -20,7 +20,8 @@ pub use super::lanes::colored_lanes;
 /// colored Gauss-Seidel colors them first and sweeps the colors in order, on a thread team
 /// when the problem is large enough; Jacobi rebuilds the velocities from the free
 /// velocities `gv0` every iteration, and so does accelerated projected Jacobi (`apgd.rs`,
-/// run on the contacts and bodies as a [`BodySpace`]).
+/// run on the contacts and bodies as a [`BodySpace`]); Anderson-accelerated Gauss-Seidel
+/// sweeps in contact order and rebuilds them from `gv0` after each mixing.
 pub fn solve(
     params: &SolverParams,
     contacts: &mut [Contact],
@@ -36,6 +37,11 @@ pub fn solve(
         work.clear_coloring();
         let mut s = BodySpace { contacts, gv0, gv };
         return apgd::solve(&mut s, params);
+    }
+    if params.method == Method::AndersonGs {
+        work.clear_coloring();
+        let mut s = BodySpace { contacts, gv0, gv };
+        return anderson::solve(&mut s, params);
     }
     gauss_seidel::solve(params, contacts, gv, work)
 }

@@ -31,6 +31,7 @@ pub fn tight(method: Method) -> StepParams {
             open_skip: 0.0,
             deep_gap: 0.0,
             deep_sweeps: 0,
+            anderson_depth: cdlab::solver::default_anderson_depth(),
         },
     }
 }
