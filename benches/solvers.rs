@@ -34,7 +34,8 @@ use cdlab::protocol::biaxial::Lab;
 use cdlab::protocol::checkpoint::decode;
 use cdlab::protocol::{Collect, Phase};
 use cdlab::record::read_run;
-use cdlab::solver::space::{Captured, closing, local_residual};
+use cdlab::solver::captured::Captured;
+use cdlab::solver::space::{closing, local_residual};
 use cdlab::solver::{Method, SolveStats, SolverParams};
 
 fn env<T: std::str::FromStr>(name: &str) -> Option<T> {

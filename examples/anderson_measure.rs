@@ -25,7 +25,8 @@ use cdlab::protocol::checkpoint::decode;
 use cdlab::protocol::{Collect, Phase};
 use cdlab::record::read_run;
 use cdlab::solver::anderson::{self, Options};
-use cdlab::solver::space::{Captured, ContactSpace, closing, local_residual};
+use cdlab::solver::captured::Captured;
+use cdlab::solver::space::{ContactSpace, closing, local_residual};
 use cdlab::solver::{Method, SolverParams};
 
 const TARGET: f64 = 1e-4;

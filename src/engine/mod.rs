@@ -8,7 +8,7 @@ use crate::contact::Contact;
 use crate::contact::detect::Neighbours;
 use crate::error::{Error, Result, check_non_negative, check_positive, check_range};
 use crate::model::{BodyKind, NOT_GLUED, Scene, WallDrive};
-use crate::solver::space::Captured;
+use crate::solver::captured::Captured;
 use crate::solver::{SolveStats, SolverParams, sweep};
 
 /// Parameters of the time stepping.

@@ -4,6 +4,7 @@
 
 pub mod anderson;
 pub mod apgd;
+pub mod captured;
 pub mod color;
 mod convergence;
 mod ctx;

@@ -6,7 +6,8 @@
 //! It also holds the measures every solver is judged by, whatever its own stopping test
 //! (docs/method.md, "Comparing solvers"): the distance of the impulses to their local
 //! solutions ([`local_residual`]) and the closing velocity left at loaded contacts
-//! ([`closing`]), which is how far they sink per unit time.
+//! ([`closing`]), which is how far they sink per unit time. A step's problem kept for
+//! solving again is a [`super::captured::Captured`].
 
 use glam::DVec3;
 
@@ -161,41 +162,6 @@ impl ContactSpace for BodySpace<'_> {
             if rn != 0.0 || rt != 0.0 {
                 k.apply(self.gv, rn, rt);
             }
-        }
-    }
-}
-
-/// A copy of one step's contact problem, taken just before the solve
-/// ([`crate::engine::CpuEngine::capture`]): the contacts with their warm-start impulses,
-/// the free velocities and the velocities with those impulses applied. Solving it again
-/// with other settings replays the step's solve exactly (bit for bit with the same
-/// settings), which is how solvers are compared on the same states.
-#[derive(Clone, Debug, Default)]
-pub struct Captured {
-    /// The contacts, as the solver receives them.
-    pub contacts: Vec<Contact>,
-    /// Free velocities of every body (disks, then walls).
-    pub gv0: Vec<DVec3>,
-    /// Velocities with the warm-start impulses applied.
-    pub gv: Vec<DVec3>,
-}
-
-impl Captured {
-    /// Solves a copy of the problem with `params`; returns the solved copy and what the
-    /// solver did.
-    pub fn solve(&self, params: &super::SolverParams) -> (Captured, super::SolveStats) {
-        let mut out = self.clone();
-        let mut work = super::sweep::Workspace::default();
-        let stats = super::sweep::solve(params, &mut out.contacts, &self.gv0, &mut out.gv, &mut work);
-        (out, stats)
-    }
-
-    /// The problem as a [`ContactSpace`].
-    pub fn space(&mut self) -> BodySpace<'_> {
-        BodySpace {
-            contacts: &mut self.contacts,
-            gv0: &self.gv0,
-            gv: &mut self.gv,
         }
     }
 }
