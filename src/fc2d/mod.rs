@@ -7,7 +7,7 @@ mod parse;
 
 pub use parse::{parse, read};
 
-use crate::solver::law::solve_block;
+use crate::solver::law::{project_cone, solve_block};
 use crate::solver::space::ContactSpace;
 
 /// A sparse square matrix in compressed columns.
@@ -92,18 +92,6 @@ pub struct Report {
     pub r: Vec<f64>,
 }
 
-/// Projection of `z` onto the cone `|z_t| <= mu z_n`.
-fn project(zn: f64, zt: f64, mu: f64) -> (f64, f64) {
-    if zt.abs() <= mu * zn {
-        (zn, zt)
-    } else if mu * zt.abs() <= -zn {
-        (0.0, 0.0)
-    } else {
-        let pn = (zn + mu * zt.abs()) / (1.0 + mu * mu);
-        (pn, mu * pn * zt.signum())
-    }
-}
-
 fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
@@ -127,7 +115,7 @@ pub fn siconos_error(p: &Problem, r: &[f64]) -> f64 {
     let mut sum = 0.0;
     for c in 0..p.nc {
         let (rn, rt, un, ut, mu) = (r[2 * c], r[2 * c + 1], u[2 * c], u[2 * c + 1], p.mu[c]);
-        let (pn, pt) = project(rn - (un + mu * ut.abs()), rt - ut, mu);
+        let (pn, pt) = project_cone(rn - (un + mu * ut.abs()), rt - ut, mu);
         sum += (rn - pn).powi(2) + (rt - pt).powi(2);
     }
     let scale = norm(r).max(norm(&u)).max(norm(&p.q));

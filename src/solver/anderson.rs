@@ -9,6 +9,7 @@
 //! mixing (type II) combines the last iterates so as to minimise the linearised residual
 //! `f = G(x) - x`; on a linear fixed-point problem it is equivalent to GMRES.
 
+use super::law::project_cone;
 use super::space::{ContactSpace, local_solution};
 use super::{SolveStats, SolverParams};
 
@@ -114,18 +115,6 @@ fn sweep<S: ContactSpace + ?Sized>(s: &mut S, x: &mut [f64]) -> (f64, f64) {
         x[2 * c + 1] = rt;
     }
     (d2, r2)
-}
-
-/// Euclidean projection of `(zn, zt)` onto the Coulomb cone `|t| <= mu n`.
-fn project(zn: f64, zt: f64, mu: f64) -> (f64, f64) {
-    if zt.abs() <= mu * zn {
-        (zn, zt)
-    } else if mu * zt.abs() <= -zn {
-        (0.0, 0.0)
-    } else {
-        let pn = (zn + mu * zt.abs()) / (1.0 + mu * mu);
-        (pn, (mu * pn).copysign(zt))
-    }
 }
 
 /// The last `depth` differences of residuals `f = G(x) - x` and of images `G(x)` between
@@ -384,7 +373,7 @@ pub fn solve_until<S: ContactSpace + ?Sized>(
             }
         }
         for (c, r) in next.iter_mut().enumerate() {
-            *r = project(x[2 * c], x[2 * c + 1], s.mu(c));
+            *r = project_cone(x[2 * c], x[2 * c + 1], s.mu(c));
             x[2 * c] = r.0;
             x[2 * c + 1] = r.1;
         }
@@ -399,18 +388,6 @@ pub fn solve_until<S: ContactSpace + ?Sized>(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn projection_lands_on_the_cone_and_keeps_points_inside() {
-        // Inside: unchanged.
-        assert_eq!(project(2.0, 0.5, 0.5), (2.0, 0.5));
-        // Polar cone (mu |t| <= -n): the apex.
-        assert_eq!(project(-1.0, 0.1, 0.5), (0.0, 0.0));
-        // Outside, beyond the boundary t = mu n: (n + mu |t|) / (1 + mu^2) = (1 + 0.5 * 2)
-        // / 1.25 = 1.6, t = 0.8.
-        let (pn, pt) = project(1.0, -2.0, 0.5);
-        assert!((pn - 1.6).abs() < 1e-15 && (pt + 0.8).abs() < 1e-15, "{pn} {pt}");
-    }
 
     #[test]
     fn least_squares_recovers_an_exact_combination_and_drops_a_repeated_column() {

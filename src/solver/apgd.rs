@@ -10,7 +10,7 @@
 //! order, so the result is bit-reproducible and the contact loops can be split across
 //! threads or GPU invocations without changing it if the sums keep that order.
 
-use super::law;
+use super::law::{self, project_cone};
 use super::space::ContactSpace;
 use super::{SolveStats, SolverParams};
 
@@ -114,18 +114,6 @@ impl Blk {
     }
 }
 
-/// Projection of `(zn, zt)` onto the cone `|z_t| <= mu z_n`.
-fn project(zn: f64, zt: f64, mu: f64) -> (f64, f64) {
-    if zt.abs() <= mu * zn {
-        (zn, zt)
-    } else if mu * zt.abs() <= -zn {
-        (0.0, 0.0)
-    } else {
-        let pn = (zn + mu * zt.abs()) / (1.0 + mu * mu);
-        (pn, mu * pn * zt.signum())
-    }
-}
-
 /// The exact local solution of a contact at impulse `r` and velocity `u` with its block
 /// scaled by `l` (`l = 1`: [`super::space::local_solution`]).
 fn local(b: &Blk, l: f64, r: (f64, f64), u: (f64, f64)) -> (f64, f64) {
@@ -153,7 +141,7 @@ fn trial(b: &Blk, step: Step, l: f64, y: (f64, f64), u: (f64, f64)) -> (f64, f64
         Step::Local => local(b, l, y, u),
         Step::DeSaxce => {
             let h = 1.0 / (l * b.d);
-            project(y.0 - h * (u.0 + b.mu * u.1.abs()), y.1 - h * u.1, b.mu)
+            project_cone(y.0 - h * (u.0 + b.mu * u.1.abs()), y.1 - h * u.1, b.mu)
         }
     }
 }

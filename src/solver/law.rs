@@ -66,3 +66,35 @@ pub fn solve(wnn: f64, wtt: f64, wnt: f64, ufn: f64, uft: f64, mu: f64) -> (f64,
         solve_block(wnn, wtt, wnt, ufn, uft, mu)
     }
 }
+
+/// Euclidean projection of `(zn, zt)` onto the Coulomb cone `|z_t| <= mu z_n`: the point
+/// itself inside, the apex when it lies in the polar cone, else the nearest point of the
+/// cone's edge on its side.
+#[inline]
+pub fn project_cone(zn: f64, zt: f64, mu: f64) -> (f64, f64) {
+    if zt.abs() <= mu * zn {
+        (zn, zt)
+    } else if mu * zt.abs() <= -zn {
+        (0.0, 0.0)
+    } else {
+        let pn = (zn + mu * zt.abs()) / (1.0 + mu * mu);
+        (pn, (mu * pn).copysign(zt))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn projection_lands_on_the_cone_and_keeps_points_inside() {
+        // Inside: unchanged.
+        assert_eq!(project_cone(2.0, 0.5, 0.5), (2.0, 0.5));
+        // Polar cone (mu |t| <= -n): the apex.
+        assert_eq!(project_cone(-1.0, 0.1, 0.5), (0.0, 0.0));
+        // Outside, beyond the boundary t = mu n: (n + mu |t|) / (1 + mu^2) = (1 + 0.5 * 2)
+        // / 1.25 = 1.6, t = 0.8.
+        let (pn, pt) = project_cone(1.0, -2.0, 0.5);
+        assert!((pn - 1.6).abs() < 1e-15 && (pt + 0.8).abs() < 1e-15, "{pn} {pt}");
+    }
+}
