@@ -21,21 +21,11 @@ use std::collections::HashMap;
 use cdlab::backend::CpuBackend;
 use cdlab::contact::detect::CellGrid;
 use cdlab::model::Scene;
+use cdlab::protocol::Collect;
 use cdlab::protocol::biaxial::Lab;
-use cdlab::protocol::checkpoint::decode;
-use cdlab::protocol::{Collect, Phase};
-use cdlab::record::read_run;
 
-fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
-    let v = std::env::var(name).ok()?;
-    match v.parse() {
-        Ok(x) => Some(x),
-        Err(_) => {
-            eprintln!("{name}={v} is not valid");
-            std::process::exit(2);
-        }
-    }
-}
+mod common;
+use common::{continued, env};
 
 /// The overlap of every overlapping disk pair, in units of `r_min`, keyed by the pair's
 /// indices, found on the cell grid of contact detection.
@@ -61,17 +51,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!("checkpoint bench: set CDLAB_RUN=DIR (a run directory) to measure its compression");
         return Ok(());
     };
-    let rec = read_run(&dir)?;
-    let (_, bytes) = rec
-        .last_checkpoint
-        .clone()
-        .ok_or("the record holds no checkpoint")?;
-    let mut ck = decode(&bytes)?;
-    ck.state.phase = Phase::Compression;
-    ck.state.params.strain_end = 0.99;
-    ck.state.params.snapshot_every = 0.0;
+    let mut ck = continued(&dir, env("CDLAB_THREADS").unwrap_or(1))?;
     let solver = &mut ck.state.params.step.solver;
-    solver.threads = env("CDLAB_THREADS").unwrap_or(1);
     if let Some(tol) = env("CDLAB_TOL") {
         solver.tol = tol;
     }
@@ -95,13 +76,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if let Some(gap) = env::<f64>("CDLAB_OPEN_SKIP") {
         let step = &mut ck.state.params.step;
         step.solver.open_skip = gap * r_min / step.dt;
-    }
-    if let Some(ms) = env::<f64>("CDLAB_DT") {
-        ck.state.params.step.dt = ms * 1e-3;
-    }
-    if let Some(mu) = env::<f64>("CDLAB_MU") {
-        ck.scene.material.mu_disk = mu;
-        ck.state.params.mu = mu;
     }
     if let Some(alert) = env::<f64>("CDLAB_ALERT") {
         ck.state.params.step.alert = alert * r_min;

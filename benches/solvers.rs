@@ -30,24 +30,14 @@
 use std::time::Instant;
 
 use cdlab::backend::CpuBackend;
+use cdlab::protocol::Collect;
 use cdlab::protocol::biaxial::Lab;
-use cdlab::protocol::checkpoint::decode;
-use cdlab::protocol::{Collect, Phase};
-use cdlab::record::read_run;
 use cdlab::solver::captured::Captured;
 use cdlab::solver::space::{closing, local_residual};
 use cdlab::solver::{Method, SolveStats, SolverParams};
 
-fn env<T: std::str::FromStr>(name: &str) -> Option<T> {
-    let v = std::env::var(name).ok()?;
-    match v.parse() {
-        Ok(x) => Some(x),
-        Err(_) => {
-            eprintln!("{name}={v} is not valid");
-            std::process::exit(2);
-        }
-    }
-}
+mod common;
+use common::{continued, env};
 
 /// What one solve left: the method's own last change, the common measures and its cost.
 struct Point {
@@ -160,23 +150,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         println!("solvers bench: set CDLAB_RUN=DIR (a run directory) to compare the solvers on its states");
         return Ok(());
     };
-    let rec = read_run(&dir)?;
-    let (_, bytes) = rec
-        .last_checkpoint
-        .clone()
-        .ok_or("the record holds no checkpoint")?;
-    let mut ck = decode(&bytes)?;
-    ck.state.phase = Phase::Compression;
-    ck.state.params.strain_end = 0.99;
-    ck.state.params.snapshot_every = 0.0;
-    ck.state.params.step.solver.threads = 1;
-    if let Some(ms) = env::<f64>("CDLAB_DT") {
-        ck.state.params.step.dt = ms * 1e-3;
-    }
-    if let Some(mu) = env::<f64>("CDLAB_MU") {
-        ck.scene.material.mu_disk = mu;
-        ck.state.params.mu = mu;
-    }
+    let ck = continued(&dir, 1)?;
     let base = ck.state.params.step.solver;
     let tol = env("CDLAB_TOL").unwrap_or(base.tol);
     let curve_max = env("CDLAB_CURVE_MAX").unwrap_or(base.max_iter);
