@@ -148,14 +148,7 @@ fn py_err(py: Python<'_>, e: Error) -> PyErr {
             RunError::new_err(msg),
             vec![
                 ("path", path_obj(py, &path)),
-                (
-                    "fault",
-                    format!("{fault:?}")
-                        .into_pyobject(py)
-                        .unwrap()
-                        .into_any()
-                        .unbind(),
-                ),
+                ("fault", text_obj(py, format!("{fault:?}"))),
             ],
         ),
         Error::Campaign { path, .. } => (CampaignError::new_err(msg), vec![("path", path_obj(py, &path))]),
@@ -166,14 +159,7 @@ fn py_err(py: Python<'_>, e: Error) -> PyErr {
             CdlabError::new_err(msg),
             vec![
                 ("path", path_obj(py, &path)),
-                (
-                    "fault",
-                    format!("{fault:?}")
-                        .into_pyobject(py)
-                        .unwrap()
-                        .into_any()
-                        .unbind(),
-                ),
+                ("fault", text_obj(py, format!("{fault:?}"))),
             ],
         ),
         Error::BadCheckpoint { .. }
@@ -198,12 +184,12 @@ fn set_attrs(py: Python<'_>, err: PyErr, attrs: Vec<(&str, Py<PyAny>)>) -> PyErr
 
 /// A path as a Python `str` (what `os.fspath` gives; the Python half may wrap it).
 fn path_obj(py: Python<'_>, p: &Path) -> Py<PyAny> {
-    p.display()
-        .to_string()
-        .into_pyobject(py)
-        .unwrap()
-        .into_any()
-        .unbind()
+    text_obj(py, p.display().to_string())
+}
+
+/// A Python `str` (converting a Rust string cannot fail).
+fn text_obj(py: Python<'_>, s: String) -> Py<PyAny> {
+    s.into_pyobject(py).unwrap().into_any().unbind()
 }
 
 /// A [`FileError`] naming `path`.
