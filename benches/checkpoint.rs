@@ -25,7 +25,7 @@ use cdlab::protocol::Collect;
 use cdlab::protocol::biaxial::Lab;
 
 mod common;
-use common::{continued, env};
+use common::{continued, env, r_min};
 
 /// The overlap of every overlapping disk pair, in units of `r_min`, keyed by the pair's
 /// indices, found on the cell grid of contact detection.
@@ -66,13 +66,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         solver.method = m.parse()?;
     }
     // Fractions of the smallest radius, as in the configuration.
-    let r_min = ck
-        .scene
-        .disks
-        .radius
-        .iter()
-        .cloned()
-        .fold(f64::INFINITY, f64::min);
+    let r_min = r_min(&ck);
     if let Some(gap) = env::<f64>("CDLAB_OPEN_SKIP") {
         let step = &mut ck.state.params.step;
         step.solver.open_skip = gap * r_min / step.dt;

@@ -37,7 +37,7 @@ use cdlab::solver::space::{closing, local_residual};
 use cdlab::solver::{Method, SolveStats, SolverParams};
 
 mod common;
-use common::{continued, env};
+use common::{continued, env, r_min};
 
 /// What one solve left: the method's own last change, the common measures and its cost.
 struct Point {
@@ -163,13 +163,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let windows: usize = env("CDLAB_WINDOWS").unwrap_or(5);
     let out = std::env::var("CDLAB_OUT").unwrap_or_else(|_| "solvers.csv".into());
     let (dt, mu) = (ck.state.params.step.dt, ck.scene.material.mu_disk);
-    let r_min = ck
-        .scene
-        .disks
-        .radius
-        .iter()
-        .cloned()
-        .fold(f64::INFINITY, f64::min);
+    let r_min = r_min(&ck);
     let disks = ck.scene.disks.len();
 
     let mut backend = CpuBackend::new(ck.scene.clone(), ck.state.params.step)?;

@@ -41,3 +41,14 @@ pub fn continued(dir: &std::ffi::OsStr, threads: usize) -> Result<Checkpoint, Bo
     }
     Ok(ck)
 }
+
+/// The smallest disk radius of the checkpoint's scene (m): the unit of overlaps and of the
+/// settings given as fractions of it.
+pub fn r_min(ck: &Checkpoint) -> f64 {
+    ck.scene
+        .disks
+        .radius
+        .iter()
+        .cloned()
+        .fold(f64::INFINITY, f64::min)
+}

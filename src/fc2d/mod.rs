@@ -54,6 +54,20 @@ pub struct Problem {
     pub mu: Vec<f64>,
 }
 
+impl Problem {
+    /// The 2x2 diagonal block of each contact, `(W_nn, W_tt, W_nt)`. The local solves
+    /// assume a symmetric block: the two off-diagonal terms are averaged.
+    pub fn blocks(&self) -> Vec<(f64, f64, f64)> {
+        (0..self.nc)
+            .map(|c| {
+                let (a, b) = (2 * c, 2 * c + 1);
+                let w = &self.w;
+                (w.get(a, a), w.get(b, b), 0.5 * (w.get(a, b) + w.get(b, a)))
+            })
+            .collect()
+    }
+}
+
 /// Solver options.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SolveOptions {
@@ -126,23 +140,13 @@ pub fn siconos_error(p: &Problem, r: &[f64]) -> f64 {
 pub fn solve(p: &Problem, opts: &SolveOptions) -> Report {
     let t0 = std::time::Instant::now();
     let n = 2 * p.nc;
-    let blocks: Vec<[f64; 3]> = (0..p.nc)
-        .map(|c| {
-            let (a, b) = (2 * c, 2 * c + 1);
-            // The local solve assumes a symmetric block: average the two off-diagonals.
-            [
-                p.w.get(a, a),
-                p.w.get(b, b),
-                0.5 * (p.w.get(a, b) + p.w.get(b, a)),
-            ]
-        })
-        .collect();
+    let blocks = p.blocks();
     let mut r = vec![0.0; n];
     let mut u = p.q.clone();
     let mut iterations = 0;
     let mut error = siconos_error(p, &r);
     while error >= opts.tol && iterations < opts.max_iter {
-        for (c, &[wnn, wtt, wnt]) in blocks.iter().enumerate() {
+        for (c, &(wnn, wtt, wnt)) in blocks.iter().enumerate() {
             let (a, b) = (2 * c, 2 * c + 1);
             let ufn = u[a] - wnn * r[a] - wnt * r[b];
             let uft = u[b] - wnt * r[a] - wtt * r[b];
@@ -186,16 +190,7 @@ impl<'a> Space<'a> {
     /// The problem with every impulse 0 (`u = q`). The local solves assume symmetric
     /// blocks: the two off-diagonal terms of each are averaged.
     pub fn new(p: &'a Problem) -> Self {
-        let blocks = (0..p.nc)
-            .map(|c| {
-                let (a, b) = (2 * c, 2 * c + 1);
-                (
-                    p.w.get(a, a),
-                    p.w.get(b, b),
-                    0.5 * (p.w.get(a, b) + p.w.get(b, a)),
-                )
-            })
-            .collect();
+        let blocks = p.blocks();
         Space {
             p,
             blocks,

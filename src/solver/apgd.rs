@@ -155,13 +155,7 @@ fn residual(blk: &[Blk], r: &[(f64, f64)], u: &[(f64, f64)]) -> f64 {
         d2 += (ln - rc.0).powi(2) + (lt - rc.1).powi(2);
         l2 += ln * ln + lt * lt;
     }
-    if d2 == 0.0 {
-        0.0
-    } else if l2 == 0.0 {
-        f64::INFINITY
-    } else {
-        (d2 / l2).sqrt()
-    }
+    super::convergence::relative_change(d2, l2)
 }
 
 /// Sets the impulses `r` in the space (one matrix product) and reads the velocities back.

@@ -72,8 +72,9 @@ impl<'a> VelocityTest<'a> {
     }
 }
 
-/// Relative quadratic change of one iteration; 0 when nothing carries or changes impulse.
-fn relative_change(d2: f64, r2: f64) -> f64 {
+/// Relative quadratic change of one iteration (or distance, `sqrt(d2 / r2)`); 0 when
+/// nothing carries or changes impulse, infinite when only the change is nonzero.
+pub(super) fn relative_change(d2: f64, r2: f64) -> f64 {
     if d2 == 0.0 {
         0.0
     } else if r2 == 0.0 {

@@ -73,13 +73,7 @@ pub fn local_residual<S: ContactSpace + ?Sized>(s: &S) -> f64 {
         d2 += (ln - rn).powi(2) + (lt - rt).powi(2);
         l2 += ln * ln + lt * lt;
     }
-    if d2 == 0.0 {
-        0.0
-    } else if l2 == 0.0 {
-        f64::INFINITY
-    } else {
-        (d2 / l2).sqrt()
-    }
+    super::convergence::relative_change(d2, l2)
 }
 
 /// Closing velocities left at contacts that carry a normal impulse (m/s): the largest and
