@@ -80,6 +80,16 @@ def test_run_into_an_occupied_directory_needs_force(small_run, tmp_path):
     assert cdlab.run(SMALL_DICT, out, force=True).summary is not None
 
 
+@pytest.fixture
+def python_sigint():
+    """Python's own SIGINT handler, as an interactive session has it. A process started in
+    the background by a non-interactive shell inherits SIGINT ignored, and Python then
+    installs no handler: a SIGINT would do nothing, whatever cdlab does."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
+
+
 def interrupt_at_confinement(how):
     """A progress callback that interrupts the run at its first confinement row: by raising
     KeyboardInterrupt itself, by raising SIGINT (Python's own handler turns it into
@@ -100,7 +110,7 @@ def interrupt_at_confinement(how):
 
 
 @pytest.mark.parametrize("how", ["raise", "sigint", "interrupt_main"])
-def test_keyboard_interrupt_leaves_a_record_resume_finishes(small_run, tmp_path, how):
+def test_keyboard_interrupt_leaves_a_record_resume_finishes(small_run, tmp_path, how, python_sigint):
     out = tmp_path / "run"
     with pytest.raises(KeyboardInterrupt) as e:
         cdlab.run(SMALL_DICT, out, progress=interrupt_at_confinement(how))
@@ -122,7 +132,7 @@ def test_keyboard_interrupt_leaves_a_record_resume_finishes(small_run, tmp_path,
     assert again.value.fault == "Complete"
 
 
-def test_sigint_while_the_run_computes_without_a_callback(small_run, tmp_path):
+def test_sigint_while_the_run_computes_without_a_callback(small_run, tmp_path, python_sigint):
     """SIGINT from another thread while the GIL is released and no Python code runs: only
     cdlab's check of Python's pending signals between rows can turn it into the stop."""
     out = tmp_path / "run"
