@@ -113,28 +113,14 @@ impl Report {
 mod tests {
     use std::path::PathBuf;
 
-    use crate::analysis::report::tests::one_pressure_point;
+    use crate::analysis::report::tests::{one_pressure_point, wall_time_report};
     use crate::analysis::report::{TestPoint, analyse};
 
     /// The table sums the wall times over the campaign, in hours (1800 s + 5400 s + 3600 s
     /// = 3 h over four tests, one without a wall time).
     #[test]
     fn table_sums_the_wall_times_in_hours() {
-        let at = |mu: f64, s3: f64, wall: Option<f64>| TestPoint {
-            mu,
-            sigma3_mpa: s3,
-            wall_time_s: wall,
-            ..one_pressure_point()
-        };
-        let rep = analyse(
-            &[
-                at(0.3, 1.0, Some(1800.0)),
-                at(0.3, 2.0, Some(5400.0)),
-                at(0.5, 1.0, Some(3600.0)),
-                at(0.5, 2.0, None),
-            ],
-            Vec::new(),
-        );
+        let rep = wall_time_report();
         assert!(
             rep.table().contains("3.00 h summed over 4 tests"),
             "{}",

@@ -121,29 +121,14 @@ pub fn analyse(points: &[TestPoint], missing: Vec<(PathBuf, String)>) -> Report 
 
 #[cfg(test)]
 mod tests {
-    use super::*;
-    use crate::analysis::report::tests::one_pressure_point;
+    use crate::analysis::report::tests::wall_time_report;
 
     /// The wall times of the tests are summed per friction and over the campaign, in
     /// hours (1800 s + 5400 s = 2 h at friction 0.3; 3600 s more at friction 0.5 makes 3 h);
     /// a summary without one adds nothing.
     #[test]
     fn wall_times_are_summed_in_hours() {
-        let at = |mu: f64, s3: f64, wall: Option<f64>| TestPoint {
-            mu,
-            sigma3_mpa: s3,
-            wall_time_s: wall,
-            ..one_pressure_point()
-        };
-        let rep = analyse(
-            &[
-                at(0.3, 1.0, Some(1800.0)),
-                at(0.3, 2.0, Some(5400.0)),
-                at(0.5, 1.0, Some(3600.0)),
-                at(0.5, 2.0, None),
-            ],
-            Vec::new(),
-        );
+        let rep = wall_time_report();
         assert_eq!(rep.frictions[0].wall_time_h, 2.0);
         assert_eq!(rep.frictions[1].wall_time_h, 1.0);
         assert_eq!(rep.wall_time_h, 3.0);

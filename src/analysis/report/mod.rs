@@ -181,6 +181,26 @@ pub(crate) mod tests {
         }
     }
 
+    /// The report of four tests with wall times 1800 s and 5400 s at friction 0.3, 3600 s
+    /// and none at 0.5 (2 h, 1 h, 3 h in all).
+    pub(crate) fn wall_time_report() -> Report {
+        let at = |mu: f64, s3: f64, wall: Option<f64>| TestPoint {
+            mu,
+            sigma3_mpa: s3,
+            wall_time_s: wall,
+            ..one_pressure_point()
+        };
+        analyse(
+            &[
+                at(0.3, 1.0, Some(1800.0)),
+                at(0.3, 2.0, Some(5400.0)),
+                at(0.5, 1.0, Some(3600.0)),
+                at(0.5, 2.0, None),
+            ],
+            Vec::new(),
+        )
+    }
+
     /// A report whose figures include NaN (one pressure: no standard errors) is written as
     /// JSON with `null` there and reads back with NaN in the same places.
     #[test]
