@@ -116,18 +116,7 @@ fn gpu_velocity_test_stops_at_the_first_iteration_that_changes_no_velocity_by_mo
 #[test]
 fn gpu_loaded_column_carries_the_top_force_through_every_contact() {
     let (n, r, force) = (5usize, 1.0, 2.0e6);
-    let mut s = scene(0.3);
-    s.gravity = DVec2::new(0.0, -G);
-    s.walls.push(floor());
-    s.walls.push(cdlab::model::Wall {
-        drive: cdlab::model::WallDrive::Force { mass: 1.0e4, force },
-        ..cdlab::model::Wall::fixed(DVec2::new(0.0, 2.0 * r * n as f64), -DVec2::Y)
-    });
-    for k in 0..n {
-        s.disks
-            .push(DVec2::new(0.0, r + 2.0 * r * k as f64), r, RHO)
-            .unwrap();
-    }
+    let s = column(n, r, G, Some(force));
     let weight = s.disks.mass[0] * G;
     let Some(mut g) = gpu_or_skip("column", &s, gpu_params(Method::ColoredGs)) else {
         return;

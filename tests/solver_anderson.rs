@@ -75,14 +75,7 @@ fn a_disk_pushed_along_a_plane_sticks_below_mu_n_and_slides_at_mu_n() {
 #[test]
 fn a_column_under_gravity_carries_the_weight_above_each_contact() {
     let (n, r) = (12, 0.5);
-    let mut s = scene(0.3);
-    s.gravity = DVec2::new(0.0, -G);
-    s.walls.push(floor());
-    for k in 0..n {
-        s.disks
-            .push(DVec2::new(0.0, r + 2.0 * r * k as f64), r, RHO)
-            .unwrap();
-    }
+    let mut s = column(n, r, G, None);
     let mut p = tight(Method::AndersonGs);
     p.solver.tol = 1e-10;
     let mut e = CpuEngine::new(p).unwrap();

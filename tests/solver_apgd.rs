@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use cdlab::engine::CpuEngine;
 use cdlab::fc2d::{Csc, Problem, Space, read, siconos_error};
-use cdlab::model::{Scene, Wall, WallDrive};
+use cdlab::model::{Scene, WallDrive};
 use cdlab::solver::apgd::{Options, solve_with};
 use cdlab::solver::captured::Captured;
 use cdlab::solver::space::{ContactSpace, local_residual};
@@ -129,18 +129,7 @@ fn a_disk_sliding_on_the_floor_in_the_engine_matches_the_closed_form() {
 #[test]
 fn a_loaded_column_carries_the_top_force_plus_the_weights_above() {
     let (n, r, force) = (20, 1.0, 2.0e6);
-    let mut s = scene(0.3);
-    s.gravity = DVec2::new(0.0, -G);
-    s.walls.push(floor());
-    s.walls.push(Wall {
-        drive: WallDrive::Force { mass: 1.0e4, force },
-        ..Wall::fixed(DVec2::new(0.0, 2.0 * r * n as f64), -DVec2::Y)
-    });
-    for k in 0..n {
-        s.disks
-            .push(DVec2::new(0.0, r + 2.0 * r * k as f64), r, RHO)
-            .unwrap();
-    }
+    let mut s = column(n, r, G, Some(force));
     let weight = s.disks.mass[0] * G;
     let mut p = tight(Method::Apgd);
     p.solver.tol = 1e-10;

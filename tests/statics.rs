@@ -3,7 +3,7 @@
 
 mod common;
 
-use cdlab::model::{Scene, Wall, WallDrive};
+use cdlab::model::Scene;
 use cdlab::solver::Method;
 use common::*;
 use glam::DVec2;
@@ -26,21 +26,8 @@ fn column(gravity: bool, method: Method) {
 
 fn column_of(n: usize, gravity: bool, method: Method) {
     let (r, force) = (1.0, 2.0e6);
-    let mut s = scene(0.3);
-    if gravity {
-        s.gravity = DVec2::new(0.0, -G);
-    }
-    s.walls.push(floor());
-    // Top wall: force-driven along its inward normal (-y), mass of the column.
-    s.walls.push(Wall {
-        drive: WallDrive::Force { mass: 1.0e4, force },
-        ..Wall::fixed(DVec2::new(0.0, 2.0 * r * n as f64), -DVec2::Y)
-    });
-    for k in 0..n {
-        s.disks
-            .push(DVec2::new(0.0, r + 2.0 * r * k as f64), r, RHO)
-            .unwrap();
-    }
+    // Top wall: force-driven along its inward normal (-y).
+    let mut s = common::column(n, r, if gravity { G } else { 0.0 }, Some(force));
     let weight = s.disks.mass[0] * G * gravity as u8 as f64;
     let mut e = engine(method);
     for _ in 0..20 {

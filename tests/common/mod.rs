@@ -72,6 +72,28 @@ pub fn sunk_column(n: usize, r: f64, g: f64) -> Scene {
     s
 }
 
+/// A column of `n` touching disks of radius `r` standing on the floor, friction 0.3, with
+/// gravity `g` (m/s^2, downwards) and, when `top_force` is given, a force-driven top wall
+/// of mass 1e4 kg/m touching the highest disk and pushing down with that force (N/m): a
+/// statically determinate chain (the statics tests).
+pub fn column(n: usize, r: f64, g: f64, top_force: Option<f64>) -> Scene {
+    let mut s = scene(0.3);
+    s.gravity = DVec2::new(0.0, -g);
+    s.walls.push(floor());
+    if let Some(force) = top_force {
+        s.walls.push(Wall {
+            drive: cdlab::model::WallDrive::Force { mass: 1.0e4, force },
+            ..Wall::fixed(DVec2::new(0.0, 2.0 * r * n as f64), -DVec2::Y)
+        });
+    }
+    for k in 0..n {
+        s.disks
+            .push(DVec2::new(0.0, r + 2.0 * r * k as f64), r, RHO)
+            .expect("valid disk");
+    }
+    s
+}
+
 /// A small deterministic generator (SplitMix64) so tests need no external crate.
 pub struct Rng(pub u64);
 
