@@ -136,7 +136,7 @@ impl Default for Solver {
             velocity_tol: crate::solver::default_velocity_tol_rel(),
             open_skip_gap: crate::solver::default_open_skip_gap(),
             deep_overlap: 0.0,
-            deep_sweeps: 5,
+            deep_sweeps: 50,
             anderson_depth: crate::solver::default_anderson_depth(),
         }
     }
