@@ -278,9 +278,9 @@ pub const TABLE: &[(Kernel, &[Access])] = &[
             w(Ints, Item, 2 * WORD),
         ],
     ),
-    // One thread: colors, the last round's remainder, the first rounds' remainders
-    // (a few words: the colors' prefix sum is a few dozen words, counted as 4); the
-    // offsets, rounds and remainder.
+    // One thread: the color count and the rounds' remainders, then the per-color counts
+    // rewritten as offsets. A few dozen words in all, whatever the sample: counted as 8
+    // read and 6 written.
     (
         Kernel::ColorOffsets,
         &[r(Ints, Once, 8 * WORD), w(Ints, Once, 6 * WORD)],
