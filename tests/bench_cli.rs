@@ -38,6 +38,7 @@ fn bench_writes_its_report_and_rejects_bad_sizes() {
         "| backend | disks | contacts | iterations/step | ms/step | ns/contact update |",
         "dispatches/step",
         "readbacks/step",
+        "device traffic (MB/step)",
         "host peak (MiB)",
         "device (MiB)",
     ] {
@@ -78,8 +79,8 @@ fn bench_writes_its_report_and_rejects_bad_sizes() {
         );
         if backend.starts_with("cpu") {
             assert_eq!(
-                (d, sub, rb, fixed, f(c, "device_mib")),
-                (0.0, 0.0, 0.0, 0.0, 0.0),
+                (d, sub, rb, fixed, f(c, "device_mib"), f(c, "traffic_mb_per_step")),
+                (0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
                 "{c}"
             );
         } else {
@@ -97,6 +98,13 @@ fn bench_writes_its_report_and_rejects_bad_sizes() {
             assert!(rb > 1.0 && rb <= 2.0 + it / 4.0, "readbacks {rb}: {c}");
             assert!(sub >= rb, "{c}");
             assert!(f(c, "device_mib") > 0.0, "{c}");
+            // The sweeps alone move 204 bytes per contact and iteration (src/gpu/traffic.rs:
+            // the record, two velocities read and written, impulses and convergence terms).
+            let mb = f(c, "traffic_mb_per_step");
+            assert!(
+                mb >= 0.9 * 204e-6 * contacts * it,
+                "device traffic {mb} MB/step: {c}"
+            );
         }
     }
     for bad in [["--disks", "0"], ["--steps", "0"]] {

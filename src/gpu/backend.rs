@@ -36,6 +36,13 @@ pub struct GpuCounters {
     pub iterations: u64,
     /// Coloring rounds (Jones-Plassmann-Luby) of the steps taken.
     pub color_rounds: u64,
+    /// Bytes the dispatches recorded load from device buffers, by the per-kernel table of
+    /// [`super::traffic`] (its counting rules say what is left out).
+    pub bytes_read: u64,
+    /// Bytes the dispatches recorded store, as `bytes_read`.
+    pub bytes_written: u64,
+    /// Bytes copied to the host by the readbacks.
+    pub readback_bytes: u64,
 }
 
 /// Rejects the solver methods that have no GPU form (`Method::on_gpu`),
@@ -270,6 +277,7 @@ impl GpuBackend {
         rx.recv()
             .map_err(|e| gpu.failure("reading back a result", e))?
             .map_err(|e| gpu.failure("mapping a readback buffer", e))?;
+        self.counters.readback_bytes += staging.size();
         let bytes = staging
             .get_mapped_range(..)
             .map_err(|e| gpu.failure("reading a mapped buffer", format!("{e:?}")))?

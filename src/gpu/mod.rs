@@ -4,13 +4,15 @@
 //! - [`device`]: adapter selection and listing;
 //! - [`buffers`]: `#[repr(C)]` Pod records (f32) and the device buffers with their capacities;
 //! - [`pipeline`]: shader composition and the compute pipelines;
-//! - [`backend`]: [`GpuBackend`], the [`crate::backend::Backend`] the protocol drives.
+//! - [`backend`]: [`GpuBackend`], the [`crate::backend::Backend`] the protocol drives;
+//! - [`traffic`]: the bytes each kernel reads and writes per item, which the counters add up.
 
 pub mod backend;
 pub mod buffers;
 pub mod device;
 pub mod pipeline;
 mod step;
+pub mod traffic;
 
 pub use backend::{GpuBackend, GpuCounters};
 

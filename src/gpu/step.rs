@@ -23,6 +23,7 @@ use super::buffers::float_slot::{
 };
 use super::buffers::{ARGS_STRIDE, SimParams, round_slot, status};
 use super::pipeline::Kernel;
+use super::traffic::{self, Counts};
 use crate::backend::{Loading, Reductions};
 use crate::error::{Error, Result};
 use crate::solver::Method;
@@ -31,11 +32,18 @@ fn groups(n: u32) -> u32 {
     n.div_ceil(WG)
 }
 
-/// A compute pass with the shared bind groups set and a dispatch counter.
+/// The dispatches of a recording, for their byte counts: each kernel with the items it
+/// covers, `None` for an indirect dispatch over the contacts (counted on the device, known
+/// to the host once it reads the status words back).
+type Log = Vec<(Kernel, Option<u32>)>;
+
+/// A compute pass with the shared bind groups set, a dispatch counter and a log of the
+/// dispatches for their traffic ([`GpuBackend::charge`]).
 struct Rec<'a> {
     pass: wgpu::ComputePass<'a>,
     b: &'a GpuBackend,
     dispatches: u64,
+    log: Log,
 }
 
 impl<'a> Rec<'a> {
@@ -51,14 +59,17 @@ impl<'a> Rec<'a> {
             pass,
             b,
             dispatches: 0,
+            log: Vec::new(),
         }
     }
 
-    /// Dispatches `x` workgroups of `kernel` with argument slot `slot`.
-    fn go(&mut self, kernel: Kernel, slot: u32, x: u32) {
+    /// Dispatches `x` workgroups of `kernel` with argument slot `slot`, over `items` items
+    /// (the count its per-item traffic is multiplied by, see [`super::traffic`]).
+    fn go(&mut self, kernel: Kernel, slot: u32, x: u32, items: u32) {
         if x == 0 {
             return;
         }
+        self.log.push((kernel, Some(items)));
         self.pass.set_pipeline(self.b.pipes.get(kernel));
         self.pass
             .set_bind_group(1, &self.b.bind.1, &[(slot as u64 * ARGS_STRIDE) as u32]);
@@ -78,6 +89,12 @@ impl<'a> Rec<'a> {
             .set_bind_group(1, &self.b.bind.1, &[(slot as u64 * ARGS_STRIDE) as u32]);
         self.pass.dispatch_workgroups_indirect(&self.b.bufs.indirect, 0);
         self.dispatches += 1;
+        self.log.push((kernel, None));
+    }
+
+    /// Ends the pass: the dispatches recorded and their log.
+    fn finish(self) -> (u64, Log) {
+        (self.dispatches, self.log)
     }
 }
 
@@ -127,6 +144,22 @@ impl GpuBackend {
 
     /// Submits `enc`; validation errors of the recording (a dispatch beyond the adapter's
     /// limits, say) are reported by wgpu on the spot and end the run here.
+    /// Adds the bytes of the dispatches in `log` to the counters, for a step with `n`
+    /// contacts (the items of the indirect dispatches).
+    fn charge(&mut self, log: &Log, n: u32) {
+        let walls = self.sim.n_walls as u64;
+        for &(kernel, items) in log {
+            let counts = Counts {
+                items: items.unwrap_or(n) as u64,
+                contacts: n as u64,
+                walls,
+            };
+            let b = traffic::bytes(kernel, counts);
+            self.counters.bytes_read += b.read;
+            self.counters.bytes_written += b.written;
+        }
+    }
+
     fn submit(&mut self, enc: wgpu::CommandEncoder) -> Result<()> {
         self.gpu.queue.submit([enc.finish()]);
         self.counters.submissions += 1;
@@ -141,37 +174,43 @@ impl GpuBackend {
             let rounds = self.rounds_hint.clamp(1, self.cap.rounds);
             let mut enc = self.gpu.device.create_command_encoder(&Default::default());
             let mut d = 0;
+            let mut log = Log::new();
+            let clear = self.bufs.layout.clear_len;
             {
                 let mut r = Rec::new(&mut enc, self);
-                r.go(Kernel::ClearInts, 0, groups(self.bufs.layout.clear_len));
-                r.go(Kernel::FreeVelocity, 0, groups(nb));
-                r.go(Kernel::GridBounds, 0, 1);
-                r.go(Kernel::GridCount, 0, groups(nd));
-                r.go(Kernel::Scan, 1, 1);
-                r.go(Kernel::GridScatter, 0, groups(nd));
-                r.go(Kernel::Detect, 0, groups(nd));
-                r.go(Kernel::Scan, 2, 1);
-                r.go(Kernel::ContactArgs, 0, 1);
-                d += r.dispatches;
+                r.go(Kernel::ClearInts, 0, groups(clear), clear);
+                r.go(Kernel::FreeVelocity, 0, groups(nb), nb);
+                r.go(Kernel::GridBounds, 0, 1, nd);
+                r.go(Kernel::GridCount, 0, groups(nd), nd);
+                r.go(Kernel::Scan, 1, 1, self.sim.cap_cells);
+                r.go(Kernel::GridScatter, 0, groups(nd), nd);
+                r.go(Kernel::Detect, 0, groups(nd), nd);
+                r.go(Kernel::Scan, 2, 1, nd);
+                r.go(Kernel::ContactArgs, 0, 1, 1);
+                let (k, l) = r.finish();
+                d += k;
+                log.extend(l);
             }
             let o = 4 * (self.sim.o_status as u64 + status::ARGS as u64);
             enc.copy_buffer_to_buffer(&self.bufs.ints, o, &self.bufs.indirect, 0, 12);
             {
                 let mut r = Rec::new(&mut enc, self);
-                r.go(Kernel::BuildContacts, 0, groups(nd));
+                r.go(Kernel::BuildContacts, 0, groups(nd), nd);
                 r.go_contacts(Kernel::IncidenceCount);
-                r.go(Kernel::Scan, 3, 1);
+                r.go(Kernel::Scan, 3, 1, nb);
                 r.go_contacts(Kernel::IncidenceFill);
                 r.go_contacts(Kernel::IncidenceRank);
-                r.go(Kernel::Gather, 0, groups(nb));
+                r.go(Kernel::Gather, 0, groups(nb), nb);
                 r.go_contacts(Kernel::ColorSeed);
                 for k in 1..=rounds {
                     r.go_contacts_with(Kernel::ColorRound, round_slot(self.cap, k));
                 }
                 r.go_contacts(Kernel::ColorCount);
-                r.go(Kernel::ColorOffsets, round_slot(self.cap, rounds), 1);
+                r.go(Kernel::ColorOffsets, round_slot(self.cap, rounds), 1, 1);
                 r.go_contacts(Kernel::ColorScatter);
-                d += r.dispatches;
+                let (k, l) = r.finish();
+                d += k;
+                log.extend(l);
             }
             self.counters.dispatches += d;
             self.submit(enc)?;
@@ -181,6 +220,8 @@ impl GpuBackend {
             let st: Vec<u32> = bytemuck::cast_slice(&bytes).to_vec();
             let mut cap = self.cap;
             let n = st[status::CONTACTS];
+            // The kernels ran over the contacts that fit (WGSL `n_contacts`).
+            self.charge(&log, n.min(cap.contacts));
             if n > cap.contacts {
                 cap.contacts = n + n / 4 + 64;
             }
@@ -261,17 +302,19 @@ impl GpuBackend {
                 r.go_contacts(Kernel::DeepMark);
                 for _ in 0..p.deep_sweeps {
                     for (c, w) in self.color_offsets.windows(2).enumerate() {
-                        r.go(Kernel::DeepColor, 4 + c as u32, groups(w[1] - w[0]));
+                        let m = w[1] - w[0];
+                        r.go(Kernel::DeepColor, 4 + c as u32, groups(m), m);
                     }
                 }
-                r.go(Kernel::DeepTally, 0, 1);
+                r.go(Kernel::DeepTally, 0, 1, 1);
             }
-            r.go(Kernel::Integrate, 0, groups(nb));
-            r.go(Kernel::WallImpulse, 0, self.sim.n_walls);
-            r.go(Kernel::SavePrev, 0, groups(n.max(nd + 1)));
-            let d = r.dispatches;
-            drop(r);
+            r.go(Kernel::Integrate, 0, groups(nb), nb);
+            let nw = self.sim.n_walls;
+            r.go(Kernel::WallImpulse, 0, nw, nw);
+            r.go(Kernel::SavePrev, 0, groups(n.max(nd + 1)), nd + 1);
+            let (d, log) = r.finish();
             self.counters.dispatches += d;
+            self.charge(&log, n);
         }
         self.submit(enc)?;
         self.counters.steps += 1;
@@ -324,25 +367,26 @@ impl GpuBackend {
                 let mut r = Rec::new(&mut enc, self);
                 for k in 0..batch {
                     if velocity_test && k + 1 == batch {
-                        r.go(Kernel::SaveIterate, 0, groups(nb));
+                        r.go(Kernel::SaveIterate, 0, groups(nb), nb);
                     }
                     if jacobi {
-                        r.go(Kernel::JacobiSolve, 0, groups(n));
-                        r.go(Kernel::JacobiCommit, 0, groups(n));
-                        r.go(Kernel::Gather, 0, groups(nb));
+                        r.go(Kernel::JacobiSolve, 0, groups(n), n);
+                        r.go(Kernel::JacobiCommit, 0, groups(n), n);
+                        r.go(Kernel::Gather, 0, groups(nb), nb);
                     } else {
                         for (c, w) in self.color_offsets.windows(2).enumerate() {
-                            r.go(Kernel::SweepColor, 4 + c as u32, groups(w[1] - w[0]));
+                            let m = w[1] - w[0];
+                            r.go(Kernel::SweepColor, 4 + c as u32, groups(m), m);
                         }
                     }
                 }
-                r.go(Kernel::ConvReduce, 0, 1);
+                r.go(Kernel::ConvReduce, 0, 1, n);
                 if velocity_test {
-                    r.go(Kernel::VelocityChange, 0, 1);
+                    r.go(Kernel::VelocityChange, 0, 1, nb);
                 }
-                let d = r.dispatches;
-                drop(r);
+                let (d, log) = r.finish();
                 self.counters.dispatches += d;
+                self.charge(&log, n);
             }
             self.submit(enc)?;
             done += batch;
@@ -380,10 +424,11 @@ impl GpuBackend {
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         {
             let mut r = Rec::new(&mut enc, self);
-            r.go(Kernel::ReduceFinal, 0, 1);
-            let d = r.dispatches;
-            drop(r);
+            r.go(Kernel::ReduceFinal, 0, 1, self.sim.n_disks);
+            let (d, log) = r.finish();
             self.counters.dispatches += d;
+            let n = self.n_contacts;
+            self.charge(&log, n);
         }
         self.submit(enc)?;
         let floats = self.bufs.floats.clone();

@@ -46,6 +46,9 @@ pub struct Case {
     /// convergence reduction per check (the fixed phases of a step); constant across sizes
     /// and iteration counts when each iteration costs one dispatch per color.
     pub fixed_dispatches_per_step: f64,
+    /// GPU: bytes the dispatches read and write per step (MB), by the per-kernel table of
+    /// `gpu::traffic` (0 on the CPU).
+    pub traffic_mb_per_step: f64,
     /// Peak resident memory of the process so far (MiB, VmHWM).
     pub host_peak_mib: f64,
     /// Device buffers (MiB; 0 on the CPU).
@@ -93,6 +96,12 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, warmup: u32,
         ),
         _ => (0.0, 0),
     };
+    let traffic = match (before, after) {
+        (Some((a, _)), Some((b, _))) => {
+            (b.bytes_read + b.bytes_written - a.bytes_read - a.bytes_written) as f64 / steps / 1e6
+        }
+        _ => 0.0,
+    };
     let (dispatches, submissions, readbacks, fixed) = match (before, after) {
         (Some(a), Some(b)) => {
             let ((a, every), (b, _)) = (a, b);
@@ -125,6 +134,7 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, warmup: u32,
         submissions_per_step: submissions,
         readbacks_per_step: readbacks,
         fixed_dispatches_per_step: fixed,
+        traffic_mb_per_step: traffic,
         host_peak_mib: host_peak_mib(),
         device_mib: (probe.device_mib)(backend),
     })
