@@ -142,8 +142,6 @@ impl GpuBackend {
         self.finish_reductions(red, loading)
     }
 
-    /// Submits `enc`; validation errors of the recording (a dispatch beyond the adapter's
-    /// limits, say) are reported by wgpu on the spot and end the run here.
     /// Adds the bytes of the dispatches in `log` to the counters, for a step with `n`
     /// contacts (the items of the indirect dispatches).
     fn charge(&mut self, log: &Log, n: u32) {
@@ -160,6 +158,8 @@ impl GpuBackend {
         }
     }
 
+    /// Submits `enc`; validation errors of the recording (a dispatch beyond the adapter's
+    /// limits, say) are reported by wgpu on the spot and end the run here.
     fn submit(&mut self, enc: wgpu::CommandEncoder) -> Result<()> {
         self.gpu.queue.submit([enc.finish()]);
         self.counters.submissions += 1;
