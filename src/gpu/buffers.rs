@@ -334,7 +334,7 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
     p.o_cell_of = take(&mut o, nd);
     p.o_slots = take(&mut o, nd * cap.k_slots);
     p.o_inc_list = take(&mut o, 2 * cap.contacts);
-    // Also the deep contacts' scratch after the coloring (solve.wgsl, `deep_flags`).
+    // Also the deep contacts' scratch after the coloring (solve.wgsl, `deep_list`).
     p.o_inc_tmp = take(&mut o, 2 * cap.contacts);
     p.o_order = take(&mut o, cap.contacts);
     p.o_color = take(&mut o, cap.contacts);
