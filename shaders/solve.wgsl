@@ -66,7 +66,10 @@ fn sweep_color(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 // Local updates of deep contacts (CPU twin: the end of solver::sweep::solve), part 1: after
 // the iterations, mark each loaded contact overlapping by more than sim.deep_gap, and count
-// them. Contacts with a full 2x2 block (glued walls) are left out, as on the CPU.
+// them. Contacts with a full 2x2 block (glued walls) are left out, as on the CPU. Each deep
+// contact is also filed at the head of its color's range of `order`, in deep_list (any
+// order within a color: see part 2): color_scatter left the color's fill counter at the
+// color's size, and counting on from there gives the slot.
 @compute @workgroup_size(WG)
 fn deep_mark(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.x;
@@ -74,23 +77,73 @@ fn deep_mark(@builtin(global_invocation_id) gid: vec3<u32>) {
     let c = contacts[k];
     let deep = c.rn > 0.0 && c.gap < -sim.deep_gap && c.wnt == 0.0 && c.ma == 0.0;
     contacts[k].deep = u32(deep);
-    if deep { atomicAdd(&ints[sim.o_status + ST_DEEP], 1u); }
+    if deep {
+        atomicAdd(&ints[sim.o_status + ST_DEEP], 1u);
+        let start = ld(sim.o_color_count + c.color);
+        let size = ld(sim.o_color_count + c.color + 1u) - start;
+        let slot = atomicAdd(&ints[sim.o_color_fill + c.color], 1u) - size;
+        st(deep_list() + start + slot, k);
+    }
 }
 
-// Part 2: one color's marked contacts updated once more, unrelaxed (the selection does not
-// change during the updates, as on the CPU).
+// The deep contacts' scratch: the incidence lists' unsorted copy (o_inc_tmp, 2 x
+// cap_contacts words) is dead once incidence_rank has sorted it, until the next step's
+// incidence_fill rewrites it. Its first half takes the deep contacts at the positions of
+// `order` (deep_list), its second half the colors that hold some (deep_runs_at). The
+// per-color fill counters (o_color_fill, cleared at the next step's start) carry the count.
+fn deep_list() -> u32 { return sim.o_inc_tmp; }
+fn deep_runs_at() -> u32 { return sim.o_inc_tmp + sim.cap_contacts; }
+
+var<workgroup> deep_runs: u32;
+
+// Part 2, in one workgroup (one dispatch whatever sim.deep_sweeps and the colors): add the
+// step's count to the sum since the last reduction (u32 bits); list the colors holding deep
+// contacts; then sim.deep_sweeps times, each such color's deep contacts updated once more,
+// unrelaxed, the colors in increasing order with a barrier between two: the result of the
+// color-ordered sequential sweep of the deep contacts. Contacts of one color share no
+// movable body, so the threads of a color never write the same velocity and their updates
+// commute (the order within a color does not matter); the barrier hands the next color the
+// velocities this one wrote. The selection does not change during the updates, as on the
+// CPU. Barriers need uniform control flow: the number of colors to sweep reaches every
+// thread through workgroupUniformLoad. llvmpipe (lavapipe) ends the loops of an invocation
+// after 65,535 iterations in all (see scan.wgsl): the sweeps cost deep_sweeps x (colors
+// holding deep contacts) x (1 + the largest such color's deep contacts / WG) of them.
 @compute @workgroup_size(WG)
-fn deep_color(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let k = color_member(gid.x);
-    if k == UNSET || contacts[k].deep == 0u { return; }
-    _ = gs_update(k, 1.0);
-}
-
-// Part 3: the step's count added to the sum since the last reduction (u32 bits; one thread).
-@compute @workgroup_size(1)
-fn deep_tally() {
-    let sum = bitcast<u32>(floats[sim.f_deep]) + ld(sim.o_status + ST_DEEP);
-    floats[sim.f_deep] = bitcast<f32>(sum);
+fn deep_updates(@builtin(local_invocation_index) t: u32) {
+    if t == 0u {
+        let count = ld(sim.o_status + ST_DEEP);
+        floats[sim.f_deep] = bitcast<f32>(bitcast<u32>(floats[sim.f_deep]) + count);
+        var runs = 0u;
+        if count > 0u {
+            let n_colors = min(ld(sim.o_status + ST_COLORS), sim.max_colors);
+            for (var col = 0u; col < n_colors; col++) {
+                let size = ld(sim.o_color_count + col + 1u) - ld(sim.o_color_count + col);
+                let deep = ld(sim.o_color_fill + col) - size;
+                st(sim.o_color_fill + col, deep);
+                if deep > 0u {
+                    st(deep_runs_at() + runs, col);
+                    runs++;
+                }
+            }
+        }
+        deep_runs = runs;
+    }
+    // The counts and the list of colors, written by thread 0, for every thread.
+    storageBarrier();
+    let n_runs = workgroupUniformLoad(&deep_runs);
+    // A step without deep contacts ends here.
+    if n_runs == 0u { return; }
+    for (var s = 0u; s < sim.deep_sweeps; s++) {
+        for (var run = 0u; run < n_runs; run++) {
+            let col = ld(deep_runs_at() + run);
+            let lo = ld(sim.o_color_count + col);
+            let hi = lo + ld(sim.o_color_fill + col);
+            for (var i = lo + t; i < hi; i += WG) {
+                _ = gs_update(ld(deep_list() + i), 1.0);
+            }
+            storageBarrier();
+        }
+    }
 }
 
 // Jacobi, part 1: every contact from the same velocities, relaxed by sim.relax.

@@ -119,6 +119,7 @@ fn records() -> Vec<(&'static str, &'static str, usize, Vec<Field>)> {
                 o_inc_tmp,
                 f_deep,
                 deep_gap,
+                deep_sweeps,
                 pad
             }),
         ),

@@ -174,6 +174,7 @@ impl GpuBackend {
         sim.e_t = s.material.e_t as f32;
         sim.gap_tol = zero_gap_tolerance(s) as f32;
         sim.deep_gap = p.solver.deep_gap as f32;
+        sim.deep_sweeps = p.solver.deep_sweeps;
         // The solver loop sets the relaxation of each batch of iterations.
         sim.gs_relax = 1.0;
         let strips = !l.strip.is_empty() && l.sigma3 != 0.0;

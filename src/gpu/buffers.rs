@@ -146,7 +146,9 @@ pub struct SimParams {
     pub f_deep: u32,
     /// Overlap beyond which a loaded contact gets local updates (m; 0: none).
     pub deep_gap: f32,
-    pub pad: [u32; 2],
+    /// Local updates of each deep contact per step (solve.wgsl, `deep_updates`).
+    pub deep_sweeps: u32,
+    pub pad: u32,
 }
 
 /// The per-dispatch arguments (WGSL `Args`, 16 bytes), one per [`ARGS_STRIDE`] slot of the
@@ -332,6 +334,7 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
     p.o_cell_of = take(&mut o, nd);
     p.o_slots = take(&mut o, nd * cap.k_slots);
     p.o_inc_list = take(&mut o, 2 * cap.contacts);
+    // Also the deep contacts' scratch after the coloring (solve.wgsl, `deep_list`).
     p.o_inc_tmp = take(&mut o, 2 * cap.contacts);
     p.o_order = take(&mut o, cap.contacts);
     p.o_color = take(&mut o, cap.contacts);

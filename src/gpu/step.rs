@@ -9,7 +9,8 @@
 //!    and A is recorded again (nothing in A changes the state).
 //! 2. submissions B: `conv_every` iterations (one dispatch per color, or three for
 //!    Jacobi) and a convergence reduction; one readback of two floats each.
-//! 3. submission C: integration, wall impulses, saving the impulses for the warm start.
+//! 3. submission C: local updates of deep contacts (two dispatches), integration, wall
+//!    impulses, saving the impulses for the warm start.
 //!
 //! At the end of a run, one more submission reduces counts, overlaps and energies.
 
@@ -297,16 +298,11 @@ impl GpuBackend {
             let mut r = Rec::new(&mut enc, self);
             let p = self.params.solver;
             if p.deep_updates() && n > 0 {
-                // Local updates of deep contacts: one dispatch per color and update, as
-                // the iterations (the selection is made once, before them).
+                // Local updates of deep contacts: the selection, then every sweep over the
+                // colors in one workgroup, so that the phase costs two dispatches whatever
+                // deep_sweeps and the colors (recorded every step: the count is on the device).
                 r.go_contacts(Kernel::DeepMark);
-                for _ in 0..p.deep_sweeps {
-                    for (c, w) in self.color_offsets.windows(2).enumerate() {
-                        let m = w[1] - w[0];
-                        r.go(Kernel::DeepColor, 4 + c as u32, groups(m), m);
-                    }
-                }
-                r.go(Kernel::DeepTally, 0, 1, 1);
+                r.go(Kernel::DeepUpdates, 0, 1, 1);
             }
             r.go(Kernel::Integrate, 0, groups(nb), nb);
             let nw = self.sim.n_walls;

@@ -363,22 +363,21 @@ pub const TABLE: &[(Kernel, &[Access])] = &[
             w(Ints, Item, 0),
         ],
     ),
-    // Over a color's members: the two offsets, the index, the mark; a marked contact (few)
-    // does a Gauss-Seidel update.
+    // One workgroup, once: the step's count, the sum; the sum. Then the colors holding
+    // deep contacts and those contacts' Gauss-Seidel updates, off the common path (none
+    // in a settled packing).
     (
-        Kernel::DeepColor,
+        Kernel::DeepUpdates,
         &[
-            r(Ints, Item, 3 * WORD),
-            r(Contacts, Item, WORD),
-            r(Vel, Item, 0),
-            w(Vel, Item, 0),
-            w(Contacts, Item, 0),
+            r(Ints, Once, WORD),
+            r(Floats, Once, WORD),
+            w(Floats, Once, WORD),
+            w(Ints, Once, 0),
+            r(Contacts, Once, 0),
+            w(Contacts, Once, 0),
+            r(Vel, Once, 0),
+            w(Vel, Once, 0),
         ],
-    ),
-    // One thread: the sum and the step's count; the sum.
-    (
-        Kernel::DeepTally,
-        &[r(Floats, Once, WORD), r(Ints, Once, WORD), w(Floats, Once, WORD)],
     ),
     // Over bodies: both velocity regions, the disk; its x, y, theta, its velocity. Each
     // wall body reads and writes its point.

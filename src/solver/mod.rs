@@ -134,7 +134,7 @@ pub struct SolverParams {
     /// deepen by it step after step (docs/results.md, "Which contact, and why"). Its neighbours
     /// take the change. Contacts with a force-driven wall (solved with the full 2x2 law)
     /// are left out. 0 turns it off, as in records written before it; Gauss-Seidel only (on
-    /// the GPU, in color order: WGSL `deep_color`).
+    /// the GPU, in color order: WGSL `deep_updates`).
     #[serde(default)]
     pub deep_gap: f64,
     /// See `deep_gap`.
