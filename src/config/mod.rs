@@ -221,7 +221,7 @@ impl Config {
                     gs_relax_after: v.gs_relax_after,
                     velocity_tol: v.velocity_tol * r_min / v.dt.si(),
                     open_skip: v.open_skip_gap * r_min / v.dt.si(),
-                    deep_gap: v.deep_overlap * r_min,
+                    deep_gap: v.deep_overlap_rel() * r_min,
                     deep_sweeps: v.deep_sweeps,
                     anderson_depth: v.anderson_depth,
                 },

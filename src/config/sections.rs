@@ -109,8 +109,10 @@ pub struct Solver {
     /// of the step are left out of the sweeps; 0 sweeps every candidate.
     pub open_skip_gap: f64,
     /// Overlap, as a fraction of `sample.r_min`, beyond which a loaded contact gets
-    /// `deep_sweeps` more local updates after each solve; 0 turns them off.
-    pub deep_overlap: f64,
+    /// `deep_sweeps` more local updates after each solve; 0 turns them off. Unset, it is
+    /// the method's own ([`Solver::deep_overlap_rel`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub deep_overlap: Option<f64>,
     /// Local updates of each contact beyond `deep_overlap` after a solve.
     pub deep_sweeps: u32,
     /// Anderson depth of `method = "anderson-gs"` (iterates mixed, minus one).
@@ -135,10 +137,23 @@ impl Default for Solver {
             gs_relax_after: crate::solver::default_gs_relax_after(),
             velocity_tol: crate::solver::default_velocity_tol_rel(),
             open_skip_gap: crate::solver::default_open_skip_gap(),
-            deep_overlap: 0.0,
+            deep_overlap: None,
             deep_sweeps: 50,
             anderson_depth: crate::solver::default_anderson_depth(),
         }
+    }
+}
+
+impl Solver {
+    /// The overlap beyond which loaded contacts get local updates (fraction of
+    /// `sample.r_min`; 0 for none): `deep_overlap` when set, else
+    /// [`crate::solver::default_deep_overlap_rel`] for the Gauss-Seidel methods and 0 for
+    /// the others, which do not implement the updates.
+    pub fn deep_overlap_rel(&self) -> f64 {
+        self.deep_overlap.unwrap_or(match self.method {
+            Method::Gs | Method::ColoredGs => crate::solver::default_deep_overlap_rel(),
+            Method::Jacobi | Method::Apgd | Method::AndersonGs => 0.0,
+        })
     }
 }
 

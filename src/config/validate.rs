@@ -168,7 +168,10 @@ impl Config {
         check_half_open("solver.gs_relax", v.gs_relax, 0.0, 1.0)?;
         check_non_negative("solver.velocity_tol", v.velocity_tol)?;
         check_non_negative("solver.open_skip_gap", v.open_skip_gap)?;
-        check_non_negative("solver.deep_overlap", v.deep_overlap)?;
+        // Before deep_overlap, which must stay below it.
+        check_positive("solver.overlap_limit", v.overlap_limit)?;
+        let deep_overlap = v.deep_overlap_rel();
+        check_non_negative("solver.deep_overlap", deep_overlap)?;
         if v.anderson_depth > crate::solver::MAX_ANDERSON_DEPTH {
             return Err(Error::invalid(
                 "solver.anderson_depth",
@@ -176,19 +179,19 @@ impl Config {
                 &format!("must be <= {}", crate::solver::MAX_ANDERSON_DEPTH),
             ));
         }
-        if v.deep_overlap > 0.0 && v.method == Method::AndersonGs {
+        if deep_overlap > 0.0 && v.method == Method::AndersonGs {
             return Err(Error::invalid(
                 "solver.deep_overlap",
-                v.deep_overlap,
+                deep_overlap,
                 "is not implemented with method = \"anderson-gs\": 0 with it",
             ));
         }
-        if v.deep_overlap > 0.0 {
+        if deep_overlap > 0.0 {
             check_at_least("solver.deep_sweeps", v.deep_sweeps.into(), 1, "a local update")?;
-            if v.deep_overlap >= v.overlap_limit {
+            if deep_overlap >= v.overlap_limit {
                 return Err(Error::invalid(
                     "solver.deep_overlap",
-                    v.deep_overlap,
+                    deep_overlap,
                     &format!(
                         "must be below solver.overlap_limit = {} (the run stops there)",
                         v.overlap_limit
@@ -198,7 +201,6 @@ impl Config {
         }
         check_range("solver.alert_distance", v.alert_distance, 0.0, 1.0)?;
         check_at_least("solver.check_every", v.check_every.into(), 1, "a check interval")?;
-        check_positive("solver.overlap_limit", v.overlap_limit)?;
 
         let c = &self.compaction;
         check_positive("compaction.sigma_c", c.sigma_c.0)?;

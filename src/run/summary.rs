@@ -36,7 +36,7 @@ pub fn summary_of(
     );
     summary.dt_s = Some(config.solver.dt.si());
     summary.deep_contacts = crate::measure::summary::DeepContacts::of_run(
-        config.solver.deep_overlap,
+        config.solver.deep_overlap_rel(),
         config.solver.deep_sweeps,
         rows,
     );

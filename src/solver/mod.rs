@@ -146,6 +146,16 @@ pub struct SolverParams {
     pub anderson_depth: u32,
 }
 
+/// Default of the configuration's `solver.deep_overlap` for the Gauss-Seidel methods, as a
+/// fraction of `r_min` ([`SolverParams::deep_gap`] is this times `r_min`): loaded contacts
+/// deeper than this leave each step satisfying their law, which holds the largest overlap
+/// near it at every friction at the paper's time step (docs/results.md, "Every friction at
+/// 0.5 ms"). Contacts that stay shallower, as every contact of most low-friction tests
+/// does, are not affected.
+pub fn default_deep_overlap_rel() -> f64 {
+    0.005
+}
+
 /// Default of [`SolverParams::anderson_depth`] (docs/method.md, "Anderson-accelerated
 /// Gauss-Seidel").
 pub fn default_anderson_depth() -> u32 {
