@@ -103,9 +103,10 @@ fn overlap_warning(label: &str, row: &SeriesRow, within_half: Option<(u64, f64)>
          {:.2}% at step {} ({}, axial strain {:.4}); {since}. A contact that closes fast \
          within a step needs a smaller solver.dt; one that sinks slowly under load over \
          many steps (the solver's residual) needs further convergence, which a smaller \
-         step gives only in part and solver.deep_overlap (say 0.005) gives to the deep \
-         contacts alone (`cdlab overlaps RUN` names the pair from the snapshots; docs/results.md, \
-         \"Overlaps at high friction\")",
+         step gives only in part and local updates of deep contacts give to the deep \
+         contacts alone (solver.deep_overlap unset or 0.005 with a Gauss-Seidel method, \
+         solver.deep_sweeps 50; `cdlab overlaps RUN` names the pair from the snapshots; \
+         docs/results.md, \"Every friction at 0.5 ms\")",
         OVERLAP_BOUND_REL * 100.0,
         row.overlap_max_rel * 100.0,
         row.step,
