@@ -333,7 +333,11 @@ fn a_run_warns_once_when_its_overlaps_pass_the_bound() {
     let cfg = small_config(&base);
     let coarse = base.join("coarse.toml");
     let text = std::fs::read_to_string(&cfg).unwrap();
-    std::fs::write(&coarse, text.replace("[solver]\n", "[solver]\ndt = \"1 ms\"\ndeep_overlap = 0.0\n")).unwrap();
+    std::fs::write(
+        &coarse,
+        text.replace("[solver]\n", "[solver]\ndt = \"1 ms\"\ndeep_overlap = 0.0\n"),
+    )
+    .unwrap();
     for (config, name) in [(&coarse, "coarse"), (&cfg, "fine")] {
         let out = base.join(name);
         let (ok, text) = cdlab(&[
