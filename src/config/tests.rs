@@ -91,6 +91,9 @@ fn each_bad_value_is_rejected_naming_its_field() {
             "[solver]\ndeep_overlap = 0.005\ndeep_sweeps = 0",
             "solver.deep_sweeps",
         ),
+        // Beyond what chains of deep contacts need, and beyond what one GPU workgroup
+        // loops through on a software adapter.
+        ("[solver]\ndeep_sweeps = 1001", "solver.deep_sweeps"),
         (
             "[solver]\nmethod = \"jacobi\"\ndeep_overlap = 0.005",
             "solver.deep_overlap",

@@ -172,6 +172,13 @@ impl Config {
         check_positive("solver.overlap_limit", v.overlap_limit)?;
         let deep_overlap = v.deep_overlap_rel();
         check_non_negative("solver.deep_overlap", deep_overlap)?;
+        if v.deep_sweeps > crate::solver::MAX_DEEP_SWEEPS {
+            return Err(Error::invalid(
+                "solver.deep_sweeps",
+                v.deep_sweeps,
+                &format!("must be <= {}", crate::solver::MAX_DEEP_SWEEPS),
+            ));
+        }
         if v.anderson_depth > crate::solver::MAX_ANDERSON_DEPTH {
             return Err(Error::invalid(
                 "solver.anderson_depth",

@@ -291,6 +291,13 @@ impl SolverParams {
                 "is not implemented with method = \"anderson-gs\": 0 with it",
             ));
         }
+        if self.deep_sweeps > MAX_DEEP_SWEEPS {
+            return Err(Error::invalid(
+                "solver.deep_sweeps",
+                self.deep_sweeps,
+                &format!("must be <= {MAX_DEEP_SWEEPS}"),
+            ));
+        }
         if self.anderson_depth > MAX_ANDERSON_DEPTH {
             return Err(Error::invalid(
                 "solver.anderson_depth",
@@ -319,6 +326,12 @@ impl SolverParams {
 /// Largest [`SolverParams::anderson_depth`]: the history holds two vectors of all impulses per
 /// unit of depth, and beyond a few tens the fit is dominated by stale differences.
 pub const MAX_ANDERSON_DEPTH: u32 = 50;
+
+/// Largest [`SolverParams::deep_sweeps`]: chains of deep contacts converge within a few
+/// hundred sweeps, and the GPU runs them all in one workgroup, whose loops a software
+/// adapter (lavapipe) cuts off after 65,535 iterations (shaders/solve.wgsl, `deep_updates`):
+/// at this bound and 11 colors, that leaves room for about 300 deep contacts per color.
+pub const MAX_DEEP_SWEEPS: u32 = 1000;
 
 /// Default of the gap beyond which an open contact is left out of the sweeps, as a
 /// fraction of `r_min` ([`SolverParams::open_skip`] is this times `r_min / dt`): a contact
