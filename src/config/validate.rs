@@ -172,20 +172,6 @@ impl Config {
         check_positive("solver.overlap_limit", v.overlap_limit)?;
         let deep_overlap = v.deep_overlap_rel();
         check_non_negative("solver.deep_overlap", deep_overlap)?;
-        if v.deep_sweeps > crate::solver::MAX_DEEP_SWEEPS {
-            return Err(Error::invalid(
-                "solver.deep_sweeps",
-                v.deep_sweeps,
-                &format!("must be <= {}", crate::solver::MAX_DEEP_SWEEPS),
-            ));
-        }
-        if v.anderson_depth > crate::solver::MAX_ANDERSON_DEPTH {
-            return Err(Error::invalid(
-                "solver.anderson_depth",
-                v.anderson_depth,
-                &format!("must be <= {}", crate::solver::MAX_ANDERSON_DEPTH),
-            ));
-        }
         if deep_overlap > 0.0 && v.method == Method::AndersonGs {
             return Err(Error::invalid(
                 "solver.deep_overlap",
@@ -264,7 +250,8 @@ impl Config {
         }
         check_at_least("output.series_every", o.series_every, 1, "a number of steps")?;
         check_non_negative("output.snapshot_every", o.snapshot_every)?;
-        // What only the solver's own parameters can tell (e.g. deep_overlap with Jacobi).
+        // What only the solver's own parameters can tell (e.g. deep_overlap with Jacobi), and
+        // their bounds (deep_sweeps, anderson_depth), checked once there.
         self.protocol().step.solver.validate()?;
         Ok(())
     }
