@@ -20,7 +20,7 @@ use std::time::Instant;
 
 use cdlab::backend::{Backend, Loading};
 use cdlab::engine::StepParams;
-use cdlab::gpu::{GpuBackend, GpuCounters};
+use cdlab::gpu::GpuBackend;
 use cdlab::protocol::ProtocolParams;
 use cdlab::run::bench::sheared_sample;
 use cdlab::solver::Method;
@@ -84,21 +84,6 @@ fn params(method: Method) -> StepParams {
     p
 }
 
-fn diff(a: GpuCounters, b: GpuCounters) -> GpuCounters {
-    GpuCounters {
-        steps: b.steps - a.steps,
-        redone: b.redone - a.redone,
-        dispatches: b.dispatches - a.dispatches,
-        submissions: b.submissions - a.submissions,
-        readbacks: b.readbacks - a.readbacks,
-        iterations: b.iterations - a.iterations,
-        color_rounds: b.color_rounds - a.color_rounds,
-        bytes_read: b.bytes_read - a.bytes_read,
-        bytes_written: b.bytes_written - a.bytes_written,
-        readback_bytes: b.readback_bytes - a.readback_bytes,
-    }
-}
-
 /// Measures every (max_iter, check_every) setting on one backend (one sample, one method).
 fn measure(n: usize, method: Method, settings: &[(u32, u32)], steps: u32) -> Vec<Point> {
     let scene = sheared_sample(n).expect("sample");
@@ -117,7 +102,7 @@ fn measure(n: usize, method: Method, settings: &[(u32, u32)], steps: u32) -> Vec
         let t0 = Instant::now();
         let red = g.run(steps, &Loading::default()).expect("steps");
         let secs = t0.elapsed().as_secs_f64();
-        let k = diff(k0, g.counters());
+        let k = g.counters() - k0;
         let s = k.steps as f64;
         let point = Point {
             disks: n,

@@ -45,6 +45,25 @@ pub struct GpuCounters {
     pub readback_bytes: u64,
 }
 
+impl std::ops::Sub for GpuCounters {
+    type Output = GpuCounters;
+    /// The work counted between two readings of the counters (`later - earlier`).
+    fn sub(self, earlier: GpuCounters) -> GpuCounters {
+        GpuCounters {
+            steps: self.steps - earlier.steps,
+            redone: self.redone - earlier.redone,
+            dispatches: self.dispatches - earlier.dispatches,
+            submissions: self.submissions - earlier.submissions,
+            readbacks: self.readbacks - earlier.readbacks,
+            iterations: self.iterations - earlier.iterations,
+            color_rounds: self.color_rounds - earlier.color_rounds,
+            bytes_read: self.bytes_read - earlier.bytes_read,
+            bytes_written: self.bytes_written - earlier.bytes_written,
+            readback_bytes: self.readback_bytes - earlier.readback_bytes,
+        }
+    }
+}
+
 /// Rejects the solver methods that have no GPU form (`Method::on_gpu`),
 /// naming `solver.method`.
 fn refuse_cpu_only(params: &StepParams) -> Result<()> {

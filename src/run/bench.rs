@@ -89,36 +89,26 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, warmup: u32,
     let after = (probe.counters)(backend);
     let steps = red.steps.max(1) as f64;
     let iterations = red.iterations_sum as f64 / steps;
-    let (rounds, redone) = match (before, after) {
-        (Some((a, _)), Some((b, _))) => (
-            (b.color_rounds - a.color_rounds) as f64 / steps,
-            b.redone - a.redone,
-        ),
-        _ => (0.0, 0),
-    };
-    let traffic = match (before, after) {
-        (Some((a, _)), Some((b, _))) => {
-            (b.bytes_read + b.bytes_written - a.bytes_read - a.bytes_written) as f64 / steps / 1e6
-        }
-        _ => 0.0,
-    };
-    let (dispatches, submissions, readbacks, fixed) = match (before, after) {
-        (Some(a), Some(b)) => {
-            let ((a, every), (b, _)) = (a, b);
-            let d = (b.dispatches - a.dispatches) as f64 / steps;
+    let (rounds, redone, traffic, dispatches, submissions, readbacks, fixed) = match (before, after) {
+        (Some((a, every)), Some((b, _))) => {
+            let k = b - a;
+            let d = k.dispatches as f64 / steps;
             // If every solver iteration costs one dispatch per color (and every `every`
             // iterations one convergence reduction), what remains per step is a constant
             // set of fixed dispatches, whatever the sample size.
-            let it = (b.iterations - a.iterations) as f64 / steps;
+            let it = k.iterations as f64 / steps;
             let solver = red.colors_mean * it + it / every.max(1) as f64;
             (
+                k.color_rounds as f64 / steps,
+                k.redone,
+                (k.bytes_read + k.bytes_written) as f64 / steps / 1e6,
                 d,
-                (b.submissions - a.submissions) as f64 / steps,
-                (b.readbacks - a.readbacks) as f64 / steps,
+                k.submissions as f64 / steps,
+                k.readbacks as f64 / steps,
                 d - solver,
             )
         }
-        _ => (0.0, 0.0, 0.0, 0.0),
+        _ => (0.0, 0, 0.0, 0.0, 0.0, 0.0, 0.0),
     };
     Ok(Case {
         backend: backend.name(),
