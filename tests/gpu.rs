@@ -177,6 +177,37 @@ fn step_matches_cpu(method: Method) {
     );
 }
 
+/// The GPU's Jacobi stops on the same test as the CPU's: the change divided by
+/// `jacobi_relax` (docs/method.md, "Jacobi"). At tolerance 1e-4 and relaxation 0.2,
+/// checked every iteration, both stop within one iteration of each other (f32 against f64
+/// round-off near the threshold); a GPU testing the relaxed change (0.2 times the
+/// unrelaxed one) stops several iterations sooner.
+#[test]
+fn gpu_jacobi_stops_on_the_cpus_test() {
+    let s = lattice(12, 11);
+    let mut params = gpu_params(Method::Jacobi);
+    params.solver.tol = 1e-4;
+    params.solver.relax = 0.2;
+    let Some(mut g) = gpu_or_skip("jacobi stopping test", &s, params) else {
+        return;
+    };
+    g.conv_every = 1;
+    let red = g.run(1, &Loading::default()).unwrap();
+    let mut cpu = CpuEngine::new(params).unwrap();
+    let mut sc = s.clone();
+    let cpu_it = cpu.step(&mut sc).unwrap().solve.iterations as i64;
+    let gpu_it = red.iterations_sum as i64;
+    eprintln!("jacobi to 1e-4: GPU {gpu_it} iterations, CPU {cpu_it}");
+    assert!(
+        cpu_it > 10,
+        "too easy a problem to tell the tests apart: {cpu_it} iterations"
+    );
+    assert!(
+        (gpu_it - cpu_it).abs() <= 1,
+        "GPU {gpu_it} iterations, CPU {cpu_it}"
+    );
+}
+
 #[test]
 fn gpu_reductions_equal_cpu_sums_of_the_same_contacts() {
     // A hexagonal pile under gravity between side walls: every contact carries force.

@@ -154,3 +154,38 @@ fn gauss_seidel_through_the_space_repeats_the_fc2d_solver() {
     s.set_all(&vec![(0.0, 0.0); n]);
     assert!(local_residual(&s) > 0.5);
 }
+
+/// Jacobi's stopping test reads the unrelaxed change (docs/method.md, "Jacobi"): the change
+/// of iteration `k` divided by `jacobi_relax` is `|L(x_{k-1}) - x_{k-1}|`, the distance of
+/// the previous iterate to its local solutions (`space::local_solution`), over `|x_k|`.
+/// A test of the relaxed change reads `jacobi_relax` (0.5 here) times this and fails.
+#[test]
+fn jacobis_stopping_test_reads_the_unrelaxed_change() {
+    let (e, _) = settled_pile(Method::Jacobi);
+    let kept = e.captured().unwrap();
+    let mut p = e.params.solver;
+    assert_eq!(p.relax, 0.5, "the default relaxation, which the old test halved");
+    p.tol = 1e-30;
+    let k = 7;
+    p.max_iter = k;
+    let (mut xk, stats) = kept.solve(&p);
+    assert_eq!(stats.iterations, k);
+    p.max_iter = k - 1;
+    let (mut prev, _) = kept.solve(&p);
+    let (prev, xk) = (prev.space(), xk.space());
+    let (mut d2, mut r2) = (0.0, 0.0);
+    for c in 0..prev.len() {
+        let (ln, lt) = local_solution(&prev, c);
+        let (rn, rt) = prev.impulse(c);
+        d2 += (ln - rn).powi(2) + (lt - rt).powi(2);
+        let (rn, rt) = xk.impulse(c);
+        r2 += rn * rn + rt * rt;
+    }
+    let want = (d2 / r2).sqrt();
+    assert!(want > 1e-6, "the iterate is still moving: {want:e}");
+    assert!(
+        (stats.residual - want).abs() <= 1e-9 * want,
+        "reported {:e}, unrelaxed change {want:e}",
+        stats.residual
+    );
+}

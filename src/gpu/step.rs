@@ -397,7 +397,7 @@ impl GpuBackend {
                 });
             }
             // As on the CPU, the change of a relaxed iteration is divided by its relaxation.
-            let w = if jacobi { 1.0 } else { relax };
+            let w = if jacobi { p.relax } else { relax };
             let residual = if d2 == 0.0 {
                 0.0
             } else if r2 == 0.0 {

@@ -41,7 +41,10 @@ pub(super) fn solve(
             c.rt = rt;
             c.apply(gv, rn, rt);
         }
-        if stats.record_change(it, d2, r2, params.tol) {
+        // The change is divided by the relaxation, as Gauss-Seidel's is: the unrelaxed
+        // change, which is the distance to the local solutions (docs/method.md,
+        // "Comparing solvers"), so that `tol` means the same for every method.
+        if stats.record_change(it, d2 / (omega * omega), r2, params.tol) {
             break;
         }
     }
