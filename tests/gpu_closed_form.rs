@@ -229,18 +229,24 @@ fn gpu_glued_disk_on_a_force_driven_wall_matches_the_hand_calculation() {
 
 /// GPU twin of statics.rs, `a_deep_loaded_contact_leaves_the_step_satisfying_its_law`: a
 /// column of five disks on the floor under gravity whose two lowest disks overlap by 1% of
-/// their radius, one step of two colored Gauss-Seidel iterations. Without local updates
-/// the contact 0-1 is left closing; with `deep_gap` below its overlap it alone is marked,
-/// counted once in the step's reductions, and leaves the step with `U_n^+ = 0` (the
-/// Signorini law of docs/method.md for a loaded contact) to f32 precision; disk 2, touched by no local
-/// update, keeps the velocity the iterations left it. The CPU path, from the same column,
-/// gives the same velocities of disks 0 and 1 to f32 precision.
+/// their radius, one step of two colored Gauss-Seidel (or Jacobi) iterations. Without local
+/// updates the contact 0-1 is left closing; with `deep_gap` below its overlap it alone is
+/// marked, counted once in the step's reductions, and leaves the step with `U_n^+ = 0` (the
+/// Signorini law of docs/method.md for a loaded contact) to f32 precision; disk 2, touched
+/// by no local update, keeps the velocity the iterations left it. The CPU path, from the
+/// same column, gives the same velocities of disks 0 and 1 to f32 precision.
 #[test]
 fn gpu_deep_loaded_contact_leaves_the_step_satisfying_its_law() {
+    for method in [Method::ColoredGs, Method::Jacobi] {
+        deep_loaded_contact(method);
+    }
+}
+
+fn deep_loaded_contact(method: Method) {
     let (n, r) = (5usize, 1.0);
     let column = || sunk_column(n, r, G);
     let params = |deep_gap: f64| {
-        let mut p = gpu_params(Method::ColoredGs);
+        let mut p = gpu_params(method);
         p.solver.max_iter = 2;
         p.solver.deep_gap = deep_gap;
         p.solver.deep_sweeps = 3;
@@ -255,34 +261,37 @@ fn gpu_deep_loaded_contact_leaves_the_step_satisfying_its_law() {
     let Some((u0, u1, above_off, none)) = run(0.0) else {
         return;
     };
-    assert_eq!(none, 0);
+    assert_eq!(none, 0, "{method:?}");
     assert!(
         u1 - u0 < -1e-4,
-        "without local updates the contact should still close; it opens at {} m/s",
+        "{method:?}: without local updates the contact should still close; it opens at {} m/s",
         u1 - u0
     );
     let Some((v0, v1, above_on, deep)) = run(0.005 * r) else {
         return;
     };
-    assert_eq!(deep, 1, "one deep contact (disks 0-1) in one step");
+    assert_eq!(deep, 1, "{method:?}: one deep contact (disks 0-1) in one step");
     // Velocities of order g dt = 5e-3 m/s in f32: a few ulp are 1e-9 m/s.
     assert!(
         (v1 - v0).abs() < 1e-7,
-        "the deep contact leaves at {} m/s, expected 0",
+        "{method:?}: the deep contact leaves at {} m/s, expected 0",
         v1 - v0
     );
-    assert_eq!(above_on, above_off, "disk 2 is touched by no local update");
+    assert_eq!(
+        above_on, above_off,
+        "{method:?}: disk 2 is touched by no local update"
+    );
     // The CPU twin from the same column and parameters.
     let mut s = column();
     let mut e = cdlab::engine::CpuEngine::new(params(0.005 * r)).unwrap();
     let stats = e.step(&mut s).unwrap();
-    assert_eq!(stats.solve.deep, 1);
+    assert_eq!(stats.solve.deep, 1, "{method:?}");
     let cpu = &s.disks.vel;
-    assert!((cpu[1].y - cpu[0].y).abs() < 1e-12);
+    assert!((cpu[1].y - cpu[0].y).abs() < 1e-12, "{method:?}");
     for (k, g) in [(0, v0), (1, v1)] {
         assert!(
             (cpu[k].y - g).abs() < 1e-6 * cpu[k].y.abs().max(1e-3),
-            "disk {k}: GPU {g} m/s, CPU {} m/s",
+            "{method:?}, disk {k}: GPU {g} m/s, CPU {} m/s",
             cpu[k].y
         );
     }

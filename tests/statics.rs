@@ -251,7 +251,7 @@ fn two_layers_in_a_box_match_the_hand_calculation() {
 }
 
 /// A column of disks on the floor under gravity whose two lowest disks overlap by 1% of
-/// their radius (the others touch), after one step of two Gauss-Seidel iterations. Without
+/// their radius (the others touch), after one step of two Gauss-Seidel (or Jacobi) iterations. Without
 /// local updates the iterations stop with that contact still closing (the contacts above,
 /// solved after it, push disk 1 down). With `deep_gap` below its overlap that contact alone
 /// is updated again and leaves the step satisfying its law exactly: the normal relative
@@ -261,7 +261,7 @@ fn two_layers_in_a_box_match_the_hand_calculation() {
 #[test]
 fn a_deep_loaded_contact_leaves_the_step_satisfying_its_law() {
     let (n, r) = (5usize, 1.0);
-    for method in [Method::Gs, Method::ColoredGs] {
+    for method in [Method::Gs, Method::ColoredGs, Method::Jacobi] {
         let run = |deep_gap: f64| {
             let mut s = sunk_column(n, r, G);
             let mut p = tight(method);

@@ -147,12 +147,12 @@ impl Default for Solver {
 impl Solver {
     /// The overlap beyond which loaded contacts get local updates (fraction of
     /// `sample.r_min`; 0 for none): `deep_overlap` when set, else
-    /// [`crate::solver::default_deep_overlap_rel`] for the Gauss-Seidel methods and 0 for
+    /// [`crate::solver::default_deep_overlap_rel`] for Gauss-Seidel and Jacobi and 0 for
     /// the others, which do not implement the updates.
     pub fn deep_overlap_rel(&self) -> f64 {
         self.deep_overlap.unwrap_or(match self.method {
-            Method::Gs | Method::ColoredGs => crate::solver::default_deep_overlap_rel(),
-            Method::Jacobi | Method::Apgd | Method::AndersonGs => 0.0,
+            Method::Gs | Method::ColoredGs | Method::Jacobi => crate::solver::default_deep_overlap_rel(),
+            Method::Apgd | Method::AndersonGs => 0.0,
         })
     }
 }

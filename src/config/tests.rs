@@ -95,7 +95,7 @@ fn each_bad_value_is_rejected_naming_its_field() {
         // loops through on a software adapter.
         ("[solver]\ndeep_sweeps = 1001", "solver.deep_sweeps"),
         (
-            "[solver]\nmethod = \"jacobi\"\ndeep_overlap = 0.005",
+            "[solver]\nmethod = \"apgd\"\ndeep_overlap = 0.005",
             "solver.deep_overlap",
         ),
         ("[compaction]\nsigma_c = \"-1 MPa\"", "compaction.sigma_c"),
@@ -190,4 +190,26 @@ fn load_names_the_file() {
     let e = Config::load(dir.join("missing.toml")).unwrap_err().to_string();
     assert!(e.contains("missing.toml"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `solver.deep_overlap` unset means the built-in threshold for the methods that implement
+/// the local updates (Gauss-Seidel in both orders and Jacobi) and none for the others,
+/// which refuse an explicit value; an explicit value is kept whatever the method.
+#[test]
+fn an_unset_deep_overlap_follows_the_method() {
+    let on = crate::solver::default_deep_overlap_rel();
+    for (method, want) in [
+        (Method::ColoredGs, on),
+        (Method::Gs, on),
+        (Method::Jacobi, on),
+        (Method::Apgd, 0.0),
+        (Method::AndersonGs, 0.0),
+    ] {
+        let mut c = Config::default();
+        c.solver.method = method;
+        assert_eq!(c.solver.deep_overlap_rel(), want, "{method:?}");
+        c.validate().unwrap();
+        c.solver.deep_overlap = Some(0.002);
+        assert_eq!(c.solver.deep_overlap_rel(), 0.002, "{method:?}");
+    }
 }

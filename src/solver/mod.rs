@@ -128,13 +128,13 @@ pub struct SolverParams {
     #[serde(default)]
     pub open_skip: f64,
     /// Overlap (m) beyond which a contact that carries a normal impulse at the end of the
-    /// Gauss-Seidel iterations gets `deep_sweeps` more local updates (unrelaxed, in
-    /// contact order), so that it leaves the step satisfying its own law: a loaded contact
+    /// Gauss-Seidel or Jacobi iterations gets `deep_sweeps` more local updates (unrelaxed,
+    /// in the order of the iterations: contact order for Jacobi), so that it leaves the step satisfying its own law: a loaded contact
     /// the stopping tests leave closing by a small residual velocity would otherwise
     /// deepen by it step after step (docs/results.md, "Which contact, and why"). Its neighbours
     /// take the change. Contacts with a force-driven wall (solved with the full 2x2 law)
-    /// are left out. 0 turns it off, as in records written before it; Gauss-Seidel only (on
-    /// the GPU, in color order: WGSL `deep_updates`).
+    /// are left out. 0 turns it off, as in records written before it; Gauss-Seidel and
+    /// Jacobi only (on the GPU, in color order for both: WGSL `deep_updates`).
     #[serde(default)]
     pub deep_gap: f64,
     /// See `deep_gap`.
@@ -146,7 +146,7 @@ pub struct SolverParams {
     pub anderson_depth: u32,
 }
 
-/// Default of the configuration's `solver.deep_overlap` for the Gauss-Seidel methods, as a
+/// Default of the configuration's `solver.deep_overlap` for Gauss-Seidel and Jacobi, as a
 /// fraction of `r_min` ([`SolverParams::deep_gap`] is this times `r_min`): loaded contacts
 /// deeper than this leave each step satisfying their law, which holds the largest overlap
 /// near it at every friction at the paper's time step (docs/results.md, "Every friction at
@@ -305,18 +305,11 @@ impl SolverParams {
                 &format!("must be <= {MAX_ANDERSON_DEPTH}"),
             ));
         }
-        if self.deep_gap > 0.0 && self.method == Method::Jacobi {
-            return Err(Error::invalid(
-                "solver.deep_overlap",
-                self.deep_gap,
-                "applies to Gauss-Seidel only: 0 with method = \"jacobi\"",
-            ));
-        }
         if self.deep_gap > 0.0 && self.method == Method::Apgd {
             return Err(Error::invalid(
                 "solver.deep_overlap",
                 self.deep_gap,
-                "applies to Gauss-Seidel only: 0 with method = \"apgd\"",
+                "applies to Gauss-Seidel and Jacobi only: 0 with method = \"apgd\"",
             ));
         }
         Ok(())
