@@ -530,3 +530,72 @@ fn gpu_grows_contacts_slots_colors_and_rounds_and_matches_the_cpu() {
     assert_eq!(g.capacity(), c1);
     assert_eq!(g.counters().redone, redone, "a second step needed another growth");
 }
+
+/// A resumed run continues from the checkpoint's impulses on the GPU too
+/// (`Backend::set_warm_start`, written into the layout the GPU's detection reads back,
+/// shaders/detect.wgsl). A pile of 64 disks settled under gravity on the CPU: one GPU step
+/// from its contacts' impulses must be the CPU's own next step from them; from zero
+/// impulses (what a resumed GPU run used to do) the same step needs many more iterations.
+#[test]
+fn gpu_resume_continues_from_the_warm_start() {
+    let mut s = cloud(8, 8, 0.0, 7);
+    s.gravity = DVec2::new(0.0, -G);
+    add_box(&mut s, -1.5, 17.0, -1.5, 40.0);
+    let mut params = gpu_params(Method::ColoredGs);
+    params.dt = 2e-3;
+    params.solver.tol = 1e-4;
+    let mut cpu = CpuBackend::new(s, params).unwrap();
+    cpu.run(400, &Loading::default()).unwrap();
+    let (settled, warm) = (cpu.scene().unwrap(), cpu.contacts().unwrap());
+    let scale = warm.iter().map(|c| c.rn).fold(0.0, f64::max);
+    assert!(scale > 0.0, "the pile carries its weight");
+    let key = |c: &cdlab::backend::ContactRecord| (c.i, c.j);
+    let before: std::collections::HashMap<_, _> = warm.iter().map(|c| (key(c), (c.rn, c.rt))).collect();
+    // The largest change of an impulse over one step, relative to the largest impulse.
+    let moved = |after: &[cdlab::backend::ContactRecord]| {
+        after
+            .iter()
+            .map(|c| {
+                let (rn, rt) = before.get(&key(c)).copied().unwrap_or((0.0, 0.0));
+                (c.rn - rn).abs().max((c.rt - rt).abs())
+            })
+            .fold(0.0, f64::max)
+            / scale
+    };
+    let step = |warm_start: bool| {
+        let mut g = gpu_or_skip("resume", &settled, params)?;
+        g.conv_every = 1;
+        if warm_start {
+            g.set_warm_start(&warm).unwrap();
+        }
+        let red = g.run(1, &Loading::default()).unwrap();
+        Some((red.iterations_sum, moved(&g.contacts().unwrap())))
+    };
+    let (Some((warm_it, warm_moved)), Some((cold_it, cold_moved))) = (step(true), step(false)) else {
+        return;
+    };
+    cpu.set_warm_start(&warm).unwrap();
+    let cpu_red = cpu.run(1, &Loading::default()).unwrap();
+    let cpu_moved = moved(&cpu.contacts().unwrap());
+    eprintln!(
+        "one step after the settled state: GPU with the warm start {warm_it} iterations, moved {warm_moved:.2e}; \
+         from zero {cold_it} iterations, moved {cold_moved:.2e}; CPU {} iterations, moved {cpu_moved:.2e}",
+        cpu_red.iterations_sum
+    );
+    // The same step as the CPU's from the same warm start: as many iterations (within one,
+    // f32 round-off at the threshold) and the same largest change of an impulse (within
+    // 10%: the f32 solve against the f64 one, both at tolerance 1e-4).
+    let cpu_it = cpu_red.iterations_sum;
+    assert!(
+        warm_it.abs_diff(cpu_it) <= 1,
+        "GPU {warm_it} iterations, CPU {cpu_it}"
+    );
+    assert!(
+        (warm_moved - cpu_moved).abs() <= 0.1 * cpu_moved,
+        "GPU moved {warm_moved:.2e}, CPU {cpu_moved:.2e}"
+    );
+    assert!(
+        cold_it > 2 * warm_it,
+        "from zero: {cold_it} iterations; warm: {warm_it}"
+    );
+}
