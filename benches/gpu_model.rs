@@ -18,6 +18,7 @@
 
 use std::time::Instant;
 
+use cdlab::analysis::fit::{invert, solve_linear};
 use cdlab::backend::{Backend, Loading};
 use cdlab::engine::StepParams;
 use cdlab::gpu::GpuBackend;
@@ -144,33 +145,6 @@ fn row(p: &Point, model_ms: Option<f64>) -> String {
     )
 }
 
-/// Solves the square system `a x = b` (Gaussian elimination with partial pivoting).
-fn solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
-    let n = b.len();
-    for c in 0..n {
-        let p = (c..n)
-            .max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))
-            .unwrap();
-        a.swap(c, p);
-        b.swap(c, p);
-        let (top, rest) = a.split_at_mut(c + 1);
-        let pivot = &top[c];
-        for (r, row) in rest.iter_mut().enumerate() {
-            let f = row[c] / pivot[c];
-            for (x, p) in row[c..].iter_mut().zip(&pivot[c..]) {
-                *x -= f * p;
-            }
-            b[c + 1 + r] -= f * b[c];
-        }
-    }
-    let mut x = vec![0.0; n];
-    for c in (0..n).rev() {
-        let s: f64 = (c + 1..n).map(|k| a[c][k] * x[k]).sum();
-        x[c] = (b[c] - s) / a[c][c];
-    }
-    x
-}
-
 /// A fitted linear model: ms per step = regressors . coef, with the coefficients'
 /// standard errors.
 struct Fit {
@@ -211,7 +185,8 @@ fn fit(points: &[Point], x: fn(&Point) -> Vec<f64>) -> Fit {
     let scaled: Vec<Vec<f64>> = (0..k)
         .map(|i| (0..k).map(|j| ata[i][j] / (scale[i] * scale[j])).collect())
         .collect();
-    let y = solve(scaled.clone(), (0..k).map(|i| atb[i] / scale[i]).collect());
+    let y = solve_linear(scaled.clone(), (0..k).map(|i| atb[i] / scale[i]).collect())
+        .expect("a determined fit: the points vary in every regressor");
     let coef: Vec<f64> = (0..k).map(|i| y[i] / scale[i]).collect();
     let mut f = Fit {
         coef,
@@ -220,14 +195,9 @@ fn fit(points: &[Point], x: fn(&Point) -> Vec<f64>) -> Fit {
     };
     let dof = (points.len() as f64 - k as f64).max(1.0);
     let s2 = f.residuals(points).iter().map(|r| r * r).sum::<f64>() / dof;
-    // Diagonal of (A^T A)^-1 through the scaled system, column by column.
-    f.se = (0..k)
-        .map(|i| {
-            let mut e = vec![0.0; k];
-            e[i] = 1.0;
-            (s2 * solve(scaled.clone(), e)[i]).sqrt() / scale[i]
-        })
-        .collect();
+    // Diagonal of (A^T A)^-1 through the scaled system.
+    let inv = invert(&scaled).expect("a determined fit");
+    f.se = (0..k).map(|i| (s2 * inv[i][i]).sqrt() / scale[i]).collect();
     f
 }
 

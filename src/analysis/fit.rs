@@ -115,25 +115,55 @@ pub struct Saturation {
 /// campaign's data; a fit still moving after this many is reported as not converged).
 pub const ITERATIONS: usize = 500;
 
-fn solve3(m: [[f64; 3]; 3], r: [f64; 3]) -> Option<[f64; 3]> {
-    let inv = invert3(m)?;
-    Some([0, 1, 2].map(|i| (0..3).map(|j| inv[i][j] * r[j]).sum()))
-}
-
-fn invert3(m: [[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
-    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+/// Solves the square system `a x = b` by Gaussian elimination with partial pivoting.
+/// `None` when the determinant (the product of the pivots) is not finite or below 1e-300
+/// in size: a singular system, or data that were not finite.
+pub fn solve_linear(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
+    let n = b.len();
+    assert!(a.len() == n && a.iter().all(|r| r.len() == n), "a square system");
+    let mut det = 1.0f64;
+    for c in 0..n {
+        let p = (c..n).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
+        a.swap(c, p);
+        b.swap(c, p);
+        det *= a[c][c];
+        if a[c][c] == 0.0 {
+            return None;
+        }
+        let (top, rest) = a.split_at_mut(c + 1);
+        let pivot = &top[c];
+        for (r, row) in rest.iter_mut().enumerate() {
+            let f = row[c] / pivot[c];
+            for (x, p) in row[c..].iter_mut().zip(&pivot[c..]) {
+                *x -= f * p;
+            }
+            b[c + 1 + r] -= f * b[c];
+        }
+    }
     if !det.is_finite() || det.abs() < 1e-300 {
         return None;
     }
-    let c = |i: usize, j: usize| {
-        let (r0, r1) = ((i + 1) % 3, (i + 2) % 3);
-        let (c0, c1) = ((j + 1) % 3, (j + 2) % 3);
-        m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0]
-    };
-    // inverse = adjugate^T / det, with cyclic cofactors carrying their sign.
-    Some([0, 1, 2].map(|i| [0, 1, 2].map(|j| c(j, i) / det)))
+    let mut x = vec![0.0; n];
+    for c in (0..n).rev() {
+        let s: f64 = (c + 1..n).map(|k| a[c][k] * x[k]).sum();
+        x[c] = (b[c] - s) / a[c][c];
+    }
+    x.iter().all(|v| v.is_finite()).then_some(x)
+}
+
+/// The inverse of the square matrix `a`, column by column through [`solve_linear`]
+/// (`None` when it is singular).
+pub fn invert(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
+    let n = a.len();
+    let columns: Option<Vec<Vec<f64>>> = (0..n)
+        .map(|j| solve_linear(a.to_vec(), (0..n).map(|i| f64::from(u8::from(i == j))).collect()))
+        .collect();
+    let columns = columns?;
+    Some((0..n).map(|i| (0..n).map(|j| columns[j][i]).collect()).collect())
+}
+
+fn rows3(m: [[f64; 3]; 3]) -> Vec<Vec<f64>> {
+    m.iter().map(|r| r.to_vec()).collect()
 }
 
 /// Fits `y = a - b exp(-c x)` by Levenberg-Marquardt from a start taken from the data
@@ -188,7 +218,7 @@ pub fn saturation(x: &[f64], y: &[f64]) -> Option<Saturation> {
         for (a, row) in m.iter_mut().enumerate() {
             row[a] *= 1.0 + lambda;
         }
-        let Some(d) = solve3(m, jtr) else {
+        let Some(d) = solve_linear(rows3(m), jtr.to_vec()) else {
             lambda *= 10.0;
             continue;
         };
@@ -236,7 +266,7 @@ pub fn saturation(x: &[f64], y: &[f64]) -> Option<Saturation> {
             }
         }
     }
-    let inv = invert3(jtj)?;
+    let inv = invert(&rows3(jtj))?;
     let se = if n > 3 {
         let s2 = cur / (n - 3) as f64;
         [0, 1, 2].map(|i| (s2 * inv[i][i]).sqrt())
@@ -358,5 +388,49 @@ mod tests {
             (f.a - 0.9).abs() < 3.0 * f.se[0] && (f.c - 3.0).abs() < 3.0 * f.se[2],
             "{f:?}"
         );
+    }
+}
+
+#[cfg(test)]
+mod linear_tests {
+    use super::{invert, solve_linear};
+
+    /// A system whose first pivot is 0 (elimination without row exchanges divides by it),
+    /// with the solution (1, -2, 3, 0.5) known: the residual is round-off.
+    #[test]
+    fn a_system_needing_row_exchanges_is_solved() {
+        let a = vec![
+            vec![0.0, 2.0, 1.0, -1.0],
+            vec![3.0, 1.0, 0.0, 2.0],
+            vec![1.0, -1.0, 4.0, 0.0],
+            vec![2.0, 0.0, 1.0, 5.0],
+        ];
+        let x = [1.0, -2.0, 3.0, 0.5];
+        let b: Vec<f64> = a
+            .iter()
+            .map(|r| r.iter().zip(&x).map(|(p, q)| p * q).sum())
+            .collect();
+        let got = solve_linear(a.clone(), b).unwrap();
+        for (g, w) in got.iter().zip(&x) {
+            assert!((g - w).abs() < 1e-12, "{got:?}");
+        }
+        // The inverse times the matrix is the identity.
+        let inv = invert(&a).unwrap();
+        for (i, row) in inv.iter().enumerate() {
+            for j in 0..4 {
+                let p: f64 = row.iter().zip(&a).map(|(r, ak)| r * ak[j]).sum();
+                assert!((p - f64::from(u8::from(i == j))).abs() < 1e-12, "({i}, {j}): {p}");
+            }
+        }
+    }
+
+    /// Two equal rows, a non-finite entry: no solution is returned.
+    #[test]
+    fn singular_or_non_finite_systems_are_refused() {
+        let a = vec![vec![1.0, 2.0], vec![1.0, 2.0]];
+        assert!(solve_linear(a.clone(), vec![1.0, 1.0]).is_none());
+        assert!(invert(&a).is_none());
+        let a = vec![vec![f64::NAN, 0.0], vec![0.0, 1.0]];
+        assert!(solve_linear(a, vec![1.0, 1.0]).is_none());
     }
 }
