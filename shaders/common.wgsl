@@ -76,7 +76,7 @@ struct Sim {
     e_n: f32, e_t: f32, sigma3: f32, relax: f32,
     strip_sum_r0: f32, strip_sum_r1: f32, gap_tol: f32, gs_relax: f32,
     o_color: u32, o_left: u32, max_rounds: u32, o_inc_tmp: u32,
-    f_deep: u32, deep_gap: f32, deep_sweeps: u32, _s1: u32,
+    f_deep: u32, deep_gap: f32, deep_sweeps: u32, deep_budget: u32,
 }
 
 // Per-dispatch arguments (a region to scan, a color to sweep), bound at a dynamic offset.

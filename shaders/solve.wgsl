@@ -95,6 +95,7 @@ fn deep_list() -> u32 { return sim.o_inc_tmp; }
 fn deep_runs_at() -> u32 { return sim.o_inc_tmp + sim.cap_contacts; }
 
 var<workgroup> deep_runs: u32;
+var<workgroup> deep_sweeps_run: u32;
 
 // Part 2, in one workgroup (one dispatch whatever sim.deep_sweeps and the colors): add the
 // step's count to the sum since the last reduction (u32 bits); list the colors holding deep
@@ -104,18 +105,23 @@ var<workgroup> deep_runs: u32;
 // movable body, so the threads of a color never write the same velocity and their updates
 // commute (the order within a color does not matter); the barrier hands the next color the
 // velocities this one wrote. The selection does not change during the updates, as on the
-// CPU. Barriers need uniform control flow: the number of colors to sweep reaches every
-// thread through workgroupUniformLoad. llvmpipe (lavapipe) ends the loops of an invocation
-// after 65,535 iterations in all (see scan.wgsl): the sweeps cost deep_sweeps x (colors
-// holding deep contacts) x (1 + the largest such color's deep contacts / WG) of them.
+// CPU. Barriers need uniform control flow: the number of colors to sweep and of sweeps
+// reach every thread through workgroupUniformLoad. llvmpipe (lavapipe) ends the loops of
+// an invocation after 65,535 iterations in all (see scan.wgsl) and goes on silently; with
+// sim.deep_budget > 0 (the host sets it on a software adapter) thread 0, which loops the
+// most, counts what the sweeps will cost it (each loop's iterations plus one for its exit
+// test, with a margin in the budget) and runs only as many sweeps as fit, adding the
+// sweeps left out to the second word of f_deep.
 @compute @workgroup_size(WG)
 fn deep_updates(@builtin(local_invocation_index) t: u32) {
     if t == 0u {
         let count = ld(sim.o_status + ST_DEEP);
         floats[sim.f_deep] = bitcast<f32>(bitcast<u32>(floats[sim.f_deep]) + count);
         var runs = 0u;
+        var sweeps = sim.deep_sweeps;
         if count > 0u {
             let n_colors = min(ld(sim.o_status + ST_COLORS), sim.max_colors);
+            var per_sweep = 1u;
             for (var col = 0u; col < n_colors; col++) {
                 let size = ld(sim.o_color_count + col + 1u) - ld(sim.o_color_count + col);
                 let deep = ld(sim.o_color_fill + col) - size;
@@ -123,17 +129,29 @@ fn deep_updates(@builtin(local_invocation_index) t: u32) {
                 if deep > 0u {
                     st(deep_runs_at() + runs, col);
                     runs++;
+                    per_sweep += 2u + (deep + WG - 1u) / WG;
+                }
+            }
+            let listing = n_colors + 1u;
+            if sim.deep_budget > 0u {
+                let fit = select(0u, (sim.deep_budget - listing) / per_sweep, sim.deep_budget > listing);
+                if fit < sweeps {
+                    let cut = bitcast<u32>(floats[sim.f_deep + 1u]) + sweeps - fit;
+                    floats[sim.f_deep + 1u] = bitcast<f32>(cut);
+                    sweeps = fit;
                 }
             }
         }
         deep_runs = runs;
+        deep_sweeps_run = sweeps;
     }
     // The counts and the list of colors, written by thread 0, for every thread.
     storageBarrier();
     let n_runs = workgroupUniformLoad(&deep_runs);
+    let n_sweeps = workgroupUniformLoad(&deep_sweeps_run);
     // A step without deep contacts ends here.
     if n_runs == 0u { return; }
-    for (var s = 0u; s < sim.deep_sweeps; s++) {
+    for (var s = 0u; s < n_sweeps; s++) {
         for (var run = 0u; run < n_runs; run++) {
             let col = ld(deep_runs_at() + run);
             let lo = ld(sim.o_color_count + col);

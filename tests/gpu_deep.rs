@@ -398,3 +398,35 @@ fn gpu_and_cpu_deep_contacts_leave_the_step_satisfying_their_law() {
         );
     }
 }
+
+/// On a software adapter the deep-contact kernel runs only the sweeps that fit its loop
+/// budget (`GpuBackend::deep_budget`: llvmpipe ends an invocation's loops after 65,535
+/// iterations and goes on silently). With a budget that fits fewer sweeps than asked, the
+/// step is the one asked for that many sweeps, bit for bit, and the counters say how many
+/// were left out; with no budget every sweep runs, and the cut changes the result.
+#[test]
+fn deep_sweeps_beyond_the_loop_budget_are_cut_and_counted() {
+    let s = bimodal_hex(12, 12, 3);
+    let asked = 20;
+    let run = |sweeps: u32, budget: u32| {
+        let mut g = gpu_or_skip("deep loop budget", &s, params(DEEP_GAP, sweeps))?;
+        g.deep_budget = budget;
+        let red = g.run(1, &Loading::default()).unwrap();
+        let out = g.scene().unwrap();
+        Some((velocities(&out), g.counters().deep_sweeps_cut, red.deep_sum))
+    };
+    let Some((full, none_cut, deep)) = run(asked, 0) else {
+        return;
+    };
+    assert_eq!(none_cut, 0, "no budget, nothing cut");
+    assert!(deep > 10, "{deep} deep contacts: too few to need sweeps");
+    // About 10 loop iterations to list the colors and 3 per color holding deep contacts per
+    // sweep: 100 fits a few sweeps, not 20.
+    let (cut_v, cut, _) = run(asked, 100).unwrap();
+    assert!(cut > 0 && cut < u64::from(asked), "{cut} sweeps cut of {asked}");
+    let ran = asked - cut as u32;
+    let (same, same_cut, _) = run(ran, 0).unwrap();
+    assert_eq!(same_cut, 0);
+    assert_eq!(cut_v, same, "{ran} sweeps within the budget against {ran} asked");
+    assert_ne!(cut_v, full, "the cut sweeps would have changed the velocities");
+}

@@ -120,7 +120,7 @@ fn records() -> Vec<(&'static str, &'static str, usize, Vec<Field>)> {
                 f_deep,
                 deep_gap,
                 deep_sweeps,
-                pad
+                deep_budget
             }),
         ),
         (

@@ -44,7 +44,17 @@ pub struct GpuCounters {
     pub bytes_written: u64,
     /// Bytes copied to the host by the readbacks.
     pub readback_bytes: u64,
+    /// Sweeps of the local updates of deep contacts left out, summed over the steps, to
+    /// keep the software adapter's loop limit (see [`DEEP_LOOP_BUDGET`]); 0 on a hardware
+    /// GPU.
+    pub deep_sweeps_cut: u64,
 }
+
+/// Loop iterations allowed to one invocation of the deep-contact kernel on a software
+/// adapter (WGSL `deep_updates`): llvmpipe ends an invocation's loops after 65,535
+/// iterations in all and goes on silently, so the kernel sweeps only as many times as fit
+/// in this budget (with a margin for its own loop overhead) and counts what it left out.
+pub const DEEP_LOOP_BUDGET: u32 = 60_000;
 
 impl std::ops::Sub for GpuCounters {
     type Output = GpuCounters;
@@ -61,6 +71,7 @@ impl std::ops::Sub for GpuCounters {
             bytes_read: self.bytes_read - earlier.bytes_read,
             bytes_written: self.bytes_written - earlier.bytes_written,
             readback_bytes: self.readback_bytes - earlier.readback_bytes,
+            deep_sweeps_cut: self.deep_sweeps_cut - earlier.deep_sweeps_cut,
         }
     }
 }
@@ -102,6 +113,10 @@ pub struct GpuBackend {
     pub(super) centre: DVec2,
     /// Iterations recorded between two convergence readbacks.
     pub conv_every: u32,
+    /// Loop iterations allowed to one invocation of the deep-contact kernel, 0 for no
+    /// limit: [`DEEP_LOOP_BUDGET`] on a software adapter, 0 on a hardware GPU. Read at the
+    /// start of every run of steps.
+    pub deep_budget: u32,
     pub(super) counters: GpuCounters,
     /// Contacts and color offsets of the last step (from the status readback).
     pub(super) n_contacts: u32,
@@ -141,12 +156,16 @@ impl GpuBackend {
             scene: Scene::default(),
             centre: DVec2::ZERO,
             conv_every: 8,
+            deep_budget: 0,
             counters: GpuCounters::default(),
             n_contacts: 0,
             color_offsets: Vec::new(),
             loading: Loading::default(),
             rounds_hint: 16,
         };
+        if b.gpu.info.device_type == wgpu::DeviceType::Cpu {
+            b.deep_budget = DEEP_LOOP_BUDGET;
+        }
         b.set_scene(&scene)?;
         Ok(b)
     }
@@ -195,6 +214,7 @@ impl GpuBackend {
         sim.gap_tol = zero_gap_tolerance(s) as f32;
         sim.deep_gap = p.solver.deep_gap as f32;
         sim.deep_sweeps = p.solver.deep_sweeps;
+        sim.deep_budget = self.deep_budget;
         // The solver loop sets the relaxation of each batch of iterations.
         sim.gs_relax = 1.0;
         let strips = !l.strip.is_empty() && l.sigma3 != 0.0;

@@ -142,13 +142,17 @@ pub struct SimParams {
     pub o_left: u32,
     pub max_rounds: u32,
     pub o_inc_tmp: u32,
-    /// Contacts given local updates, summed over the steps since the last reduction (u32 bits).
+    /// Contacts given local updates, then the sweeps of them left out to keep within
+    /// `deep_budget`, each summed over the steps since the last reduction (u32 bits).
     pub f_deep: u32,
     /// Overlap beyond which a loaded contact gets local updates (m; 0: none).
     pub deep_gap: f32,
     /// Local updates of each deep contact per step (solve.wgsl, `deep_updates`).
     pub deep_sweeps: u32,
-    pub pad: u32,
+    /// Loop iterations one invocation of `deep_updates` may run (0: no limit): the
+    /// software adapter ends an invocation's loops after 65,535 iterations in all, so on it
+    /// the sweeps are cut to fit and the cut is counted.
+    pub deep_budget: u32,
 }
 
 /// The per-dispatch arguments (WGSL `Args`, 16 bytes), one per [`ARGS_STRIDE`] slot of the
@@ -347,7 +351,7 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
     p.f_red = take(&mut f, float_slot::RED_WORDS as u32);
     p.f_grid = take(&mut f, float_slot::GRID_WORDS as u32);
     p.f_conv = take(&mut f, float_slot::CONV_WORDS as u32);
-    p.f_deep = take(&mut f, 1);
+    p.f_deep = take(&mut f, 2);
     let floats_keep = f;
     p.f_d2 = take(&mut f, cap.contacts);
     p.f_r2 = take(&mut f, cap.contacts);

@@ -126,7 +126,11 @@ impl GpuBackend {
         }
         self.gpu
             .queue
-            .write_buffer(&self.bufs.floats, 4 * self.sim.f_deep as u64, &[0u8; 4]);
+            .write_buffer(&self.bufs.floats, 4 * self.sim.f_deep as u64, &[0u8; 8]);
+        if self.sim.deep_budget != self.deep_budget {
+            self.sim.deep_budget = self.deep_budget;
+            self.write_params();
+        }
         let mut red = Reductions::default();
         let mut colors = 0u64;
         for _ in 0..steps {
@@ -472,6 +476,17 @@ impl GpuBackend {
         };
         red.overlap_max = f[r + RED_OVERLAP_MAX] as f64;
         red.deep_sum = f[self.sim.f_deep as usize].to_bits() as u64;
+        let cut = f[self.sim.f_deep as usize + 1].to_bits() as u64;
+        if cut > 0 && self.counters.deep_sweeps_cut == 0 {
+            // Once per backend, as the adapter warning of gpu::device::open.
+            eprintln!(
+                "warning: the software GPU adapter's loop limit cut the local updates of deep \
+                 contacts short ({cut} sweeps left out over the last {} steps); fewer deep \
+                 contacts (a smaller time step) or solver.deep_sweeps below {} avoid it",
+                red.steps, self.params.solver.deep_sweeps
+            );
+        }
+        self.counters.deep_sweeps_cut += cut;
         red.kinetic_energy = f[r + RED_KINETIC] as f64;
         red.translational_energy = f[r + RED_TRANSLATIONAL] as f64;
         red.connected_energy = f[r + RED_CONNECTED_ENERGY] as f64;

@@ -364,8 +364,8 @@ pub const TABLE: &[(Kernel, &[Access])] = &[
         ],
     ),
     // One workgroup, once: the step's count, the sum; the sum. Then the colors holding
-    // deep contacts and those contacts' Gauss-Seidel updates, off the common path (none
-    // in a settled packing).
+    // deep contacts and those contacts' Gauss-Seidel updates, and on a software adapter
+    // the count of sweeps cut, off the common path (none in a settled packing).
     (
         Kernel::DeepUpdates,
         &[

@@ -324,6 +324,8 @@ pub const MAX_ANDERSON_DEPTH: u32 = 50;
 /// hundred sweeps, and the GPU runs them all in one workgroup, whose loops a software
 /// adapter (lavapipe) cuts off after 65,535 iterations (shaders/solve.wgsl, `deep_updates`):
 /// at this bound and 11 colors, that leaves room for about 300 deep contacts per color.
+/// Beyond that the kernel runs fewer sweeps on such an adapter, counts them and warns
+/// (`gpu::backend::DEEP_LOOP_BUDGET`).
 pub const MAX_DEEP_SWEEPS: u32 = 1000;
 
 /// Default of the gap beyond which an open contact is left out of the sweeps, as a
