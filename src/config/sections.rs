@@ -138,7 +138,7 @@ impl Default for Solver {
             velocity_tol: crate::solver::default_velocity_tol_rel(),
             open_skip_gap: crate::solver::default_open_skip_gap(),
             deep_overlap: None,
-            deep_sweeps: 50,
+            deep_sweeps: crate::solver::default_deep_sweeps(),
             anderson_depth: crate::solver::default_anderson_depth(),
         }
     }

@@ -213,3 +213,19 @@ fn an_unset_deep_overlap_follows_the_method() {
         assert_eq!(c.solver.deep_overlap_rel(), 0.002, "{method:?}");
     }
 }
+
+/// The library's paper parameters (used by the benches and `cdlab bench`) run the same
+/// local updates of deep contacts as the built-in configuration.
+#[test]
+fn paper_defaults_update_deep_contacts_as_the_configuration_does() {
+    let c = Config::default();
+    let from_config = c.protocol().step.solver;
+    let paper = crate::protocol::ProtocolParams::paper_defaults(c.sample.disks)
+        .step
+        .solver;
+    assert!(from_config.deep_gap > 0.0);
+    assert_eq!(
+        (paper.deep_gap, paper.deep_sweeps),
+        (from_config.deep_gap, from_config.deep_sweeps)
+    );
+}

@@ -136,7 +136,8 @@ impl ProtocolParams {
     /// The paper's parameters (docs/protocol.md) for a sample of `disks` disks, with the
     /// project's choices where the paper is silent (docs/protocol.md):
     /// compaction at 8 MPa (the campaign's largest sigma3), wall friction equal to the disk
-    /// friction, alert distance 0.1 r_min, overlap hard stop at 0.05 r_min.
+    /// friction, alert distance 0.1 r_min, overlap hard stop at 0.05 r_min, local updates of
+    /// loaded contacts deeper than 0.005 r_min, as the configuration's defaults.
     pub fn paper_defaults(disks: usize) -> Self {
         use crate::solver::{Method, SolverParams};
         let (r_min, dt) = (0.5, 5e-4);
@@ -166,8 +167,8 @@ impl ProtocolParams {
                     gs_relax_after: crate::solver::default_gs_relax_after(),
                     velocity_tol: crate::solver::default_velocity_tol_rel() * r_min / dt,
                     open_skip: crate::solver::default_open_skip_gap() * r_min / dt,
-                    deep_gap: 0.0,
-                    deep_sweeps: 0,
+                    deep_gap: crate::solver::default_deep_overlap_rel() * r_min,
+                    deep_sweeps: crate::solver::default_deep_sweeps(),
                     anderson_depth: crate::solver::default_anderson_depth(),
                 },
             },

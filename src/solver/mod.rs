@@ -156,6 +156,13 @@ pub fn default_deep_overlap_rel() -> f64 {
     0.005
 }
 
+/// Default of [`SolverParams::deep_sweeps`] (and of the configuration's `solver.deep_sweeps`):
+/// chains of deep contacts sharing disks need tens of sweeps before the update of one no
+/// longer undoes another's (docs/results.md, "Every friction at 0.5 ms").
+pub fn default_deep_sweeps() -> u32 {
+    50
+}
+
 /// Default of [`SolverParams::anderson_depth`] (docs/method.md, "Anderson-accelerated
 /// Gauss-Seidel").
 pub fn default_anderson_depth() -> u32 {
