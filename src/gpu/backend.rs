@@ -529,8 +529,7 @@ impl Backend for GpuBackend {
         // record per contact (partner, R_n bits, R_t bits, color seed), by owner and
         // partner. The records' owner is the CPU's, which is the GPU's rule too; a record
         // the detection does not own is skipped by its walk, and that contact starts from
-        // zero. Without this a resumed run started from zero impulses: on a 5000-disk
-        // packing at 14 MPa the first steps' sigma1 swung between 9.5 and 16.5 MPa.
+        // zero. A resume from zero impulses would jolt a loaded packing (CHANGELOG.md).
         let nd = self.scene.disks.len();
         let partners = (nd + self.scene.walls.len()) as u32;
         let mut recs: Vec<&ContactRecord> = contacts

@@ -21,10 +21,7 @@ pub(super) fn solve(
     let mut fresh = vec![(0.0, 0.0); contacts.len()];
     for it in 1..=params.max_iter {
         let solve_one = |(c, out): (&Contact, &mut (f64, f64))| {
-            let (un, ut) = c.relative_velocity(gv);
-            let ufn = un - c.wnn * c.rn - c.wnt * c.rt + c.bias_n;
-            let uft = ut - c.wnt * c.rn - c.wtt * c.rt + c.bias_t;
-            let (rn, rt) = law::solve(c.wnn, c.wtt, c.wnt, ufn, uft, c.mu);
+            let (rn, rt) = local_solution(c, gv);
             *out = (c.rn + omega * (rn - c.rn), c.rt + omega * (rt - c.rt));
         };
         if params.parallel && contacts.len() >= params.parallel_min {
@@ -54,6 +51,15 @@ pub(super) fn solve(
     stats
 }
 
+/// The exact local solution of contact `c` from the velocities `gv`, its own impulse taken
+/// out of them.
+fn local_solution(c: &Contact, gv: &[DVec3]) -> (f64, f64) {
+    let (un, ut) = c.relative_velocity(gv);
+    let ufn = un - c.wnn * c.rn - c.wnt * c.rt + c.bias_n;
+    let uft = ut - c.wnt * c.rn - c.wtt * c.rt + c.bias_t;
+    law::solve(c.wnn, c.wtt, c.wnt, ufn, uft, c.mu)
+}
+
 /// Local updates of deep contacts after the iterations (docs/method.md, "Deep contacts"):
 /// the loaded contacts overlapping by more than `deep_gap` (those with a full 2x2 block,
 /// the glued walls, left out as in Gauss-Seidel), each solved exactly again from the
@@ -70,10 +76,7 @@ fn deep_updates(params: &SolverParams, contacts: &mut [Contact], gv: &mut [DVec3
     for _ in 0..params.deep_sweeps {
         for &k in &deep {
             let c = &mut contacts[k];
-            let (un, ut) = c.relative_velocity(gv);
-            let ufn = un - c.wnn * c.rn + c.bias_n;
-            let uft = ut - c.wtt * c.rt + c.bias_t;
-            let (rn, rt) = law::solve(c.wnn, c.wtt, 0.0, ufn, uft, c.mu);
+            let (rn, rt) = local_solution(c, gv);
             c.apply(gv, rn - c.rn, rt - c.rt);
             c.rn = rn;
             c.rt = rt;
