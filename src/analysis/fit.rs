@@ -389,11 +389,6 @@ mod tests {
             "{f:?}"
         );
     }
-}
-
-#[cfg(test)]
-mod linear_tests {
-    use super::{invert, solve_linear};
 
     /// A system whose first pivot is 0 (elimination without row exchanges divides by it),
     /// with the solution (1, -2, 3, 0.5) known: the residual is round-off.
