@@ -26,7 +26,20 @@ const ST_ROUNDS: u32 = 5u;        // coloring rounds
 const ST_LEFT: u32 = 7u;          // contacts left uncolored after the recorded rounds
 const ST_ARGS: u32 = 8u;          // indirect dispatch size of per-contact kernels (3 words)
 const ST_DEEP: u32 = 11u;         // contacts marked for local updates (solve.wgsl, deep_mark)
+const ST_NONEMPTY: u32 = 2u;      // colors holding contacts (solve.wgsl, solve_args)
+const ST_BAD: u32 = 6u;           // non-finite convergence sums met (conv_check)
+const ST_ITERS: u32 = 12u;        // solver iterations run this step (conv_check)
+const ST_CONVERGED: u32 = 13u;    // 1 when the solve met its tolerance or velocity test
+const ST_RESIDUAL: u32 = 14u;     // relative change of the last test, f32 bits
+const ST_LIVE: u32 = 15u;         // 1 while the solve goes on
 const ST_WORDS: u32 = 16u;        // status words; color offsets follow them
+
+// Entries (3 words) of the solve's dispatch arguments at ints[o_disp] (buffers::disp).
+const DISP_CONTACTS: u32 = 0u;       // per-contact kernels of the step
+const DISP_LIVE_CONTACTS: u32 = 1u;  // per-contact kernels of the solve (0 once it ended)
+const DISP_LIVE_BODIES: u32 = 2u;    // per-body kernels of the solve
+const DISP_LIVE_ONE: u32 = 3u;       // one workgroup while the solve goes on
+const DISP_COLOR0: u32 = 4u;         // color c's sweep is entry DISP_COLOR0 + c
 
 // Slots of the float regions the host reads back (buffers::float_slot): floats[f_red + FR_*]
 // (reduce.wgsl), floats[f_grid + FG_*] (grid.wgsl), floats[f_conv + FC_*] (solve.wgsl).
@@ -77,6 +90,7 @@ struct Sim {
     strip_sum_r0: f32, strip_sum_r1: f32, gap_tol: f32, gs_relax: f32,
     o_color: u32, o_left: u32, max_rounds: u32, o_inc_tmp: u32,
     f_deep: u32, deep_gap: f32, deep_sweeps: u32, deep_budget: u32,
+    o_disp: u32, max_iter: u32, tol: f32, velocity_tol: f32,
 }
 
 // Per-dispatch arguments (a region to scan, a color to sweep), bound at a dynamic offset.

@@ -53,13 +53,13 @@ fn color_member(gid: u32) -> u32 {
     return ld(sim.o_order + start + gid);
 }
 
-// One color of a Gauss-Seidel sweep: the color index is args.a; sim.gs_relax is the
-// iteration's relaxation (CPU twin: SolverParams::relax_at).
+// One color of a Gauss-Seidel sweep: the color index is args.a; args.b is 1 for the
+// relaxed iterations, which move by sim.gs_relax (CPU twin: SolverParams::relax_at).
 @compute @workgroup_size(WG)
 fn sweep_color(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = color_member(gid.x);
     if k == UNSET { return; }
-    let u = gs_update(k, sim.gs_relax);
+    let u = gs_update(k, select(1.0, sim.gs_relax, args.b == 1u));
     floats[sim.f_d2 + k] = u.x * u.x + u.y * u.y;
     floats[sim.f_r2 + k] = dot(u.zw, u.zw);
 }
@@ -198,12 +198,66 @@ fn save_iterate(@builtin(global_invocation_id) gid: vec3<u32>) {
     set_vel(4u, b, vel_at(3u, b));
 }
 
+// Entry e of the solve's dispatch arguments: x workgroups (y = z = 1).
+fn set_disp(e: u32, x: u32) {
+    st(sim.o_disp + 3u * e, x);
+    st(sim.o_disp + 3u * e + 1u, 1u);
+    st(sim.o_disp + 3u * e + 2u, 1u);
+}
+
+// After the coloring: the dispatch arguments of the solve (buffers::disp), which the host
+// copies into the indirect buffer, so that each color's sweep covers its members without
+// the host knowing the colors' sizes. Colors past the last one get no workgroup (the host
+// records as many colors as the last steps needed, with a margin). Opens the solve: the
+// iteration count and the convergence flags start from zero (the status words are
+// cleared at the step's start).
+@compute @workgroup_size(WG)
+fn solve_args(@builtin(local_invocation_index) t: u32) {
+    let n = n_contacts();
+    let live = n > 0u;
+    let n_colors = min(ld(sim.o_status + ST_COLORS), sim.max_colors);
+    for (var c = t; c < sim.max_colors; c += WG) {
+        var x = 0u;
+        if live && c < n_colors {
+            let size = ld(sim.o_color_count + c + 1u) - ld(sim.o_color_count + c);
+            x = (size + WG - 1u) / WG;
+            if size > 0u { atomicAdd(&ints[sim.o_status + ST_NONEMPTY], 1u); }
+        }
+        set_disp(DISP_COLOR0 + c, x);
+    }
+    if t == 0u {
+        let groups = (n + WG - 1u) / WG;
+        set_disp(DISP_CONTACTS, groups);
+        set_disp(DISP_LIVE_CONTACTS, select(0u, groups, live));
+        set_disp(DISP_LIVE_BODIES, select(0u, (sim.n_bodies + WG - 1u) / WG, live));
+        set_disp(DISP_LIVE_ONE, select(0u, 1u, live));
+        st(sim.o_status + ST_LIVE, u32(live));
+        st(sim.o_status + ST_CONVERGED, u32(!live));
+    }
+}
+
+// Whether x is finite, read from its bits: WGSL lets a compiler assume that no float is
+// infinite or NaN, so a comparison could be folded away.
+fn finite_bits(x: f32) -> bool {
+    return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
+}
+
 var<workgroup> red_a: array<f32, 256>;
 var<workgroup> red_b: array<f32, 256>;
+var<workgroup> conv_live: u32;
 
-// sum |dR|^2 and sum |R|^2 of the last iteration, to floats[f_conv + FC_D2], [f_conv + FC_R2].
+// The convergence test closing a block of iterations (CPU twin: solver::convergence):
+// args.a is the block's iterations, args.b 1 when the velocity test applies to it, args.c
+// the bits of the relaxation its change is divided by. Sums sum |dR|^2 and sum |R|^2 of the
+// block's last iteration (to floats[f_conv + FC_D2], [f_conv + FC_R2]) and adds the block
+// to the step's iterations. When the relative change meets sim.tol, the velocity change
+// (velocity_change, before this) meets sim.velocity_tol, the cap is reached or a sum is
+// not finite, it ends the solve: the solve's dispatch arguments go to zero workgroups, so
+// the blocks recorded after this one dispatch nothing, and this kernel returns at once.
 @compute @workgroup_size(256)
-fn conv_reduce(@builtin(local_invocation_index) t: u32) {
+fn conv_check(@builtin(local_invocation_index) t: u32) {
+    if t == 0u { conv_live = ld(sim.o_status + ST_LIVE); }
+    if workgroupUniformLoad(&conv_live) == 0u { return; }
     var a = 0.0;
     var b = 0.0;
     let n = n_contacts();
@@ -222,8 +276,34 @@ fn conv_reduce(@builtin(local_invocation_index) t: u32) {
         workgroupBarrier();
     }
     if t == 0u {
-        floats[sim.f_conv + FC_D2] = red_a[0];
-        floats[sim.f_conv + FC_R2] = red_b[0];
+        let d2 = red_a[0];
+        let r2 = red_b[0];
+        floats[sim.f_conv + FC_D2] = d2;
+        floats[sim.f_conv + FC_R2] = r2;
+        let done = ld(sim.o_status + ST_ITERS) + args.a;
+        st(sim.o_status + ST_ITERS, done);
+        let w = bitcast<f32>(args.c);
+        let bad = !finite_bits(d2) || !finite_bits(r2);
+        // As solver::convergence::relative_change: 0 without change, infinite (the
+        // largest float here) when only the change is nonzero.
+        var residual = 0.0;
+        if d2 != 0.0 {
+            residual = 3.4e38;
+            if r2 > 0.0 { residual = sqrt(d2 / r2) / w; }
+        }
+        var met = residual <= sim.tol;
+        if args.b == 1u && sim.velocity_tol > 0.0 && floats[sim.f_conv + FC_DV] / w <= sim.velocity_tol {
+            met = true;
+        }
+        st(sim.o_status + ST_RESIDUAL, bitcast<u32>(residual));
+        if bad || met || done >= sim.max_iter {
+            st(sim.o_status + ST_LIVE, 0u);
+            st(sim.o_status + ST_CONVERGED, u32(met && !bad));
+            st(sim.o_status + ST_BAD, u32(bad));
+            for (var e = DISP_LIVE_CONTACTS; e < DISP_COLOR0 + sim.max_colors; e++) {
+                st(sim.o_disp + 3u * e, 0u);
+            }
+        }
     }
 }
 

@@ -14,11 +14,19 @@ fn bench_writes_its_report_and_rejects_bad_sizes() {
     let run = cdlab;
     let gpu = gpu_support::require_gpu();
     let backends = if gpu { "cpu,gpu" } else { "cpu" };
+    if !gpu {
+        eprintln!(
+            "SKIPPED (GPU cases): bench_writes_its_report_and_rejects_bad_sizes: \
+             CDLAB_REQUIRE_GPU is not set, the CPU cases alone are checked"
+        );
+    }
     let (ok, text) = run(&[
         "bench",
         "--disks",
         "200,300",
         "--steps",
+        "6",
+        "--window",
         "3",
         "--warmup",
         "2",
@@ -35,9 +43,10 @@ fn bench_writes_its_report_and_rejects_bad_sizes() {
     let md = std::fs::read_to_string(out.join("bench.md")).unwrap();
     // The table's header names every column with its unit.
     for head in [
-        "| backend | disks | contacts | iterations/step | ms/step | ns/contact update |",
+        "| backend | disks | contacts | check every (it) | iterations/step | ms/step | ns/contact update |",
         "dispatches/step",
-        "readbacks/step",
+        "empty dispatches/step",
+        "waits/window",
         "device traffic (MB/step)",
         "host peak (MiB)",
         "device (MiB)",
@@ -66,37 +75,48 @@ fn bench_writes_its_report_and_rejects_bad_sizes() {
         assert!(f(c, "host_peak_mib") > 1.0, "{c}");
         // The markdown row shows the same figures, with the table's precision.
         let backend = c["backend"].as_str().unwrap();
+        assert_eq!(f(c, "window"), 3.0, "{c}");
+        let every = f(c, "check_every");
         let row = format!(
-            "| {backend} | {disks} | {contacts} | {it:.1} | {ms:.2} | {ns:.2} | {:.1} |",
+            "| {backend} | {disks} | {contacts} | {every} | {it:.1} | {ms:.2} | {ns:.2} | {:.1} |",
             f(c, "colors_per_step")
         );
         assert!(md.contains(&row), "no row {row:?} in {md}");
         let (d, sub, rb, fixed) = (
             f(c, "dispatches_per_step"),
             f(c, "submissions_per_step"),
-            f(c, "readbacks_per_step"),
+            f(c, "readbacks_per_window"),
             f(c, "fixed_dispatches_per_step"),
         );
         if backend.starts_with("cpu") {
+            // The CPU tests convergence every iteration by default (solver.check_every 0).
+            assert_eq!(every, 1.0, "{c}");
             assert_eq!(
                 (d, sub, rb, fixed, f(c, "device_mib"), f(c, "traffic_mb_per_step")),
                 (0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
                 "{c}"
             );
         } else {
-            // src/gpu/step.rs: 19 fixed dispatches in submission A and 3 in C, plus the
-            // coloring rounds; one per color per iteration besides. More "fixed" dispatches
-            // than a few dozen would mean work that grows with the iterations.
+            // src/gpu/step.rs: 20 fixed dispatches before the solve and 3 after it, 1 for
+            // the reductions, plus the coloring rounds; one per color per iteration
+            // besides. More "fixed" dispatches than a few dozen would mean work that grows
+            // with the iterations.
+            assert_eq!(every, cdlab::solver::GPU_CHECK_EVERY as f64, "{c}");
             let colors = f(c, "colors_per_step");
-            assert!(d >= colors * it + 22.0, "{c}");
+            assert!(d >= colors * it + 24.0, "{c}");
             assert!(
-                (22.0..22.0 + 64.0).contains(&fixed),
+                (24.0..24.0 + 64.0).contains(&fixed),
                 "fixed dispatches {fixed}: {c}"
             );
-            // A status readback per step, and convergence read per batch of iterations, not
-            // per iteration.
-            assert!(rb > 1.0 && rb <= 2.0 + it / 4.0, "readbacks {rb}: {c}");
-            assert!(sub >= rb, "{c}");
+            // One submission per step and one wait per window, unless a window was run
+            // again (each redo submits and waits once more).
+            let redone = f(c, "redone_steps");
+            assert_eq!(rb, 1.0 + redone / 2.0, "waits per window {rb}: {c}");
+            assert_eq!(
+                sub,
+                1.0 + redone * 3.0 / 6.0 + redone / 6.0,
+                "submissions per step {sub}: {c}"
+            );
             assert!(f(c, "device_mib") > 0.0, "{c}");
             // The sweeps alone move 204 bytes per contact and iteration (src/gpu/traffic.rs:
             // the record, two velocities read and written, impulses and convergence terms).

@@ -396,14 +396,13 @@ fn gpu_overlap_limit_holds_beside_an_exactly_touching_pair() {
     );
 }
 
-/// The work of a step follows the structure documented in src/gpu/step.rs, counted one step
-/// at a time: submission A and one readback of the status words; per batch of `conv_every`
-/// iterations one submission and one readback of the convergence sums; submission C; then
-/// at the end of each `run`, the reductions (one dispatch, one submission, one readback)
-/// and one download of the walls. Dispatches: 19 fixed ones and one per coloring round in
-/// A, one per non-empty color per iteration plus one convergence reduction per batch, 3 in
-/// C, 1 for the reductions. A step that makes a readback per iteration, or records a sweep
-/// per color that is not there, fails here. Wall time is printed, not asserted.
+/// The work of a step follows the structure documented in src/gpu/step.rs: one submission
+/// per step and one wait per run of steps, whatever the iterations; dispatches with work:
+/// 20 fixed ones and one per recorded coloring round before the solve, one per non-empty
+/// color per iteration plus one convergence test per block of `conv_every` iterations that
+/// ran, 3 after it and 1 for the reductions. The blocks recorded past the solve's end launch
+/// no workgroup and are counted apart. A step that waits on the host inside the solve, or
+/// sweeps a color that is not there, fails here. Wall time is printed, not asserted.
 #[test]
 fn gpu_work_per_step_follows_the_step_structure() {
     let mut s = lattice(16, 13);
@@ -411,76 +410,97 @@ fn gpu_work_per_step_follows_the_step_structure() {
     let mut p = tight(Method::ColoredGs);
     p.solver.tol = 1e-4;
     p.solver.max_iter = 1000;
-    // No change of relaxation inside the iterations, so every batch but the last is
-    // conv_every long (the relaxation change also ends a batch).
+    // No change of relaxation inside the iterations, so every block but the last is
+    // conv_every long (the relaxation change also ends a block).
     p.solver.gs_relax_after = 0;
     let Some(mut g) = gpu_or_skip("work counts", &s, p) else {
         return;
     };
     let ce = g.conv_every as u64;
-    assert!(ce > 1, "conv_every {ce}: the batches would not be tested");
+    assert!(ce > 1, "conv_every {ce}: the blocks would not be tested");
     g.run(5, &Loading::default()).unwrap();
     let t0 = std::time::Instant::now();
     let mut checked = 0;
-    let mut batched = 0;
+    let mut blocked = 0;
     for step in 0..20 {
         let k0 = g.counters();
         let red = g.run(1, &Loading::default()).unwrap();
         let k = g.counters();
         let d = |a: u64, b: u64| a - b;
         if k.redone > k0.redone {
-            continue; // a capacity grew: the step was recorded twice
+            continue; // a capacity or a margin grew: the step was run twice
         }
         let it = d(k.iterations, k0.iterations);
         assert!(
             it > 0 && it <= p.solver.max_iter as u64,
             "step {step}: {it} iterations"
         );
-        // Convergence is read only at the end of a batch: a multiple of conv_every, or the cap.
+        // Convergence is tested only at the end of a block: a multiple of conv_every, or
+        // the cap.
         assert!(
             it % ce == 0 || it == p.solver.max_iter as u64,
-            "step {step}: {it} iterations, not a whole number of batches of {ce}"
+            "step {step}: {it} iterations, not a whole number of blocks of {ce}"
         );
-        let batches = it.div_ceil(ce);
-        batched += (batches > 1) as u32;
-        // Readbacks: status, one per batch, reductions, walls.
-        assert_eq!(d(k.readbacks, k0.readbacks), 1 + batches + 1 + 1, "step {step}");
-        // Submissions: A + its readback, batch + readback each, C, reductions + readback,
-        // walls' readback.
-        assert_eq!(
-            d(k.submissions, k0.submissions),
-            2 + 2 * batches + 1 + 2 + 1,
-            "step {step}"
-        );
+        let blocks = it.div_ceil(ce);
+        blocked += (blocks > 1) as u32;
+        // One wait (the history) and one submission, whatever the blocks.
+        assert_eq!(d(k.readbacks, k0.readbacks), 1, "step {step}");
+        assert_eq!(d(k.submissions, k0.submissions), 1, "step {step}");
         let colors = red.colors_mean.round() as u64;
         assert_eq!(red.colors_mean, colors as f64);
         assert!(colors >= 2, "step {step}: {colors} colors for a lattice");
         let rounds = d(k.color_rounds, k0.color_rounds);
-        let recorded = d(k.dispatches, k0.dispatches) - (19 + it * colors + batches + 3 + 1);
+        let recorded = d(k.dispatches, k0.dispatches) - (20 + it * colors + blocks + 3 + 1);
         // Rounds recorded: those the coloring needed and a margin (the hint), never fewer.
         assert!(
             recorded >= rounds.max(1) && recorded <= g.capacity().rounds as u64,
             "step {step}: {recorded} coloring dispatches for {rounds} rounds"
         );
+        // The margin of blocks and colors recorded is launched empty.
+        assert!(
+            d(k.empty_dispatches, k0.empty_dispatches) > 0,
+            "step {step}: no margin"
+        );
         checked += 1;
     }
-    assert!(checked >= 15, "only {checked} steps without a regrowth");
+    assert!(checked >= 15, "only {checked} steps without a redo");
     assert!(
-        batched > 0,
-        "no step needed more than one batch: the batches were not tested"
+        blocked > 0,
+        "no step needed more than one block: the blocks were not tested"
     );
     let k = g.counters();
     eprintln!(
-        "{} disks: {:.2} ms per step on {} (wall time, printed only); per step {:.1} dispatches, \
-         {:.2} submissions, {:.2} readbacks, {:.1} iterations",
+        "{} disks: {:.2} ms per step on {} (wall time, printed only); per step {:.1} dispatches \
+         ({:.1} empty), {:.2} submissions, {:.2} readbacks, {:.1} iterations",
         s.disks.len(),
         t0.elapsed().as_secs_f64() * 1e3 / 20.0,
         g.name(),
         k.dispatches as f64 / k.steps as f64,
+        k.empty_dispatches as f64 / k.steps as f64,
         k.submissions as f64 / k.steps as f64,
         k.readbacks as f64 / k.steps as f64,
         k.iterations as f64 / k.steps as f64,
     );
+}
+
+/// A window of steps waits once, however many steps it holds: 10 steps, one submission
+/// each, one readback.
+#[test]
+fn gpu_window_waits_once() {
+    let mut s = lattice(16, 13);
+    s.gravity = DVec2::new(0.0, -G);
+    let mut p = tight(Method::ColoredGs);
+    p.solver.tol = 1e-4;
+    p.solver.max_iter = 1000;
+    let Some(mut g) = gpu_or_skip("one wait per window", &s, p) else {
+        return;
+    };
+    g.run(5, &Loading::default()).unwrap();
+    let k0 = g.counters();
+    g.run(10, &Loading::default()).unwrap();
+    let k = g.counters() - k0;
+    assert_eq!(k.steps, 10);
+    assert_eq!((k.redone, k.readbacks, k.submissions), (0, 1, 10), "{k:?}");
 }
 
 /// Every capacity that can overflow grows, and the step redone after the growth gives the

@@ -120,7 +120,11 @@ fn records() -> Vec<(&'static str, &'static str, usize, Vec<Field>)> {
                 f_deep,
                 deep_gap,
                 deep_sweeps,
-                deep_budget
+                deep_budget,
+                o_disp,
+                max_iter,
+                tol,
+                velocity_tol
             }),
         ),
         (

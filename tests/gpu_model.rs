@@ -256,9 +256,10 @@ fn each_solver_iteration_adds_the_closed_form_bytes_of_its_kernels() {
         let (r5, w5, n5, _) = one_step(method, 5).expect("a second backend");
         assert_eq!(n, n5, "{method:?}: both steps must find the same contacts");
         assert_eq!(n, 16, "a column of 16 disks on a floor has 16 contacts");
-        // Every iteration ends with its convergence reduction (check every iteration): the
-        // contact count, two terms per contact, two sums written.
-        let (conv_r, conv_w) = (w + 2 * w * n, 2 * w);
+        // Every iteration ends with its convergence test (check every iteration): the
+        // flag, the contact count and the iterations, two terms per contact; two sums, the
+        // iterations and the residual written.
+        let (conv_r, conv_w) = (3 * w + 2 * w * n, 4 * w);
         let (read, written) = match method {
             // One sweep over every contact (the colors tile them): per contact the color's
             // two offsets and its index, the record, two velocities; two velocities, R_n,

@@ -289,3 +289,33 @@ fn a_deep_loaded_contact_leaves_the_step_satisfying_its_law() {
         assert_eq!(above_on, above_off, "{method:?}");
     }
 }
+
+/// `solver.check_every` takes effect on the CPU: the iterates are those of a test every
+/// iteration, so a step tested every 5 iterations stops at the first multiple of 5 at which
+/// the test holds, and with a tight tolerance at or after the every-iteration stop. Runs a
+/// loaded column of 40 disks (many iterations), Gauss-Seidel and Jacobi.
+#[test]
+fn check_every_sets_where_the_cpu_solve_may_stop() {
+    use cdlab::backend::{Backend, CpuBackend, Loading};
+    for method in [Method::ColoredGs, Method::Jacobi] {
+        let run = |every: u32| {
+            let mut p = tight(method);
+            p.solver.tol = 1e-6;
+            p.solver.check_every = every;
+            let scene = common::column(40, 0.5, G, Some(-2.0e4));
+            let mut b = CpuBackend::new(scene, p).expect("backend");
+            let red = b.run(1, &Loading::default()).expect("step");
+            assert_eq!(red.capped_steps, 0, "{method:?}: the step must converge");
+            red.iterations_sum
+        };
+        let (one, five) = (run(1), run(5));
+        assert!(one > 10, "{method:?}: {one} iterations, too few to test");
+        assert_eq!(five % 5, 0, "{method:?}: {five} iterations with a test every 5");
+        assert!(
+            five >= one && five < one + 5,
+            "{method:?}: {five} iterations tested every 5, {one} tested every one"
+        );
+        // The default (0) is every iteration on the CPU.
+        assert_eq!(run(0), one, "{method:?}");
+    }
+}

@@ -28,6 +28,14 @@ pub struct Args {
     /// Solver tolerance.
     #[arg(long, default_value_t = 1e-4)]
     pub tol: f64,
+    /// Steps per window (the steps between two waits for the device, as between two
+    /// series rows of a test: output.series_every).
+    #[arg(long, default_value_t = 10)]
+    pub window: u32,
+    /// Iterations between two convergence tests, comma separated to compare several
+    /// (solver.check_every; 0: the backend's default).
+    #[arg(long, value_delimiter = ',', default_value = "0")]
+    pub check_every: Vec<u32>,
     /// Output directory.
     #[arg(long, default_value = "out/bench")]
     pub out: PathBuf,
@@ -48,17 +56,34 @@ pub fn run(args: &Args) -> Result<()> {
     if args.steps == 0 {
         return Err(Error::invalid("--steps", 0, "must be >= 1"));
     }
+    if args.window == 0 {
+        return Err(Error::invalid("--window", 0, "must be >= 1"));
+    }
+    if args.check_every.is_empty() {
+        return Err(Error::invalid("--check-every", "", "give at least one interval"));
+    }
     let mut params = ProtocolParams::paper_defaults(50).step;
     params.solver.tol = args.tol;
     params.validate()?;
+    let run = crate::run::bench::Run {
+        warmup: args.warmup,
+        steps: args.steps,
+        window: args.window,
+    };
     let mut cases = Vec::new();
     let mut failures = Vec::new();
     for &n in &args.disks {
         let scene = sheared_sample(n)?;
-        for b in &args.backend {
+        for (b, &every) in args
+            .backend
+            .iter()
+            .flat_map(|b| args.check_every.iter().map(move |e| (b, e)))
+        {
+            let mut params = params;
+            params.solver.check_every = every;
             let case = match b.as_str() {
-                "cpu" => measure_cpu(scene.clone(), params, n, args.warmup, args.steps)?,
-                "gpu" => match measure_gpu(scene.clone(), params, n, args.warmup, args.steps) {
+                "cpu" => measure_cpu(scene.clone(), params, n, run)?,
+                "gpu" => match measure_gpu(scene.clone(), params, n, run) {
                     Ok(c) => c,
                     // Only a missing adapter is a skip: any other GPU error is a failure.
                     Err(e @ Error::NoAdapter(_)) => {

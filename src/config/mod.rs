@@ -224,6 +224,7 @@ impl Config {
                     deep_gap: v.deep_overlap_rel() * r_min,
                     deep_sweeps: v.deep_sweeps,
                     anderson_depth: v.anderson_depth,
+                    check_every: v.check_every,
                 },
             },
             mu: t.mu,

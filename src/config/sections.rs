@@ -91,7 +91,8 @@ pub struct Solver {
     pub jacobi_relax: f64,
     /// Alert distance as a fraction of `sample.r_min`.
     pub alert_distance: f64,
-    /// Convergence check interval (iterations).
+    /// Iterations between two convergence tests; 0: every iteration on the CPU, every
+    /// [`crate::solver::GPU_CHECK_EVERY`] on the GPU.
     pub check_every: u32,
     /// Overlap, as a fraction of `sample.r_min`, above which the run stops with an error.
     pub overlap_limit: f64,
@@ -129,7 +130,7 @@ impl Default for Solver {
             method: Method::ColoredGs,
             jacobi_relax: 0.5,
             alert_distance: 0.1,
-            check_every: 1,
+            check_every: 0,
             overlap_limit: 0.05,
             backend: Backend::Auto,
             threads: 0,

@@ -81,7 +81,6 @@ fn each_bad_value_is_rejected_naming_its_field() {
         ("[solver]\nmax_iter = 0", "solver.max_iter"),
         ("[solver]\njacobi_relax = 0", "solver.jacobi_relax"),
         ("[solver]\nalert_distance = -0.1", "solver.alert_distance"),
-        ("[solver]\ncheck_every = 0", "solver.check_every"),
         ("[solver]\noverlap_limit = 0", "solver.overlap_limit"),
         ("[solver]\ndeep_overlap = -0.001", "solver.deep_overlap"),
         ("[solver]\ndeep_overlap = nan", "solver.deep_overlap"),

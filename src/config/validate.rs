@@ -193,7 +193,6 @@ impl Config {
             }
         }
         check_range("solver.alert_distance", v.alert_distance, 0.0, 1.0)?;
-        check_at_least("solver.check_every", v.check_every.into(), 1, "a check interval")?;
 
         let c = &self.compaction;
         check_positive("compaction.sigma_c", c.sigma_c.0)?;

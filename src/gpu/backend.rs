@@ -7,10 +7,11 @@ use glam::DVec2;
 
 use super::buffers::{
     ARGS_STRIDE, Buffers, Capacity, GpuContact, GpuDisk, GpuWall, PREV_STRIDE, SimParams, args_slots,
-    round_slot,
+    color_slot, conv_slot, round_slot,
 };
 use super::device::{GpuDevice, open};
 use super::pipeline::Pipelines;
+use super::step::{Block, schedule};
 use crate::backend::reduce::{Reductions, zero_gap_tolerance};
 use crate::backend::{Backend, ContactRecord, Loading};
 use crate::contact::Contact;
@@ -27,8 +28,13 @@ pub struct GpuCounters {
     pub steps: u64,
     /// Steps redone after a capacity grew.
     pub redone: u64,
-    /// Compute dispatches recorded.
+    /// Compute dispatches that did work: those of the fixed phases, and those of the
+    /// solver's blocks that ran.
     pub dispatches: u64,
+    /// Compute dispatches recorded that launched no workgroup: the blocks of the solve
+    /// recorded past its end (the margin of [`GpuBackend::conv_every`] blocks), the colors
+    /// recorded beyond those holding contacts.
+    pub empty_dispatches: u64,
     /// Command buffers submitted.
     pub submissions: u64,
     /// Buffers mapped and waited for (status, convergence, reductions, downloads).
@@ -64,6 +70,7 @@ impl std::ops::Sub for GpuCounters {
             steps: self.steps - earlier.steps,
             redone: self.redone - earlier.redone,
             dispatches: self.dispatches - earlier.dispatches,
+            empty_dispatches: self.empty_dispatches - earlier.empty_dispatches,
             submissions: self.submissions - earlier.submissions,
             readbacks: self.readbacks - earlier.readbacks,
             iterations: self.iterations - earlier.iterations,
@@ -98,7 +105,7 @@ fn refuse_cpu_only(params: &StepParams) -> Result<()> {
 /// stay empty; empty colors cost no dispatch and are not counted);
 /// convergence is checked every [`GpuBackend::conv_every`] iterations, so iteration counts
 /// are multiples of it (set it to 1 for CPU-comparable counts); a capacity growth drops
-/// nothing (the step is redone) and keeps the warm start.
+/// nothing (the window of steps is redone from its start) and keeps the warm start.
 pub struct GpuBackend {
     pub(super) gpu: GpuDevice,
     pub(super) pipes: Pipelines,
@@ -111,20 +118,32 @@ pub struct GpuBackend {
     pub(super) scene: Scene,
     /// The sample centre subtracted from every position on upload.
     pub(super) centre: DVec2,
-    /// Iterations recorded between two convergence readbacks.
+    /// Iterations between two convergence tests on the device (`solver.check_every`, or
+    /// [`crate::solver::GPU_CHECK_EVERY`] when it is 0); may be set between runs.
     pub conv_every: u32,
     /// Loop iterations allowed to one invocation of the deep-contact kernel, 0 for no
     /// limit: [`DEEP_LOOP_BUDGET`] on a software adapter, 0 on a hardware GPU. Read at the
     /// start of every run of steps.
     pub deep_budget: u32,
     pub(super) counters: GpuCounters,
-    /// Contacts and color offsets of the last step (from the status readback).
+    /// Contacts of the last step (from the history).
     pub(super) n_contacts: u32,
-    pub(super) color_offsets: Vec<u32>,
     pub(super) loading: Loading,
-    /// Coloring rounds recorded per step: the last step's count with a margin (rounds
-    /// beyond need cost an empty dispatch each; too few redo the step with twice as many).
+    /// Coloring rounds recorded per step: the last window's most with a margin (rounds
+    /// beyond need cost an empty dispatch each; too few redo the window with twice as many).
     pub(super) rounds_hint: u32,
+    /// Colors swept per iteration, as `rounds_hint`.
+    pub(super) colors_hint: u32,
+    /// Iterations recorded per step (in whole blocks), as `rounds_hint`.
+    pub(super) iters_hint: u32,
+    /// The blocks of a solve (`step::schedule`) for the parameters and `conv_every` it
+    /// was made for.
+    pub(super) schedule: Vec<Block>,
+    schedule_for: Option<(crate::solver::SolverParams, u32)>,
+    /// The mapped buffer the steps' rows and the window's reductions are copied into.
+    history: Option<wgpu::Buffer>,
+    /// The state at the start of the window, to run it again.
+    backup: Option<Vec<wgpu::Buffer>>,
 }
 
 impl GpuBackend {
@@ -155,13 +174,18 @@ impl GpuBackend {
             params,
             scene: Scene::default(),
             centre: DVec2::ZERO,
-            conv_every: 8,
+            conv_every: params.solver.check_interval(true),
             deep_budget: 0,
             counters: GpuCounters::default(),
             n_contacts: 0,
-            color_offsets: Vec::new(),
             loading: Loading::default(),
             rounds_hint: 16,
+            colors_hint: 16,
+            iters_hint: 64,
+            schedule: Vec::new(),
+            schedule_for: None,
+            history: None,
+            backup: None,
         };
         if b.gpu.info.device_type == wgpu::DeviceType::Cpu {
             b.deep_budget = DEEP_LOOP_BUDGET;
@@ -215,8 +239,16 @@ impl GpuBackend {
         sim.deep_gap = p.solver.deep_gap as f32;
         sim.deep_sweeps = p.solver.deep_sweeps;
         sim.deep_budget = self.deep_budget;
-        // The solver loop sets the relaxation of each batch of iterations.
-        sim.gs_relax = 1.0;
+        // The relaxed blocks' sweeps move by it (their argument slots say which are).
+        sim.gs_relax = p.solver.gs_relax as f32;
+        sim.max_iter = p.solver.max_iter;
+        sim.tol = p.solver.tol as f32;
+        // Gauss-Seidel's only, as on the CPU.
+        sim.velocity_tol = if p.solver.method == Method::Jacobi {
+            0.0
+        } else {
+            p.solver.velocity_tol as f32
+        };
         let strips = !l.strip.is_empty() && l.sigma3 != 0.0;
         sim.strips = strips as u32;
         sim.sigma3 = l.sigma3 as f32;
@@ -238,20 +270,31 @@ impl GpuBackend {
         q.write_buffer(&self.bufs.sim, 0, bytemuck::bytes_of(&self.sim));
         let s = &self.sim;
         let mut table = vec![0u32; (args_slots(self.cap) as u64 * ARGS_STRIDE / 4) as usize];
-        let mut put = |slot: usize, a: u32, b: u32| {
-            let w = slot * (ARGS_STRIDE / 4) as usize;
+        let mut put = |slot: u32, a: u32, b: u32, c: u32| {
+            let w = slot as usize * (ARGS_STRIDE / 4) as usize;
             table[w] = a;
             table[w + 1] = b;
+            table[w + 2] = c;
         };
-        put(0, 0, self.bufs.layout.clear_len);
-        put(1, s.o_cell_start, s.cap_cells);
-        put(2, s.o_dcount, s.n_disks);
-        put(3, s.o_inc_count, s.n_bodies);
+        put(0, 0, self.bufs.layout.clear_len, 0);
+        put(1, s.o_cell_start, s.cap_cells, 0);
+        put(2, s.o_dcount, s.n_disks, 0);
+        put(3, s.o_inc_count, s.n_bodies, 0);
         for c in 0..self.cap.colors {
-            put(4 + c as usize, c, 0);
+            put(color_slot(self.cap, c, false), c, 0, 0);
+            put(color_slot(self.cap, c, true), c, 1, 0);
         }
         for r in 1..=self.cap.rounds {
-            put(round_slot(self.cap, r) as usize, r, 0);
+            put(round_slot(self.cap, r), r, 0, 0);
+        }
+        // Each kind of block's test: its iterations, its velocity test, its relaxation.
+        for b in &self.schedule {
+            put(
+                conv_slot(self.cap, b.slot),
+                b.len,
+                b.velocity_test as u32,
+                b.w.to_bits(),
+            );
         }
         q.write_buffer(&self.bufs.args, 0, bytemuck::cast_slice(&table));
     }
@@ -284,6 +327,123 @@ impl GpuBackend {
         self.bind = self.pipes.bind(&self.gpu.device, &self.bufs);
         self.write_params();
         Ok(())
+    }
+
+    /// Makes the blocks of the solve for the parameters and `conv_every` in force, and
+    /// writes their tests' arguments, when either changed.
+    pub(super) fn refresh_schedule(&mut self) {
+        let key = (self.params.solver, self.conv_every.max(1));
+        if self.schedule_for != Some(key) {
+            self.schedule = schedule(&self.params.solver, key.1);
+            self.schedule_for = Some(key);
+            self.write_params();
+        }
+    }
+
+    /// The history buffer, of at least `size` bytes (mapped for reading at a window's end).
+    pub(super) fn history(&mut self, size: u64) -> wgpu::Buffer {
+        let size = size.max(4).next_multiple_of(4);
+        if let Some(h) = &self.history
+            && h.size() >= size
+        {
+            return h.clone();
+        }
+        let h = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("history"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        self.history = Some(h.clone());
+        h
+    }
+
+    /// Maps the first `size` bytes of the history and returns them (the window's one wait).
+    pub(super) fn map_history(&mut self, h: &wgpu::Buffer, size: u64) -> Result<Vec<u8>> {
+        let size = size.max(4).next_multiple_of(4);
+        let (tx, rx) = std::sync::mpsc::channel();
+        h.map_async(wgpu::MapMode::Read, ..size, move |r| {
+            let _ = tx.send(r);
+        });
+        let gpu = &self.gpu;
+        gpu.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| gpu.failure("waiting for the device", e))?;
+        gpu.check("running the time steps")?;
+        rx.recv()
+            .map_err(|e| gpu.failure("reading back a result", e))?
+            .map_err(|e| gpu.failure("mapping the history buffer", e))?;
+        let bytes = h
+            .get_mapped_range(..size)
+            .map_err(|e| gpu.failure("reading a mapped buffer", format!("{e:?}")))?
+            .to_vec();
+        h.unmap();
+        self.counters.readbacks += 1;
+        self.counters.readback_bytes += size;
+        Ok(bytes)
+    }
+
+    /// The buffers that hold the state between steps, with the bytes of each that do: the
+    /// disks, walls, velocities, warm start and the float accumulators.
+    fn state_buffers(&self) -> [(&wgpu::Buffer, u64); 5] {
+        let b = &self.bufs;
+        [
+            (&b.disks, b.disks.size()),
+            (&b.walls, b.walls.size()),
+            (&b.vel, b.vel.size()),
+            (&b.prev, b.prev.size()),
+            (&b.floats, (4 * b.layout.floats_keep as u64).max(4)),
+        ]
+    }
+
+    /// Allocates the copy of the state a window starts from, when its sizes changed.
+    pub(super) fn ensure_backup(&mut self) {
+        let sizes: Vec<u64> = self.state_buffers().iter().map(|(_, n)| *n).collect();
+        if let Some(b) = &self.backup
+            && b.iter().map(|x| x.size()).eq(sizes.iter().copied())
+        {
+            return;
+        }
+        let device = &self.gpu.device;
+        self.backup = Some(
+            sizes
+                .iter()
+                .map(|&size| {
+                    device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some("window start"),
+                        size,
+                        usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                        mapped_at_creation: false,
+                    })
+                })
+                .collect(),
+        );
+    }
+
+    /// The (live, backup, bytes) pairs of the state.
+    fn backup_pairs(&self) -> Vec<(wgpu::Buffer, wgpu::Buffer, u64)> {
+        let backup = self.backup.as_ref().expect("ensure_backup before a window");
+        self.state_buffers()
+            .iter()
+            .zip(backup)
+            .map(|((live, n), b)| ((*live).clone(), b.clone(), (*n).min(b.size())))
+            .collect()
+    }
+
+    /// Records the copy of the state into the backup (the window's start).
+    pub(super) fn backup_copies(&self) -> Vec<(wgpu::Buffer, wgpu::Buffer, u64)> {
+        self.backup_pairs()
+    }
+
+    /// Puts the state of the window's start back.
+    pub(super) fn restore(&mut self) -> Result<()> {
+        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+        for (live, backup, n) in self.backup_pairs() {
+            enc.copy_buffer_to_buffer(&backup, 0, &live, 0, n.min(live.size()));
+        }
+        self.gpu.queue.submit([enc.finish()]);
+        self.counters.submissions += 1;
+        self.gpu.check("putting back the state of the window's start")
     }
 
     /// Copies `size` bytes of `src` from `offset` to the host (one map-and-wait).
@@ -436,6 +596,9 @@ impl Backend for GpuBackend {
     fn set_params(&mut self, params: StepParams) -> Result<()> {
         params.validate()?;
         refuse_cpu_only(&params)?;
+        if params.solver.check_every != self.params.solver.check_every {
+            self.conv_every = params.solver.check_interval(true);
+        }
         self.params = params;
         self.fill_params();
         self.write_params();

@@ -153,6 +153,15 @@ pub struct SimParams {
     /// software adapter ends an invocation's loops after 65,535 iterations in all, so on it
     /// the sweeps are cut to fit and the cut is counted.
     pub deep_budget: u32,
+    /// Offset of the dispatch arguments the device writes for the solver's indirect
+    /// dispatches (`disp::*` entries of 3 words, copied into the indirect buffer).
+    pub o_disp: u32,
+    /// Iteration cap of a step (the device ends the solver loop at it).
+    pub max_iter: u32,
+    /// Tolerance of the relative change of the impulses (`solver.tol`).
+    pub tol: f32,
+    /// Velocity test (m/s; 0: off), as `SolverParams::velocity_tol`.
+    pub velocity_tol: f32,
 }
 
 /// The per-dispatch arguments (WGSL `Args`, 16 bytes), one per [`ARGS_STRIDE`] slot of the
@@ -190,8 +199,41 @@ pub mod status {
     pub const DEEP: usize = 11;
     /// Indirect dispatch size of per-contact kernels (3 words).
     pub const ARGS: usize = 8;
-    /// Words before the color offsets.
+    /// Colors holding contacts (`solve_args`).
+    pub const NONEMPTY: usize = 2;
+    /// Non-finite convergence sums met (solve.wgsl `conv_check`; 1 ends the step's solve).
+    pub const BAD: usize = 6;
+    /// Solver iterations run this step (`conv_check`).
+    pub const ITERS: usize = 12;
+    /// 1 when the step's solve met its tolerance or velocity test.
+    pub const CONVERGED: usize = 13;
+    /// Relative change of the last test, f32 bits.
+    pub const RESIDUAL: usize = 14;
+    /// 1 while the solve goes on: still 1 at the end of a step whose recorded iterations
+    /// ran out before a test or the cap ended it (the host redoes the window).
+    pub const LIVE: usize = 15;
+    /// Words before the color offsets; also the words of a step's row in the history.
     pub const WORDS: usize = 16;
+}
+
+/// Entries (3 words each: workgroups x, y, z) of the dispatch arguments that `solve_args`
+/// writes after the coloring and `conv_check` zeroes once the solve has ended, so that the
+/// iterations recorded past convergence dispatch no workgroup.
+pub mod disp {
+    /// Per-contact kernels (the contacts that fit), for the whole step.
+    pub const CONTACTS: u32 = 0;
+    /// Per-contact kernels of the solve (Jacobi): zero once the solve ended.
+    pub const LIVE_CONTACTS: u32 = 1;
+    /// Per-body kernels of the solve (Jacobi's gather, the velocity test's copy).
+    pub const LIVE_BODIES: u32 = 2;
+    /// One workgroup while the solve goes on (the velocity test's reduction).
+    pub const LIVE_ONE: u32 = 3;
+    /// Color `c` of a Gauss-Seidel sweep is entry `COLOR0 + c`.
+    pub const COLOR0: u32 = 4;
+    /// Entries for `colors` colors.
+    pub fn entries(colors: u32) -> u32 {
+        COLOR0 + colors
+    }
 }
 
 /// Slots of the float regions that survive a growth (`floats[f_red ..]`, `floats[f_grid ..]`,
@@ -334,6 +376,7 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
     p.o_inc_fill = take(&mut o, nb);
     p.o_left = take(&mut o, cap.rounds + 1);
     let clear_len = o;
+    p.o_disp = take(&mut o, 3 * disp::entries(cap.colors));
     p.o_items = take(&mut o, nd);
     p.o_cell_of = take(&mut o, nd);
     p.o_slots = take(&mut o, nd * cap.k_slots);
@@ -396,15 +439,30 @@ pub struct Buffers {
     pub layout: Layout,
 }
 
-/// Number of per-dispatch argument slots: 4 fixed ones, one per color, one per coloring
-/// round.
+/// Argument slots of the convergence tests: one per distinct block of iterations (its
+/// length, velocity test, relaxation) in a step's schedule, which has at most four.
+pub const CONV_SLOTS: u32 = 8;
+
+/// Number of per-dispatch argument slots: 4 fixed ones, two per color (unrelaxed and
+/// relaxed sweeps), one per coloring round, [`CONV_SLOTS`] for the convergence tests.
 pub fn args_slots(cap: Capacity) -> u32 {
-    4 + cap.colors + cap.rounds
+    4 + 2 * cap.colors + cap.rounds + CONV_SLOTS
+}
+
+/// Argument slot of color `c`'s sweep at relaxation 1 (`relaxed` false) or
+/// `solver.gs_relax` (its `a` is `c`, its `b` the relaxation's f32 bits).
+pub fn color_slot(cap: Capacity, c: u32, relaxed: bool) -> u32 {
+    4 + c + if relaxed { cap.colors } else { 0 }
 }
 
 /// Argument slot of coloring round `r` (1-based; its `a` is `r`).
 pub fn round_slot(cap: Capacity, r: u32) -> u32 {
-    4 + cap.colors + r - 1
+    4 + 2 * cap.colors + r - 1
+}
+
+/// Argument slot of convergence test `k` (`k < CONV_SLOTS`).
+pub fn conv_slot(cap: Capacity, k: u32) -> u32 {
+    4 + 2 * cap.colors + cap.rounds + k
 }
 
 /// Checks one buffer size against the adapter's limits; the error ([`Error::GpuLimit`])
@@ -510,7 +568,7 @@ impl Buffers {
             prev: storage(device, "prev", sizes[5].1, none),
             indirect: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("indirect"),
-                size: 16,
+                size: 12 * disp::entries(cap.colors) as u64,
                 usage: wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),

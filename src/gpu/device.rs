@@ -117,9 +117,17 @@ pub struct AdapterSummary {
 
 /// Backends to look at: all of them (`WGPU_BACKEND` in the environment narrows the set,
 /// e.g. `WGPU_BACKEND=vulkan` for lavapipe).
+///
+/// wgpu's check of indirect dispatch arguments (`VALIDATION_INDIRECT_CALL`, on in release
+/// builds too) is turned off unless `WGPU_VALIDATION_INDIRECT_CALL` asks for it: it adds a
+/// validating dispatch and its barriers before every indirect dispatch, and the solver
+/// issues one indirect dispatch per color per iteration, whose arguments cdlab's own kernels
+/// write (`solve_args`, `conv_check`, `contact_args`), each bounded by the contact
+/// capacity over the workgroup size.
 fn instance() -> wgpu::Instance {
     let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
     desc.backends = wgpu::Backends::all();
+    desc.flags.remove(wgpu::InstanceFlags::VALIDATION_INDIRECT_CALL);
     wgpu::Instance::new(desc.with_env())
 }
 

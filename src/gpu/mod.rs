@@ -46,7 +46,7 @@ pub const WG: u32 = 64;
 /// table, so the Rust constants stay the one source of these values.
 pub fn wgsl_constants() -> Vec<(&'static str, u32)> {
     use crate::model::{BodyKind, NOT_GLUED};
-    use buffers::{PREV_STRIDE, float_slot as fs, status};
+    use buffers::{PREV_STRIDE, disp, float_slot as fs, status};
     vec![
         ("WG", WG),
         ("KIND_FREE", BodyKind::Free as u32),
@@ -61,7 +61,18 @@ pub fn wgsl_constants() -> Vec<(&'static str, u32)> {
         ("ST_LEFT", status::LEFT as u32),
         ("ST_ARGS", status::ARGS as u32),
         ("ST_DEEP", status::DEEP as u32),
+        ("ST_NONEMPTY", status::NONEMPTY as u32),
+        ("ST_BAD", status::BAD as u32),
+        ("ST_ITERS", status::ITERS as u32),
+        ("ST_CONVERGED", status::CONVERGED as u32),
+        ("ST_RESIDUAL", status::RESIDUAL as u32),
+        ("ST_LIVE", status::LIVE as u32),
         ("ST_WORDS", status::WORDS as u32),
+        ("DISP_CONTACTS", disp::CONTACTS),
+        ("DISP_LIVE_CONTACTS", disp::LIVE_CONTACTS),
+        ("DISP_LIVE_BODIES", disp::LIVE_BODIES),
+        ("DISP_LIVE_ONE", disp::LIVE_ONE),
+        ("DISP_COLOR0", disp::COLOR0),
         ("FR_MEAN_RN", fs::RED_MEAN_RN as u32),
         ("FR_ROLLING", fs::RED_ROLLING as u32),
         ("FR_SLIDING", fs::RED_SLIDING as u32),

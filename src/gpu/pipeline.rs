@@ -67,11 +67,12 @@ kernels! {
         ColorScatter = "color_scatter",
     ],
     "solve.wgsl" => [
+        SolveArgs = "solve_args",
         Gather = "gather",
         SweepColor = "sweep_color",
         JacobiSolve = "jacobi_solve",
         JacobiCommit = "jacobi_commit",
-        ConvReduce = "conv_reduce",
+        ConvCheck = "conv_check",
         SaveIterate = "save_iterate",
         VelocityChange = "velocity_change",
         DeepMark = "deep_mark",

@@ -1,445 +1,634 @@
-//! Recording of one time step on the device, phase by phase (the order of
-//! `CpuEngine::step`), and the run loop with its few readbacks:
+//! Recording of the time steps on the device, phase by phase (the order of
+//! `CpuEngine::step`), and the run loop, which waits for the device once per run of steps
+//! (a window: one series row of the protocol).
 //!
-//! 1. submission A: clear, free velocities, grid, detection, compaction with warm start,
-//!    incidence lists, warm-start gather, coloring (one dispatch per round, as many rounds
-//!    as the last step needed plus a margin); then one readback of the status words
-//!    (contact count, overflows, colors and their offsets, contacts left uncolored,
-//!    largest overlap). On overflow, or when the rounds were too few, the capacities grow
-//!    and A is recorded again (nothing in A changes the state).
-//! 2. submissions B: `conv_every` iterations (one dispatch per color, or three for
-//!    Jacobi) and a convergence reduction; one readback of two floats each.
-//! 3. submission C: local updates of deep contacts (two dispatches), integration, wall
-//!    impulses, saving the impulses for the warm start.
+//! Each step is one command buffer, submitted without waiting:
 //!
-//! At the end of a run, one more submission reduces counts, overlaps and energies.
+//! 1. clear, free velocities, grid, detection with the warm start, incidence lists,
+//!    warm-start gather, coloring (one dispatch per round, as many rounds as the last steps
+//!    needed plus a margin), then `solve_args`, which writes the dispatch arguments of the
+//!    solve: one entry per color, so that each color's sweep covers its members although
+//!    the host does not know the colors' sizes;
+//! 2. the solver, in blocks of [`GpuBackend::conv_every`] iterations (one indirect dispatch
+//!    per color, or three for Jacobi), each closed by `conv_check`, which decides on the
+//!    device whether the solve has ended and then sets the solve's dispatch arguments to
+//!    zero workgroups: blocks recorded past the end dispatch nothing. The host records as
+//!    many blocks as the last steps needed, with a margin;
+//! 3. local updates of deep contacts (two dispatches), integration, wall impulses, the
+//!    impulses kept for the warm start, and a copy of the step's status words (contacts,
+//!    colors, rounds, iterations, convergence, largest overlap) into a mapped history.
+//!
+//! The last step of a window also reduces counts, overlaps and energies and copies them with
+//! the walls into the history; the host then maps it, its one wait of the window. Capacities
+//! and recording margins are thus checked a window late: when a step overflowed a capacity,
+//! needed more coloring rounds, colors or iterations than were recorded, the window's state,
+//! copied on the device at its start, is put back and the window is run again with room
+//! to spare, so that a redone step equals one run with room from the start.
 
 use super::WG;
 use super::backend::GpuBackend;
 use super::buffers::float_slot::{
-    CONV_D2, CONV_DV, CONV_R2, CONV_WORDS, MICRO_COUNTS, MICRO_SUMS, RED_CONNECTED, RED_CONNECTED_ENERGY,
-    RED_FREE, RED_KINETIC, RED_MICRO, RED_MICRO_SUMS, RED_OVERLAP_COUNT, RED_OVERLAP_MAX, RED_OVERLAP_SUM,
-    RED_ROLLING, RED_SLIDING, RED_STRIP_N_LEFT, RED_STRIP_N_RIGHT, RED_STRIP_X_LEFT, RED_STRIP_X_RIGHT,
-    RED_TRANSLATIONAL, RED_ZERO_FORCE,
+    MICRO_COUNTS, MICRO_SUMS, RED_CONNECTED, RED_CONNECTED_ENERGY, RED_FREE, RED_KINETIC, RED_MICRO,
+    RED_MICRO_SUMS, RED_OVERLAP_COUNT, RED_OVERLAP_MAX, RED_OVERLAP_SUM, RED_ROLLING, RED_SLIDING,
+    RED_STRIP_N_LEFT, RED_STRIP_N_RIGHT, RED_STRIP_X_LEFT, RED_STRIP_X_RIGHT, RED_TRANSLATIONAL,
+    RED_ZERO_FORCE,
 };
-use super::buffers::{ARGS_STRIDE, SimParams, round_slot, status};
+use super::buffers::{ARGS_STRIDE, GpuWall, color_slot, conv_slot, disp, round_slot, status};
 use super::pipeline::Kernel;
 use super::traffic::{self, Counts};
 use crate::backend::{Loading, Reductions};
 use crate::error::{Error, Result};
-use crate::solver::Method;
+use crate::solver::{Method, SolverParams};
 
 fn groups(n: u32) -> u32 {
     n.div_ceil(WG)
 }
 
-/// The dispatches of a recording, for their byte counts: each kernel with the items it
-/// covers, `None` for an indirect dispatch over the contacts (counted on the device, known
-/// to the host once it reads the status words back).
-type Log = Vec<(Kernel, Option<u32>)>;
+/// Bytes of one step's row in the history: the status words.
+const ROW_BYTES: u64 = 4 * status::WORDS as u64;
 
-/// A compute pass with the shared bind groups set, a dispatch counter and a log of the
-/// dispatches for their traffic ([`GpuBackend::charge`]).
+/// A block of solver iterations closed by one convergence test.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Block {
+    /// Iterations of the step before the block.
+    pub start: u32,
+    /// Iterations in the block.
+    pub len: u32,
+    /// Whether its Gauss-Seidel sweeps are relaxed by `solver.gs_relax`.
+    pub relaxed: bool,
+    /// Whether the velocity test applies at its end.
+    pub velocity_test: bool,
+    /// The relaxation its change is divided by in the test.
+    pub w: f32,
+    /// Its argument slot among the convergence tests' (`conv_slot`).
+    pub slot: u32,
+}
+
+/// The blocks of a step's solve up to the cap, for tests every `every` iterations: a block
+/// ends where the relaxation changes (`gs_relax_after`) and at `max_iter`, as on the CPU,
+/// whose tests fall at multiples of `check_every` too. Blocks with the same length, test
+/// and relaxation share an argument slot: there are at most four kinds.
+pub(super) fn schedule(p: &SolverParams, every: u32) -> Vec<Block> {
+    let jacobi = p.method == Method::Jacobi;
+    let every = every.max(1);
+    let mut blocks: Vec<Block> = Vec::new();
+    let mut kinds: Vec<(u32, bool, u32)> = Vec::new();
+    let mut done = 0;
+    while done < p.max_iter {
+        // The next test falls at the next multiple of `every`, as on the CPU.
+        let mut len = (every - done % every).min(p.max_iter - done);
+        if done < p.gs_relax_after {
+            len = len.min(p.gs_relax_after - done);
+        }
+        let relaxed = !jacobi && done + 1 > p.gs_relax_after;
+        let velocity_test = !jacobi && p.velocity_tol > 0.0 && done + len > p.gs_relax_after;
+        let w = if jacobi { p.relax } else { p.relax_at(done + 1) } as f32;
+        let kind = (len, velocity_test, w.to_bits());
+        let slot = match kinds.iter().position(|k| *k == kind) {
+            Some(k) => k,
+            None => {
+                kinds.push(kind);
+                kinds.len() - 1
+            }
+        } as u32;
+        blocks.push(Block {
+            start: done,
+            len,
+            relaxed,
+            velocity_test,
+            w,
+            slot,
+        });
+        done += len;
+    }
+    blocks
+}
+
+/// How many items a logged dispatch covers, for its traffic.
+#[derive(Clone, Copy, Debug)]
+enum Items {
+    /// A count the host knows.
+    N(u32),
+    /// The step's contacts (indirect, known once the row is read).
+    Contacts,
+}
+
+/// A dispatch recorded, for the counters: its kernel, its items and the block of the solve
+/// it belongs to (it does work only if the block ran).
+#[derive(Clone, Copy, Debug)]
+struct Logged {
+    kernel: Kernel,
+    items: Items,
+    block: Option<u32>,
+}
+
+/// What the host recorded for the steps of a window: the margins the device's counts are
+/// checked against.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct Recorded {
+    /// Coloring rounds.
+    pub rounds: u32,
+    /// Colors swept per iteration.
+    pub colors: u32,
+    /// Blocks of the solve.
+    pub blocks: u32,
+}
+
+/// A command encoder with an open compute pass, the shared bind groups set, and the log of
+/// its dispatches.
 struct Rec<'a> {
-    pass: wgpu::ComputePass<'a>,
+    enc: wgpu::CommandEncoder,
+    pass: Option<wgpu::ComputePass<'static>>,
     b: &'a GpuBackend,
-    dispatches: u64,
-    log: Log,
+    log: Vec<Logged>,
+    block: Option<u32>,
 }
 
 impl<'a> Rec<'a> {
-    fn new(enc: &'a mut wgpu::CommandEncoder, b: &'a GpuBackend) -> Self {
-        let mut pass = enc
-            .begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("cdlab step"),
-                timestamp_writes: None,
-            })
-            .forget_lifetime();
-        pass.set_bind_group(0, &b.bind.0, &[]);
+    fn new(b: &'a GpuBackend) -> Self {
         Rec {
-            pass,
+            enc: b.gpu.device.create_command_encoder(&Default::default()),
+            pass: None,
             b,
-            dispatches: 0,
             log: Vec::new(),
+            block: None,
         }
+    }
+
+    fn pass(&mut self) -> &mut wgpu::ComputePass<'static> {
+        let b = self.b;
+        self.pass.get_or_insert_with(|| {
+            let mut pass = self
+                .enc
+                .begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("cdlab step"),
+                    timestamp_writes: None,
+                })
+                .forget_lifetime();
+            pass.set_bind_group(0, &b.bind.0, &[]);
+            pass
+        })
+    }
+
+    fn end_pass(&mut self) {
+        self.pass = None;
+    }
+
+    /// The command buffer and the log of its dispatches.
+    fn finish(mut self) -> (wgpu::CommandBuffer, Vec<Logged>) {
+        self.end_pass();
+        (self.enc.finish(), self.log)
+    }
+
+    /// Copies between buffers (outside any pass).
+    fn copy(&mut self, src: &wgpu::Buffer, from: u64, dst: &wgpu::Buffer, to: u64, size: u64) {
+        self.end_pass();
+        self.enc.copy_buffer_to_buffer(src, from, dst, to, size);
+    }
+
+    fn bind_args(&mut self, kernel: Kernel, slot: u32) {
+        let b = self.b;
+        let pass = self.pass();
+        pass.set_pipeline(b.pipes.get(kernel));
+        pass.set_bind_group(1, &b.bind.1, &[(slot as u64 * ARGS_STRIDE) as u32]);
     }
 
     /// Dispatches `x` workgroups of `kernel` with argument slot `slot`, over `items` items
     /// (the count its per-item traffic is multiplied by, see [`super::traffic`]).
     fn go(&mut self, kernel: Kernel, slot: u32, x: u32, items: u32) {
+        self.go_over(kernel, slot, x, Items::N(items));
+    }
+
+    /// [`Rec::go`] over `items` of any kind.
+    fn go_over(&mut self, kernel: Kernel, slot: u32, x: u32, items: Items) {
         if x == 0 {
             return;
         }
-        self.log.push((kernel, Some(items)));
-        self.pass.set_pipeline(self.b.pipes.get(kernel));
-        self.pass
-            .set_bind_group(1, &self.b.bind.1, &[(slot as u64 * ARGS_STRIDE) as u32]);
-        self.pass.dispatch_workgroups(x, 1, 1);
-        self.dispatches += 1;
+        self.bind_args(kernel, slot);
+        self.pass().dispatch_workgroups(x, 1, 1);
+        let block = self.block;
+        self.log.push(Logged { kernel, items, block });
     }
 
-    /// Dispatches `kernel` over the contacts (indirect: the count is on the GPU).
-    fn go_contacts(&mut self, kernel: Kernel) {
-        self.go_contacts_with(kernel, 0);
+    /// Dispatches `kernel` with the workgroups of entry `entry` of the dispatch arguments
+    /// (indirect: the count is on the device), over `items`.
+    fn go_indirect(&mut self, kernel: Kernel, slot: u32, entry: u32, items: Items) {
+        self.bind_args(kernel, slot);
+        let ind = &self.b.bufs.indirect;
+        self.pass().dispatch_workgroups_indirect(ind, 12 * entry as u64);
+        let block = self.block;
+        self.log.push(Logged { kernel, items, block });
     }
 
-    /// [`Rec::go_contacts`] with argument slot `slot`.
-    fn go_contacts_with(&mut self, kernel: Kernel, slot: u32) {
-        self.pass.set_pipeline(self.b.pipes.get(kernel));
-        self.pass
-            .set_bind_group(1, &self.b.bind.1, &[(slot as u64 * ARGS_STRIDE) as u32]);
-        self.pass.dispatch_workgroups_indirect(&self.b.bufs.indirect, 0);
-        self.dispatches += 1;
-        self.log.push((kernel, None));
-    }
-
-    /// Ends the pass: the dispatches recorded and their log.
-    fn finish(self) -> (u64, Log) {
-        (self.dispatches, self.log)
+    /// Copies the dispatch arguments the device wrote (entries `0..entries`) into the
+    /// indirect buffer.
+    fn publish_args(&mut self, entries: u32) {
+        let b = self.b;
+        self.copy(
+            &b.bufs.ints,
+            4 * b.sim.o_disp as u64,
+            &b.bufs.indirect,
+            0,
+            12 * entries as u64,
+        );
     }
 }
 
-/// What one step did on the device.
-struct StepInfo {
-    iterations: u32,
-    converged: bool,
-    colors: u32,
+/// One step's row of the history, as the device left it.
+#[derive(Clone, Copy, Debug)]
+struct Row {
+    words: [u32; status::WORDS],
+}
+
+impl Row {
+    fn get(&self, k: usize) -> u32 {
+        self.words[k]
+    }
+}
+
+/// Why a window is run again.
+enum Redo {
+    /// Capacities to grow to, and the margins to record with.
+    Grow(super::buffers::Capacity, Recorded),
+    /// Margins to record with.
+    Record(Recorded),
 }
 
 impl GpuBackend {
     /// Runs `steps` steps under `loading` and returns the reductions.
     pub(super) fn run_steps(&mut self, steps: u32, loading: &Loading) -> Result<Reductions> {
-        if *loading != self.loading {
-            // The strip flags and the wall forces live in the disk and wall records:
-            // download, re-tag, upload (once per change of loading, not per step).
-            let mut scene = crate::backend::Backend::scene(self)?;
-            self.loading = loading.clone();
-            loading.apply_wall_forces(&mut scene);
-            crate::backend::Backend::set_scene(self, &scene)?;
-        }
-        let nw = self.scene.walls.len();
-        let zeros = vec![0u8; 8 * nw];
-        if nw > 0 {
-            self.gpu
-                .queue
-                .write_buffer(&self.bufs.floats, 4 * self.sim.f_wall as u64, &zeros);
-        }
-        self.gpu
-            .queue
-            .write_buffer(&self.bufs.floats, 4 * self.sim.f_deep as u64, &[0u8; 8]);
+        self.apply_loading(loading)?;
+        self.refresh_schedule();
         if self.sim.deep_budget != self.deep_budget {
             self.sim.deep_budget = self.deep_budget;
             self.write_params();
         }
-        let mut red = Reductions::default();
-        let mut colors = 0u64;
-        for _ in 0..steps {
-            let info = self.step_once()?;
-            red.steps += 1;
-            red.iterations_sum += info.iterations as u64;
-            red.iterations_max = red.iterations_max.max(info.iterations);
-            red.capped_steps += !info.converged as u32;
-            colors += info.colors as u64;
-            self.scene.time += self.params.dt;
-            self.scene.step += 1;
+        let (time, step) = (self.scene.time, self.scene.step);
+        loop {
+            if let Some(red) = self.window(steps, loading)? {
+                return Ok(red);
+            }
+            self.scene.time = time;
+            self.scene.step = step;
         }
-        red.colors_mean = colors as f64 / red.steps.max(1) as f64;
-        self.finish_reductions(red, loading)
     }
 
-    /// Adds the bytes of the dispatches in `log` to the counters, for a step with `n`
-    /// contacts (the items of the indirect dispatches).
-    fn charge(&mut self, log: &Log, n: u32) {
+    /// Takes a new loading: the wall forces alone are written into the wall records; a new
+    /// set of strips (their disks are tagged in the disk records) goes through the scene.
+    fn apply_loading(&mut self, loading: &Loading) -> Result<()> {
+        if *loading == self.loading {
+            return Ok(());
+        }
+        let strips_same = loading.strip == self.loading.strip
+            && loading.sigma3 == self.loading.sigma3
+            && loading.top == self.loading.top
+            && loading.bottom == self.loading.bottom;
+        if !strips_same {
+            let mut scene = crate::backend::Backend::scene(self)?;
+            self.loading = loading.clone();
+            loading.apply_wall_forces(&mut scene);
+            return crate::backend::Backend::set_scene(self, &scene);
+        }
+        self.loading = loading.clone();
+        loading.apply_wall_forces(&mut self.scene);
+        let at = std::mem::offset_of!(GpuWall, force) as u64;
+        for &(w, _) in &loading.wall_forces {
+            if let crate::model::WallDrive::Force { force, .. } = self.scene.walls[w].drive {
+                let o = w as u64 * size_of::<GpuWall>() as u64 + at;
+                self.gpu
+                    .queue
+                    .write_buffer(&self.bufs.walls, o, bytemuck::bytes_of(&(force as f32)));
+            }
+        }
+        Ok(())
+    }
+
+    /// Adds the work of a step's logged dispatches to the counters, from its row: the
+    /// dispatches of blocks that ran do work, the others are empty launches.
+    fn charge(&mut self, log: &[Logged], row: &Row, rec: Recorded) {
+        let n = row.get(status::CONTACTS).min(self.cap.contacts);
+        let iters = row.get(status::ITERS);
+        let ran = |b: Option<u32>| b.is_none_or(|b| self.schedule[b as usize].start < iters);
         let walls = self.sim.n_walls as u64;
-        for &(kernel, items) in log {
-            let counts = Counts {
-                items: items.unwrap_or(n) as u64,
-                contacts: n as u64,
-                walls,
+        for l in log {
+            if !ran(l.block) {
+                self.counters.empty_dispatches += 1;
+                continue;
+            }
+            self.counters.dispatches += 1;
+            let items = match l.items {
+                Items::N(k) => k,
+                Items::Contacts => n,
             };
-            let b = traffic::bytes(kernel, counts);
+            let b = traffic::bytes(
+                l.kernel,
+                Counts {
+                    items: items as u64,
+                    contacts: n as u64,
+                    walls,
+                },
+            );
             self.counters.bytes_read += b.read;
             self.counters.bytes_written += b.written;
         }
+        // The sweeps: one dispatch per recorded color per iteration run, of which those of
+        // the colors holding contacts do work; together one pass over the contacts.
+        if self.params.solver.method != Method::Jacobi && n > 0 {
+            let nonempty = row.get(status::NONEMPTY).min(rec.colors) as u64;
+            let recorded: u64 = self.schedule[..rec.blocks as usize]
+                .iter()
+                .map(|b| b.len as u64)
+                .sum();
+            let run = iters as u64;
+            self.counters.dispatches += nonempty * run;
+            self.counters.empty_dispatches += rec.colors as u64 * recorded - nonempty * run;
+            let b = traffic::bytes(
+                Kernel::SweepColor,
+                Counts {
+                    items: n as u64,
+                    contacts: n as u64,
+                    walls,
+                },
+            );
+            self.counters.bytes_read += b.read * run;
+            self.counters.bytes_written += b.written * run;
+        }
     }
 
-    /// Submits `enc`; validation errors of the recording (a dispatch beyond the adapter's
-    /// limits, say) are reported by wgpu on the spot and end the run here.
-    fn submit(&mut self, enc: wgpu::CommandEncoder) -> Result<()> {
-        self.gpu.queue.submit([enc.finish()]);
-        self.counters.submissions += 1;
-        self.gpu.check("submitting the time step")
+    /// The blocks recorded for a solve expected to take `iters` iterations.
+    fn blocks_for(&self, iters: u32) -> u32 {
+        let k = self.schedule.partition_point(|b| b.start < iters);
+        (k as u32).max(1).min(self.schedule.len() as u32)
     }
 
-    fn step_once(&mut self) -> Result<StepInfo> {
-        let nd = self.sim.n_disks;
-        let nb = self.sim.n_bodies;
-        // Submission A, redone after a growth.
-        let status = loop {
-            let rounds = self.rounds_hint.clamp(1, self.cap.rounds);
-            let mut enc = self.gpu.device.create_command_encoder(&Default::default());
-            let mut d = 0;
-            let mut log = Log::new();
-            let clear = self.bufs.layout.clear_len;
-            {
-                let mut r = Rec::new(&mut enc, self);
-                r.go(Kernel::ClearInts, 0, groups(clear), clear);
-                r.go(Kernel::FreeVelocity, 0, groups(nb), nb);
-                r.go(Kernel::GridBounds, 0, 1, nd);
-                r.go(Kernel::GridCount, 0, groups(nd), nd);
-                r.go(Kernel::Scan, 1, 1, self.sim.cap_cells);
-                r.go(Kernel::GridScatter, 0, groups(nd), nd);
-                r.go(Kernel::Detect, 0, groups(nd), nd);
-                r.go(Kernel::Scan, 2, 1, nd);
-                r.go(Kernel::ContactArgs, 0, 1, 1);
-                let (k, l) = r.finish();
-                d += k;
-                log.extend(l);
-            }
-            let o = 4 * (self.sim.o_status as u64 + status::ARGS as u64);
-            enc.copy_buffer_to_buffer(&self.bufs.ints, o, &self.bufs.indirect, 0, 12);
-            {
-                let mut r = Rec::new(&mut enc, self);
-                r.go(Kernel::BuildContacts, 0, groups(nd), nd);
-                r.go_contacts(Kernel::IncidenceCount);
-                r.go(Kernel::Scan, 3, 1, nb);
-                r.go_contacts(Kernel::IncidenceFill);
-                r.go_contacts(Kernel::IncidenceRank);
-                r.go(Kernel::Gather, 0, groups(nb), nb);
-                r.go_contacts(Kernel::ColorSeed);
-                for k in 1..=rounds {
-                    r.go_contacts_with(Kernel::ColorRound, round_slot(self.cap, k));
-                }
-                r.go_contacts(Kernel::ColorCount);
-                r.go(Kernel::ColorOffsets, round_slot(self.cap, rounds), 1, 1);
-                r.go_contacts(Kernel::ColorScatter);
-                let (k, l) = r.finish();
-                d += k;
-                log.extend(l);
-            }
-            self.counters.dispatches += d;
-            self.submit(enc)?;
-            let words = status::WORDS as u64 + self.cap.colors as u64 + 1;
-            let ints = self.bufs.ints.clone();
-            let bytes = self.download(&ints, 4 * self.sim.o_status as u64, 4 * words)?;
-            let st: Vec<u32> = bytemuck::cast_slice(&bytes).to_vec();
-            let mut cap = self.cap;
-            let n = st[status::CONTACTS];
-            // The kernels ran over the contacts that fit (WGSL `n_contacts`).
-            self.charge(&log, n.min(cap.contacts));
-            if n > cap.contacts {
-                cap.contacts = n + n / 4 + 64;
-            }
-            if st[status::SLOTS_NEED] > cap.k_slots {
-                cap.k_slots = st[status::SLOTS_NEED] + 4;
-            }
-            if st[status::COLORS] > cap.colors {
-                cap.colors = 2 * st[status::COLORS];
-            }
-            // Too few rounds recorded: redo with twice as many (rare, the hint follows the
-            // last step's count).
-            let unfinished = n <= cap.contacts && st[status::LEFT] > 0;
-            if unfinished {
-                // Colors carry their round in 16 bits (color.wgsl); JPL needs about as many
-                // rounds as the largest clique has contacts, far below that.
-                if 2 * rounds > 0xffff {
-                    return Err(self.gpu.failure(
-                        &format!("step {}", self.scene.step),
-                        format!(
-                            "the coloring left {} contacts after {rounds} rounds",
-                            st[status::LEFT]
-                        ),
-                    ));
-                }
-                self.rounds_hint = 2 * rounds;
-                cap.rounds = cap.rounds.max(self.rounds_hint);
-            }
-            if cap == self.cap && !unfinished {
-                break st;
-            }
-            if cap != self.cap {
-                self.grow(cap)?;
-            }
-            self.counters.redone += 1;
+    /// Runs one window of `steps` steps: `Ok(None)` when it must be run again (its state
+    /// has been put back), else its reductions.
+    fn window(&mut self, steps: u32, loading: &Loading) -> Result<Option<Reductions>> {
+        let nw = self.scene.walls.len();
+        if nw > 0 {
+            self.gpu
+                .queue
+                .write_buffer(&self.bufs.floats, 4 * self.sim.f_wall as u64, &vec![0u8; 8 * nw]);
+        }
+        self.gpu
+            .queue
+            .write_buffer(&self.bufs.floats, 4 * self.sim.f_deep as u64, &[0u8; 8]);
+        let rec = Recorded {
+            rounds: self.rounds_hint.clamp(1, self.cap.rounds),
+            colors: self.colors_hint.clamp(1, self.cap.colors),
+            blocks: self.blocks_for(self.iters_hint),
         };
-        let rounds = status[status::ROUNDS];
-        // New contacts need a few rounds even when the last step needed none.
-        self.rounds_hint = rounds + rounds / 4 + 4;
-        let n = status[status::CONTACTS];
-        let n_colors = status[status::COLORS];
-        self.n_contacts = n;
-        self.color_offsets = status[status::WORDS..status::WORDS + n_colors as usize + 1].to_vec();
-        // The sweeps dispatch one range per color: ranges that do not tile 0..n mean the
-        // coloring did not finish, and dispatching them would ask for billions of groups.
-        let tiled = self.color_offsets.first() == Some(&0)
-            && self.color_offsets.last() == Some(&n)
-            && self.color_offsets.windows(2).all(|w| w[0] <= w[1]);
-        if n > 0 && !tiled {
-            return Err(self.gpu.failure(
-                &format!("step {}", self.scene.step),
-                format!(
-                    "the GPU coloring left {n} contacts in inconsistent color ranges ({n_colors} colors, \
-                     offsets {:?})",
-                    self.color_offsets
-                ),
-            ));
-        }
-        let overlap = f32::from_bits(status[status::OVERLAP]) as f64;
-        if overlap > self.params.overlap_limit {
-            return Err(Error::Numerical {
-                step: self.scene.step,
-                message: format!(
-                    "overlap {overlap:.3e} m exceeds the limit {:.3e} m. {}",
-                    self.params.overlap_limit,
-                    crate::engine::overlap_advice(self.params.solver.max_iter)
-                ),
-            });
-        }
-        let (iterations, converged) = self.iterate(n)?;
-        // Submission C.
-        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
-        {
-            let mut r = Rec::new(&mut enc, self);
-            let p = self.params.solver;
-            if p.deep_updates() && n > 0 {
-                // Local updates of deep contacts: the selection, then every sweep over the
-                // colors in one workgroup, so that the phase costs two dispatches whatever
-                // deep_sweeps and the colors (recorded every step: the count is on the device).
-                r.go_contacts(Kernel::DeepMark);
-                r.go(Kernel::DeepUpdates, 0, 1, 1);
-            }
-            r.go(Kernel::Integrate, 0, groups(nb), nb);
-            let nw = self.sim.n_walls;
-            r.go(Kernel::WallImpulse, 0, nw, nw);
-            r.go(Kernel::SavePrev, 0, groups(n.max(nd + 1)), nd + 1);
-            let (d, log) = r.finish();
-            self.counters.dispatches += d;
-            self.charge(&log, n);
-        }
-        self.submit(enc)?;
-        self.counters.steps += 1;
-        self.counters.iterations += iterations as u64;
-        self.counters.color_rounds += rounds as u64;
-        Ok(StepInfo {
-            iterations,
-            converged,
-            colors: if self.params.solver.method == Method::Jacobi {
-                0
-            } else {
-                // Seeded colors can leave a color empty: it costs no dispatch, and is not
-                // counted, so that dispatches per iteration equal the colors reported.
-                self.color_offsets.windows(2).filter(|w| w[1] > w[0]).count() as u32
-            },
-        })
-    }
-
-    /// The solver loop: `conv_every` iterations per submission, then the two convergence
-    /// sums read back. Plain `Method::Gs` has no parallel form and runs colored on the GPU.
-    fn iterate(&mut self, n: u32) -> Result<(u32, bool)> {
-        if n == 0 {
-            return Ok((0, true));
-        }
-        let p = self.params.solver;
-        let jacobi = p.method == Method::Jacobi;
-        let nb = self.sim.n_bodies;
-        let mut done = 0u32;
-        loop {
-            let mut batch = self.conv_every.max(1).min(p.max_iter - done);
-            // A batch runs at one relaxation: it ends where the relaxation changes.
-            if done < p.gs_relax_after {
-                batch = batch.min(p.gs_relax_after - done);
-            }
-            let relax = p.relax_at(done + 1);
-            // Written at the start of every step too, so that no other upload of the
-            // parameters can leave the buffer and the host copy apart.
-            if !jacobi && (done == 0 || self.sim.gs_relax != relax as f32) {
-                self.sim.gs_relax = relax as f32;
-                let at = std::mem::offset_of!(SimParams, gs_relax) as u64;
-                self.gpu
-                    .queue
-                    .write_buffer(&self.bufs.sim, at, bytemuck::bytes_of(&self.sim.gs_relax));
-            }
-            // The velocity test compares the batch's last iterate with the one before it
-            // (the CPU tests every iteration; the same with check_every = 1).
-            let velocity_test = !jacobi && p.velocity_tol > 0.0 && done + batch > p.gs_relax_after;
-            let mut enc = self.gpu.device.create_command_encoder(&Default::default());
-            {
-                let mut r = Rec::new(&mut enc, self);
-                for k in 0..batch {
-                    if velocity_test && k + 1 == batch {
-                        r.go(Kernel::SaveIterate, 0, groups(nb), nb);
-                    }
-                    if jacobi {
-                        r.go(Kernel::JacobiSolve, 0, groups(n), n);
-                        r.go(Kernel::JacobiCommit, 0, groups(n), n);
-                        r.go(Kernel::Gather, 0, groups(nb), nb);
-                    } else {
-                        for (c, w) in self.color_offsets.windows(2).enumerate() {
-                            let m = w[1] - w[0];
-                            r.go(Kernel::SweepColor, 4 + c as u32, groups(m), m);
-                        }
-                    }
+        let keep = 4 * self.bufs.layout.floats_keep as u64;
+        let walls_bytes = (nw * size_of::<GpuWall>()) as u64;
+        let final_at = steps as u64 * ROW_BYTES;
+        let history = self.history(final_at + keep + walls_bytes);
+        self.ensure_backup();
+        let mut logs = Vec::with_capacity(steps as usize);
+        for s in 0..steps {
+            let mut r = Rec::new(self);
+            if s == 0 {
+                for (live, backup, n) in self.backup_copies() {
+                    r.copy(&live, 0, &backup, 0, n);
                 }
-                r.go(Kernel::ConvReduce, 0, 1, n);
-                if velocity_test {
-                    r.go(Kernel::VelocityChange, 0, 1, nb);
-                }
-                let (d, log) = r.finish();
-                self.counters.dispatches += d;
-                self.charge(&log, n);
             }
-            self.submit(enc)?;
-            done += batch;
-            let floats = self.bufs.floats.clone();
-            let bytes = self.download(&floats, 4 * self.sim.f_conv as u64, 4 * CONV_WORDS as u64)?;
-            let s: &[f32] = bytemuck::cast_slice(&bytes);
-            let (d2, r2, dv) = (s[CONV_D2] as f64, s[CONV_R2] as f64, s[CONV_DV] as f64);
-            if !(d2.is_finite() && r2.is_finite()) {
+            self.record_step(&mut r, rec);
+            let st = 4 * self.sim.o_status as u64;
+            r.copy(&self.bufs.ints, st, &history, s as u64 * ROW_BYTES, ROW_BYTES);
+            if s + 1 == steps {
+                r.block = None;
+                r.go(Kernel::ReduceFinal, 0, 1, self.sim.n_disks);
+                r.copy(&self.bufs.floats, 0, &history, final_at, keep);
+                if walls_bytes > 0 {
+                    r.copy(&self.bufs.walls, 0, &history, final_at + keep, walls_bytes);
+                }
+            }
+            let (cmd, log) = r.finish();
+            logs.push(log);
+            self.gpu.queue.submit([cmd]);
+            self.counters.submissions += 1;
+            self.gpu.check("submitting the time step")?;
+        }
+        let bytes = self.map_history(&history, final_at + keep + walls_bytes)?;
+        let rows: Vec<Row> = (0..steps as usize)
+            .map(|s| {
+                let mut words = [0u32; status::WORDS];
+                words.copy_from_slice(bytemuck::cast_slice(
+                    &bytes[s * ROW_BYTES as usize..(s + 1) * ROW_BYTES as usize],
+                ));
+                Row { words }
+            })
+            .collect();
+        for (log, row) in logs.iter().zip(&rows) {
+            self.charge(log, row, rec);
+        }
+        // The first step that needs more room decides: the steps after it ran from a
+        // wrong state. A step in error before it ends the run.
+        let mut redo = None;
+        let mut red = Reductions::default();
+        let mut colors = 0u64;
+        for (s, row) in rows.iter().enumerate() {
+            let step = self.scene.step + s as u64;
+            if let Some(r) = self.needs_redo(row, rec) {
+                redo = Some(r);
+                break;
+            }
+            if row.get(status::BAD) != 0 {
                 return Err(Error::Numerical {
-                    step: self.scene.step,
-                    message: format!("non-finite impulses in the GPU solver (sums {d2}, {r2})"),
+                    step,
+                    message: "non-finite impulses in the GPU solver".into(),
                 });
             }
-            // As on the CPU, the change of a relaxed iteration is divided by its relaxation.
-            let w = if jacobi { p.relax } else { relax };
-            let residual = if d2 == 0.0 {
-                0.0
-            } else if r2 == 0.0 {
-                f64::INFINITY
+            let overlap = f32::from_bits(row.get(status::OVERLAP)) as f64;
+            if overlap > self.params.overlap_limit {
+                return Err(Error::Numerical {
+                    step,
+                    message: format!(
+                        "overlap {overlap:.3e} m exceeds the limit {:.3e} m. {}",
+                        self.params.overlap_limit,
+                        crate::engine::overlap_advice(self.params.solver.max_iter)
+                    ),
+                });
+            }
+            let it = row.get(status::ITERS);
+            red.steps += 1;
+            red.iterations_sum += it as u64;
+            red.iterations_max = red.iterations_max.max(it);
+            red.capped_steps += (row.get(status::CONVERGED) == 0) as u32;
+            colors += if self.params.solver.method == Method::Jacobi {
+                0
             } else {
-                (d2 / r2).sqrt() / w
+                row.get(status::NONEMPTY) as u64
             };
-            // The velocity change too, as the CPU's velocity test does.
-            if residual <= p.tol || (velocity_test && dv / w <= p.velocity_tol) {
-                return Ok((done, true));
-            }
-            if done >= p.max_iter {
-                return Ok((done, false));
-            }
         }
+        if let Some(redo) = redo {
+            self.counters.redone += 1;
+            self.restore()?;
+            let more = match redo {
+                Redo::Grow(cap, more) => {
+                    self.grow(cap)?;
+                    more
+                }
+                Redo::Record(more) => more,
+            };
+            self.rounds_hint = more.rounds;
+            self.colors_hint = more.colors;
+            let last = self.schedule[(more.blocks as usize).clamp(1, self.schedule.len()) - 1];
+            self.iters_hint = last.start + last.len;
+            return Ok(None);
+        }
+        let max = |k: usize| rows.iter().map(|r| r.get(k)).max().unwrap_or(0);
+        // Margins for the next window: the counts these steps needed, and some room.
+        let rounds = max(status::ROUNDS);
+        self.rounds_hint = rounds + rounds / 4 + 4;
+        let c = max(status::COLORS);
+        self.colors_hint = c + c / 8 + 2;
+        let it = max(status::ITERS);
+        self.iters_hint = it + it / 2 + self.conv_every;
+        self.counters.steps += steps as u64;
+        self.counters.iterations += red.iterations_sum;
+        self.counters.color_rounds += rows.iter().map(|r| r.get(status::ROUNDS) as u64).sum::<u64>();
+        self.n_contacts = rows
+            .last()
+            .map_or(0, |r| r.get(status::CONTACTS).min(self.cap.contacts));
+        self.scene.time += steps as f64 * self.params.dt;
+        self.scene.step += steps as u64;
+        red.colors_mean = colors as f64 / red.steps.max(1) as f64;
+        let tail = &bytes[final_at as usize..];
+        self.finish_reductions(red, loading, tail).map(Some)
     }
 
-    /// The end-of-run reductions: one dispatch, one readback of the float accumulators.
-    fn finish_reductions(&mut self, mut red: Reductions, loading: &Loading) -> Result<Reductions> {
-        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
-        {
-            let mut r = Rec::new(&mut enc, self);
-            r.go(Kernel::ReduceFinal, 0, 1, self.sim.n_disks);
-            let (d, log) = r.finish();
-            self.counters.dispatches += d;
-            let n = self.n_contacts;
-            self.charge(&log, n);
+    /// What a step's row asks of the window: larger capacities, or more coloring rounds,
+    /// colors or iterations recorded.
+    fn needs_redo(&self, row: &Row, rec: Recorded) -> Option<Redo> {
+        let mut cap = self.cap;
+        let n = row.get(status::CONTACTS);
+        if n > cap.contacts {
+            cap.contacts = n + n / 4 + 64;
         }
-        self.submit(enc)?;
-        let floats = self.bufs.floats.clone();
-        let keep = self.bufs.layout.floats_keep as u64;
-        let bytes = self.download(&floats, 0, 4 * keep)?;
-        let f: Vec<f32> = bytemuck::cast_slice(&bytes).to_vec();
+        if row.get(status::SLOTS_NEED) > cap.k_slots {
+            cap.k_slots = row.get(status::SLOTS_NEED) + 4;
+        }
+        let colors = row.get(status::COLORS);
+        if colors > cap.colors {
+            cap.colors = 2 * colors;
+        }
+        let left = n <= cap.contacts && row.get(status::LEFT) > 0;
+        let mut more = rec;
+        if left {
+            more.rounds = 2 * rec.rounds;
+            cap.rounds = cap.rounds.max(more.rounds);
+        }
+        if colors > rec.colors {
+            more.colors = colors + colors / 4 + 2;
+        }
+        // Iterations ran out before a test or the cap ended the solve.
+        if row.get(status::LIVE) != 0 {
+            more.blocks = (2 * rec.blocks).min(self.schedule.len() as u32);
+        }
+        if cap != self.cap {
+            return Some(Redo::Grow(cap, more));
+        }
+        (more != rec).then_some(Redo::Record(more))
+    }
+
+    /// Records one step into `r` with the margins `rec`.
+    fn record_step(&self, r: &mut Rec<'_>, rec: Recorded) {
+        let nd = self.sim.n_disks;
+        let nb = self.sim.n_bodies;
+        let clear = self.bufs.layout.clear_len;
+        r.block = None;
+        r.go(Kernel::ClearInts, 0, groups(clear), clear);
+        r.go(Kernel::FreeVelocity, 0, groups(nb), nb);
+        r.go(Kernel::GridBounds, 0, 1, nd);
+        r.go(Kernel::GridCount, 0, groups(nd), nd);
+        r.go(Kernel::Scan, 1, 1, self.sim.cap_cells);
+        r.go(Kernel::GridScatter, 0, groups(nd), nd);
+        r.go(Kernel::Detect, 0, groups(nd), nd);
+        r.go(Kernel::Scan, 2, 1, nd);
+        r.go(Kernel::ContactArgs, 0, 1, 1);
+        let o = 4 * (self.sim.o_status as u64 + status::ARGS as u64);
+        r.copy(
+            &self.bufs.ints,
+            o,
+            &self.bufs.indirect,
+            12 * disp::CONTACTS as u64,
+            12,
+        );
+        let all = Items::Contacts;
+        r.go(Kernel::BuildContacts, 0, groups(nd), nd);
+        r.go_indirect(Kernel::IncidenceCount, 0, disp::CONTACTS, all);
+        r.go(Kernel::Scan, 3, 1, nb);
+        r.go_indirect(Kernel::IncidenceFill, 0, disp::CONTACTS, all);
+        r.go_indirect(Kernel::IncidenceRank, 0, disp::CONTACTS, all);
+        r.go(Kernel::Gather, 0, groups(nb), nb);
+        r.go_indirect(Kernel::ColorSeed, 0, disp::CONTACTS, all);
+        for k in 1..=rec.rounds {
+            r.go_indirect(Kernel::ColorRound, round_slot(self.cap, k), disp::CONTACTS, all);
+        }
+        r.go_indirect(Kernel::ColorCount, 0, disp::CONTACTS, all);
+        r.go(Kernel::ColorOffsets, round_slot(self.cap, rec.rounds), 1, 1);
+        r.go_indirect(Kernel::ColorScatter, 0, disp::CONTACTS, all);
+        r.go(Kernel::SolveArgs, 0, 1, 1);
+        let entries = disp::entries(rec.colors);
+        r.publish_args(entries);
+        let jacobi = self.params.solver.method == Method::Jacobi;
+        for (k, b) in self.schedule[..rec.blocks as usize].iter().enumerate() {
+            r.block = Some(k as u32);
+            for i in 0..b.len {
+                if b.velocity_test && i + 1 == b.len {
+                    r.go_indirect(Kernel::SaveIterate, 0, disp::LIVE_BODIES, Items::N(nb));
+                }
+                if jacobi {
+                    r.go_indirect(Kernel::JacobiSolve, 0, disp::LIVE_CONTACTS, all);
+                    r.go_indirect(Kernel::JacobiCommit, 0, disp::LIVE_CONTACTS, all);
+                    r.go_indirect(Kernel::Gather, 0, disp::LIVE_BODIES, Items::N(nb));
+                } else {
+                    for c in 0..rec.colors {
+                        // Not logged: charge() counts the sweeps from the row.
+                        r.bind_args(Kernel::SweepColor, color_slot(self.cap, c, b.relaxed));
+                        let ind = &self.bufs.indirect;
+                        r.pass()
+                            .dispatch_workgroups_indirect(ind, 12 * (disp::COLOR0 + c) as u64);
+                    }
+                }
+            }
+            if b.velocity_test {
+                r.go_indirect(Kernel::VelocityChange, 0, disp::LIVE_ONE, Items::N(nb));
+            }
+            r.go_over(Kernel::ConvCheck, conv_slot(self.cap, b.slot), 1, all);
+            // The test's verdict, as dispatch arguments for the blocks after it.
+            r.publish_args(entries);
+        }
+        r.block = None;
+        let p = self.params.solver;
+        if p.deep_updates() {
+            // Local updates of deep contacts: the selection, then every sweep over the
+            // colors in one workgroup, so that the phase costs two dispatches whatever
+            // deep_sweeps and the colors.
+            r.go_indirect(Kernel::DeepMark, 0, disp::CONTACTS, all);
+            r.go(Kernel::DeepUpdates, 0, 1, 1);
+        }
+        r.go(Kernel::Integrate, 0, groups(nb), nb);
+        let nw = self.sim.n_walls;
+        r.go(Kernel::WallImpulse, 0, nw, nw);
+        let save = self.cap.contacts.max(nd + 1);
+        r.go(Kernel::SavePrev, 0, groups(save), nd + 1);
+    }
+
+    /// The end-of-run reductions from the history's tail (the float accumulators, then the
+    /// walls).
+    fn finish_reductions(
+        &mut self,
+        mut red: Reductions,
+        loading: &Loading,
+        tail: &[u8],
+    ) -> Result<Reductions> {
+        let keep = self.bufs.layout.floats_keep as usize;
+        let f: Vec<f32> = bytemuck::cast_slice(&tail[..4 * keep]).to_vec();
         let nw = self.scene.walls.len();
-        let walls_buf = self.bufs.walls.clone();
         if nw > 0 {
-            let wb = self.download(&walls_buf, 0, 32 * nw as u64)?;
-            let walls: &[super::buffers::GpuWall] = bytemuck::cast_slice(&wb);
+            let walls: Vec<GpuWall> =
+                bytemuck::pod_collect_to_vec(&tail[4 * keep..4 * keep + nw * size_of::<GpuWall>()]);
             for (w, g) in walls.iter().enumerate() {
                 self.scene.walls[w].point =
                     glam::DVec2::new(g.px as f64 + self.centre.x, g.py as f64 + self.centre.y);
@@ -541,5 +730,51 @@ fn micro_sums(m: &[f32], dt: f64) -> crate::measure::micro::MicroSums {
         n_strong: m[1].to_bits(),
         stress_strong: sym(k + 16, per_dt),
         rose,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params(max_iter: u32, after: u32, velocity_tol: f64, method: Method) -> SolverParams {
+        SolverParams {
+            method,
+            max_iter,
+            gs_relax_after: after,
+            velocity_tol,
+            ..SolverParams::default()
+        }
+    }
+
+    #[test]
+    fn blocks_tile_the_iterations_and_end_where_the_cpu_tests() {
+        let p = params(45, 10, 1e-5, Method::ColoredGs);
+        let s = schedule(&p, 8);
+        // Tests at multiples of 8, at the relaxation's change (10) and at the cap (45).
+        let ends: Vec<u32> = s.iter().map(|b| b.start + b.len).collect();
+        assert_eq!(ends, [8, 10, 16, 24, 32, 40, 45]);
+        assert!(s.windows(2).all(|w| w[0].start + w[0].len == w[1].start));
+        for b in &s {
+            // Iteration b.start + 1 is relaxed past gs_relax_after, as relax_at says.
+            assert_eq!(b.relaxed, b.start + 1 > 10);
+            assert_eq!(b.w, p.relax_at(b.start + 1) as f32);
+            assert_eq!(b.velocity_test, b.start + b.len > 10);
+            assert!(b.slot < crate::gpu::buffers::CONV_SLOTS);
+        }
+        // Same length, test and relaxation: same slot.
+        assert_eq!(s[3].slot, s[4].slot);
+        assert_ne!(s[0].slot, s[3].slot);
+    }
+
+    #[test]
+    fn jacobi_blocks_have_no_velocity_test_and_divide_by_its_relaxation() {
+        let p = params(20, 0, 1e-5, Method::Jacobi);
+        let s = schedule(&p, 6);
+        assert_eq!(s.iter().map(|b| b.len).collect::<Vec<_>>(), [6, 6, 6, 2]);
+        assert!(
+            s.iter()
+                .all(|b| !b.velocity_test && !b.relaxed && b.w == p.relax as f32)
+        );
     }
 }

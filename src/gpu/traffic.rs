@@ -291,6 +291,13 @@ pub const TABLE: &[(Kernel, &[Access])] = &[
         Kernel::ColorScatter,
         &[r(Ints, Item, 4 * WORD), w(Ints, Item, 2 * WORD)],
     ),
+    // One workgroup: the count, the colors' count and offsets; per color its entry of
+    // the dispatch arguments (3 words), the four fixed entries and the solve's flags. A few
+    // hundred words whatever the sample: counted as the colors' capacity, 64.
+    (
+        Kernel::SolveArgs,
+        &[r(Ints, Once, 66 * WORD), w(Ints, Once, (3 * 68 + 2) * WORD)],
+    ),
     // Over bodies: the free velocity, its two list bounds; per contact (two incidences)
     // the list entry and the record; the iterate.
     (
@@ -336,13 +343,16 @@ pub const TABLE: &[(Kernel, &[Access])] = &[
             w(Contacts, Item, 2 * WORD),
         ],
     ),
-    // One workgroup over contacts: the count; the two terms of each; the two sums.
+    // One workgroup over contacts: the flag, the count, the iterations; the two terms of
+    // each; the two sums, the iterations and the residual (the solve's end, once a step,
+    // is not counted).
     (
-        Kernel::ConvReduce,
+        Kernel::ConvCheck,
         &[
-            r(Ints, Once, WORD),
+            r(Ints, Once, 3 * WORD),
             r(Floats, Item, 2 * WORD),
             w(Floats, Once, 2 * WORD),
+            w(Ints, Once, 2 * WORD),
         ],
     ),
     // Over bodies: the iterate, copied.

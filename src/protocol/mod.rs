@@ -170,6 +170,7 @@ impl ProtocolParams {
                     deep_gap: crate::solver::default_deep_overlap_rel() * r_min,
                     deep_sweeps: crate::solver::default_deep_sweeps(),
                     anderson_depth: crate::solver::default_anderson_depth(),
+                    check_every: 0,
                 },
             },
             mu: 0.3,

@@ -36,12 +36,23 @@ pub struct Case {
     pub color_rounds_per_step: f64,
     /// GPU: steps redone after a capacity grew or the coloring needed more rounds.
     pub redone_steps: u64,
-    /// GPU: dispatches, submissions and readbacks per step (0 on the CPU).
+    /// Steps per window: the steps run between two waits for the device (a series row of
+    /// a test).
+    pub window: u32,
+    /// Iterations between two convergence tests (`solver.check_every` as the backend
+    /// applies it).
+    pub check_every: u32,
+    /// GPU: dispatches with work, submissions and readbacks per step (0 on the CPU).
     pub dispatches_per_step: f64,
+    /// GPU: dispatches recorded per step that launched no workgroup (the solver's blocks
+    /// past convergence, colors recorded beyond those holding contacts).
+    pub empty_dispatches_per_step: f64,
     /// See `dispatches_per_step`.
     pub submissions_per_step: f64,
     /// See `dispatches_per_step`.
     pub readbacks_per_step: f64,
+    /// GPU: blocking waits for the device per window (0 on the CPU).
+    pub readbacks_per_window: f64,
     /// GPU: dispatches per step beyond one per color per solver iteration and one
     /// convergence reduction per check (the fixed phases of a step); constant across sizes
     /// and iteration counts when each iteration costs one dispatch per color.
@@ -76,53 +87,82 @@ fn host_peak_mib() -> f64 {
 
 /// GPU counters and device memory of a backend, when it has them.
 struct Probe<B> {
-    counters: fn(&B) -> Option<(crate::gpu::backend::GpuCounters, u32)>,
+    counters: fn(&B) -> Option<crate::gpu::backend::GpuCounters>,
     device_mib: fn(&B) -> f64,
+    check_every: fn(&B) -> u32,
 }
 
-fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, warmup: u32, steps: u32) -> Result<Case> {
-    backend.run(warmup, &Loading::default())?;
+/// The steps of a window of `window` steps: `steps` steps in windows of `window`, as a test
+/// runs them between its series rows.
+fn windows(steps: u32, window: u32) -> impl Iterator<Item = u32> {
+    let w = window.max(1);
+    (0..steps.div_ceil(w)).map(move |k| w.min(steps - k * w))
+}
+
+/// Runs `steps` steps in windows of `window` and sums their reductions' step counts,
+/// iterations and colors.
+fn run_windows<B: Backend>(backend: &mut B, steps: u32, window: u32) -> Result<(u64, u64, f64, u32)> {
+    let (mut n, mut it, mut colors, mut candidates) = (0u64, 0u64, 0.0, 0);
+    for w in windows(steps, window) {
+        let red = backend.run(w, &Loading::default())?;
+        n += red.steps as u64;
+        it += red.iterations_sum;
+        colors += red.colors_mean * red.steps as f64;
+        candidates = red.candidates;
+    }
+    Ok((n, it, colors / n.max(1) as f64, candidates))
+}
+
+fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, run: Run) -> Result<Case> {
+    run_windows(backend, run.warmup, run.window)?;
     let before = (probe.counters)(backend);
     let t0 = Instant::now();
-    let red = backend.run(steps, &Loading::default())?;
+    let (done, iterations_sum, colors_mean, candidates) = run_windows(backend, run.steps, run.window)?;
     let secs = t0.elapsed().as_secs_f64();
     let after = (probe.counters)(backend);
-    let steps = red.steps.max(1) as f64;
-    let iterations = red.iterations_sum as f64 / steps;
-    let (rounds, redone, traffic, dispatches, submissions, readbacks, fixed) = match (before, after) {
-        (Some((a, every)), Some((b, _))) => {
+    let every = (probe.check_every)(backend);
+    let steps = done.max(1) as f64;
+    let n_windows = windows(run.steps, run.window).count().max(1) as f64;
+    let iterations = iterations_sum as f64 / steps;
+    let (rounds, redone, traffic, dispatches, empty, submissions, readbacks, fixed) = match (before, after) {
+        (Some(a), Some(b)) => {
             let k = b - a;
             let d = k.dispatches as f64 / steps;
             // If every solver iteration costs one dispatch per color (and every `every`
-            // iterations one convergence reduction), what remains per step is a constant
-            // set of fixed dispatches, whatever the sample size.
+            // iterations one convergence test), what remains per step is a constant set of
+            // fixed dispatches, whatever the sample size.
             let it = k.iterations as f64 / steps;
-            let solver = red.colors_mean * it + it / every.max(1) as f64;
+            let solver = colors_mean * it + it / every.max(1) as f64;
             (
                 k.color_rounds as f64 / steps,
                 k.redone,
                 (k.bytes_read + k.bytes_written) as f64 / steps / 1e6,
                 d,
+                k.empty_dispatches as f64 / steps,
                 k.submissions as f64 / steps,
-                k.readbacks as f64 / steps,
+                k.readbacks as f64,
                 d - solver,
             )
         }
-        _ => (0.0, 0, 0.0, 0.0, 0.0, 0.0, 0.0),
+        _ => (0.0, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
     };
     Ok(Case {
         backend: backend.name(),
         disks: n,
-        contacts: red.candidates,
+        contacts: candidates,
         iterations_per_step: iterations,
         ms_per_step: secs / steps * 1e3,
-        ns_per_contact_update: secs * 1e9 / (red.iterations_sum.max(1) as f64 * red.candidates.max(1) as f64),
-        colors_per_step: red.colors_mean,
+        ns_per_contact_update: secs * 1e9 / (iterations_sum.max(1) as f64 * candidates.max(1) as f64),
+        colors_per_step: colors_mean,
         color_rounds_per_step: rounds,
         redone_steps: redone,
+        window: run.window,
+        check_every: every,
         dispatches_per_step: dispatches,
+        empty_dispatches_per_step: empty,
         submissions_per_step: submissions,
-        readbacks_per_step: readbacks,
+        readbacks_per_step: readbacks / steps,
+        readbacks_per_window: readbacks / n_windows,
         fixed_dispatches_per_step: fixed,
         traffic_mb_per_step: traffic,
         host_peak_mib: host_peak_mib(),
@@ -130,14 +170,29 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, warmup: u32,
     })
 }
 
-/// Measures the CPU backend on `scene`: `warmup` steps (warm start, buffer growth), then
-/// `steps` timed ones; `n` is the sample's size as reported.
-pub fn measure_cpu(scene: Scene, params: StepParams, n: usize, warmup: u32, steps: u32) -> Result<Case> {
+/// How a case is run: `warmup` steps (warm start, buffer growth), then `steps` timed
+/// ones, in windows of `window` steps (the series interval of a test).
+#[derive(Clone, Copy, Debug)]
+pub struct Run {
+    /// Steps before the timed ones.
+    pub warmup: u32,
+    /// Timed steps.
+    pub steps: u32,
+    /// Steps per window.
+    pub window: u32,
+}
+
+/// Measures the CPU backend on `scene` as `run` says; `n` is the sample's size as reported.
+pub fn measure_cpu(scene: Scene, params: StepParams, n: usize, run: Run) -> Result<Case> {
     let probe = Probe {
         counters: |_: &CpuBackend| None,
         device_mib: |_: &CpuBackend| 0.0,
+        check_every: |_: &CpuBackend| 0,
     };
-    measure(&mut CpuBackend::new(scene, params)?, &probe, n, warmup, steps)
+    let every = params.solver.check_interval(false);
+    let mut case = measure(&mut CpuBackend::new(scene, params)?, &probe, n, run)?;
+    case.check_every = every;
+    Ok(case)
 }
 
 /// Measures the GPU backend as [`measure_cpu`] does the CPU's. `Err(Error::NoAdapter)`
@@ -145,10 +200,11 @@ pub fn measure_cpu(scene: Scene, params: StepParams, n: usize, warmup: u32, step
 /// or stepping fails.
 ///
 /// [`Error::NoAdapter`]: crate::Error::NoAdapter
-pub fn measure_gpu(scene: Scene, params: StepParams, n: usize, warmup: u32, steps: u32) -> Result<Case> {
+pub fn measure_gpu(scene: Scene, params: StepParams, n: usize, run: Run) -> Result<Case> {
     let probe = Probe {
-        counters: |g: &GpuBackend| Some((g.counters(), g.conv_every)),
+        counters: |g: &GpuBackend| Some(g.counters()),
         device_mib: |g: &GpuBackend| g.device_bytes() as f64 / (1024.0 * 1024.0),
+        check_every: |g: &GpuBackend| g.conv_every,
     };
-    measure(&mut GpuBackend::new(scene, params)?, &probe, n, warmup, steps)
+    measure(&mut GpuBackend::new(scene, params)?, &probe, n, run)
 }

@@ -41,7 +41,10 @@ pub(super) fn solve(
         // The change is divided by the relaxation, as Gauss-Seidel's is: the unrelaxed
         // change, which is the distance to the local solutions (docs/method.md,
         // "Comparing solvers"), so that `tol` means the same for every method.
-        if stats.record_change(it, d2 / (omega * omega), r2, params.tol) {
+        let converged = stats.record_change(it, d2 / (omega * omega), r2, params.tol);
+        // Between two tests (solver.check_every) the step goes on.
+        stats.converged = converged && params.checks_at(it);
+        if stats.converged {
             break;
         }
     }

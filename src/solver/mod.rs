@@ -144,7 +144,19 @@ pub struct SolverParams {
     /// `anderson_depth + 1` iterates enter the mixing; 0 is plain Gauss-Seidel.
     #[serde(default = "default_anderson_depth")]
     pub anderson_depth: u32,
+    /// Iterations between two convergence tests (Gauss-Seidel and Jacobi); 0 lets the
+    /// backend choose ([`SolverParams::check_interval`]). A step then stops only at a
+    /// multiple of it (or at `max_iter`). On the CPU a test costs nothing beyond the sweep's
+    /// sums; on the GPU each is a reduction over the contacts.
+    #[serde(default)]
+    pub check_every: u32,
 }
+
+/// Iterations between two convergence tests on the GPU when `solver.check_every` is 0: a
+/// test there is one reduction over the contacts (a single-workgroup dispatch) plus a copy of
+/// the dispatch arguments it writes, against one dispatch per color per iteration
+/// (docs/gpu.md, "Measured on hardware").
+pub const GPU_CHECK_EVERY: u32 = 8;
 
 /// Default of the configuration's `solver.deep_overlap` for Gauss-Seidel and Jacobi, as a
 /// fraction of `r_min` ([`SolverParams::deep_gap`] is this times `r_min`): loaded contacts
@@ -217,6 +229,7 @@ impl Default for SolverParams {
             deep_gap: 0.0,
             deep_sweeps: 0,
             anderson_depth: default_anderson_depth(),
+            check_every: 0,
         }
     }
 }
@@ -241,6 +254,22 @@ impl SolverParams {
         } else {
             1.0
         }
+    }
+
+    /// Iterations between two convergence tests: `check_every`, or when it is 0 every
+    /// iteration on the CPU and [`GPU_CHECK_EVERY`] on the GPU.
+    pub fn check_interval(&self, gpu: bool) -> u32 {
+        match (self.check_every, gpu) {
+            (0, false) => 1,
+            (0, true) => GPU_CHECK_EVERY,
+            (k, _) => k,
+        }
+    }
+
+    /// Whether iteration `it` of a step ends with a convergence test (every
+    /// [`SolverParams::check_interval`] iterations on the CPU, and at the cap).
+    pub fn checks_at(&self, it: u32) -> bool {
+        it.is_multiple_of(self.check_interval(false)) || it >= self.max_iter
     }
 
     /// Threads of the colored Gauss-Seidel team (1 when `parallel` is off).

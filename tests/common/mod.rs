@@ -32,6 +32,7 @@ pub fn tight(method: Method) -> StepParams {
             deep_gap: 0.0,
             deep_sweeps: 0,
             anderson_depth: cdlab::solver::default_anderson_depth(),
+            check_every: 0,
         },
     }
 }

@@ -1,0 +1,81 @@
+#!/usr/bin/env bash
+# The hardware check of docs/gpu.md ("Measured on hardware"): one command that measures a
+# built cdlab on the machine's GPU beside its CPU and writes report.json and report.md.
+#
+#   benches/hardware_check.sh CDLAB OUT [SAMPLE]
+#
+# CDLAB is the binary (build it with `cargo build --release`; strip it to carry it), OUT a
+# directory for the report and the logs, SAMPLE a 5000-disk sample from `cdlab prepare`
+# (prepared on the CPU beforehand, so that both backends start the 5000-disk test from the
+# same packing; without it the test deposits and compacts on each backend). Each part has
+# its own time limit and a failed part does not stop the others; the report lists every
+# part with its exit status and wall time. Limits (seconds) and sizes can be set:
+#   CDLAB_HW_BENCH_DISKS  sample sizes of the bench (5000,20000,50000)
+#   CDLAB_HW_STRAIN       end strain of the 5000-disk tests (0.02)
+#   CDLAB_HW_TEST_S       limit of each 5000-disk test (150)
+#   CDLAB_HW_CPU_TEST     0 leaves out the 5000-disk test on the CPU (1)
+#   CDLAB_HW_LARGE_S      wall time given to the 50,000-disk GPU test (90)
+#   CDLAB_HW_LARGE_DISKS  its size (50000)
+# The whole check takes about 8 minutes on a data-centre GPU with its defaults.
+set -uo pipefail
+if [ $# -lt 2 ]; then
+    echo "usage: $0 CDLAB OUT [SAMPLE]" >&2
+    exit 2
+fi
+BIN="$(realpath "$1")"
+OUT="$2"
+SAMPLE="${3:-}"
+HERE="$(cd "$(dirname "$0")" && pwd)"
+mkdir -p "$OUT"
+OUT="$(realpath "$OUT")"
+export WGPU_BACKEND="${WGPU_BACKEND:-vulkan}"
+if [ -z "${XDG_RUNTIME_DIR:-}" ]; then
+    XDG_RUNTIME_DIR="$(mktemp -d)"
+    export XDG_RUNTIME_DIR
+fi
+DISKS="${CDLAB_HW_BENCH_DISKS:-5000,20000,50000}"
+STRAIN="${CDLAB_HW_STRAIN:-0.02}"
+TEST_S="${CDLAB_HW_TEST_S:-150}"
+LARGE_S="${CDLAB_HW_LARGE_S:-90}"
+LARGE_DISKS="${CDLAB_HW_LARGE_DISKS:-50000}"
+printf 'part\trc\tseconds\tlimit_s\n' >"$OUT/parts.tsv"
+
+# part NAME LIMIT_S COMMAND...: runs COMMAND with its output in OUT/NAME.log; at the limit
+# it gets SIGINT (cdlab then stops at the next step and closes its record), and SIGKILL 30 s
+# later.
+part() {
+    local name=$1 limit=$2
+    shift 2
+    echo "== $name (limit ${limit} s)"
+    local t0 t1 rc
+    t0=$(date +%s%N)
+    timeout -s INT -k 30 "$limit" "$@" >"$OUT/$name.log" 2>&1
+    rc=$?
+    t1=$(date +%s%N)
+    local secs=$(( (t1 - t0) / 1000000 ))
+    printf '%s\t%d\t%d.%03d\t%s\n' "$name" "$rc" $((secs / 1000)) $((secs % 1000)) "$limit" >>"$OUT/parts.tsv"
+    tail -n 3 "$OUT/$name.log"
+}
+
+part info 60 "$BIN" info --json
+cp "$OUT/info.log" "$OUT/info.json"
+if command -v nvidia-smi >/dev/null; then
+    nvidia-smi --query-gpu=name,memory.total,driver_version,clocks.max.sm --format=csv >"$OUT/nvidia-smi.csv" 2>&1
+fi
+nproc >"$OUT/cores.txt"
+
+part bench_gpu 240 "$BIN" bench --disks "$DISKS" --backend gpu --out "$OUT/bench_gpu"
+part bench_cpu 240 "$BIN" bench --disks "$DISKS" --backend cpu --out "$OUT/bench_cpu"
+
+from=()
+if [ -n "$SAMPLE" ]; then from=(--sample "$SAMPLE"); else from=(--disks 5000); fi
+part test5000_gpu "$TEST_S" "$BIN" biaxial "${from[@]}" --strain "$STRAIN" --backend gpu \
+    --out "$OUT/test5000_gpu" --force --no-figures
+if [ "${CDLAB_HW_CPU_TEST:-1}" != 0 ]; then
+    part test5000_cpu "$TEST_S" "$BIN" biaxial "${from[@]}" --strain "$STRAIN" --backend cpu \
+        --out "$OUT/test5000_cpu" --force --no-figures
+fi
+part test_large_gpu "$LARGE_S" "$BIN" biaxial --disks "$LARGE_DISKS" --backend gpu \
+    --out "$OUT/test_large_gpu" --force --no-figures
+
+python3 "$HERE/hardware_report.py" "$OUT"
