@@ -10,6 +10,9 @@
 //! `FaultFile` and [`rename`]. The fault hooks of [`fault`] sit under both, so tests can
 //! fail or kill the process at any of their writes. This module sits low in the module
 //! map (it knows only [`crate::error`]) so that every module that writes can use it.
+//!
+//! A temporary file is always created new ([`create_tmp`]), never opened through whatever
+//! already holds its name.
 
 use std::fs::File;
 use std::io::Write;
@@ -49,7 +52,7 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
     }
     let tmp = process_tmp_path(path);
     let written = (|| -> std::io::Result<()> {
-        let mut f = FaultFile::create(&tmp)?;
+        let mut f = FaultFile::create_tmp(&tmp)?;
         f.write_all(bytes)?;
         f.sync()
     })();
@@ -77,6 +80,25 @@ pub fn remove_file(path: &Path) -> Result<()> {
     }
 }
 
+/// Creates the temporary file `path`, new and empty, for writing. It is created
+/// exclusively (`O_CREAT | O_EXCL`), which never follows a symbolic link nor opens a FIFO
+/// or a device already there: opening an existing `run.mcap.tmp` that was a link used to
+/// truncate and overwrite the link's target. A stale temporary file (left by a kill, or
+/// planted) is first unlinked by its name, which removes a link and leaves its target
+/// alone. Should another process create the name in between, the creation fails rather
+/// than share the file.
+pub fn create_tmp(path: &Path) -> std::io::Result<File> {
+    match std::fs::remove_file(path) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => return Err(e),
+    }
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(path)
+}
+
 /// Syncs the directory holding `path` (its entries: creations, renames, removals). Where
 /// directories cannot be opened for syncing (not Unix), does nothing.
 pub fn sync_dir(path: &Path) -> Result<()> {
@@ -99,9 +121,9 @@ pub fn sync_dir(path: &Path) -> Result<()> {
 pub(crate) struct FaultFile(pub(crate) File);
 
 impl FaultFile {
-    /// Creates (truncates) `path` for writing.
-    pub(crate) fn create(path: &Path) -> std::io::Result<Self> {
-        Ok(FaultFile(File::create(path)?))
+    /// Creates the temporary file `path` for writing ([`create_tmp`]).
+    pub(crate) fn create_tmp(path: &Path) -> std::io::Result<Self> {
+        Ok(FaultFile(create_tmp(path)?))
     }
 
     /// Syncs the data and metadata of the file.
@@ -292,5 +314,33 @@ mod tests {
             "{e:?}"
         );
         assert_eq!(e.to_string(), "/: not a file name");
+    }
+
+    /// A stale temporary file that is a symbolic link (to a file, or dangling) is replaced
+    /// by a new file: the link's target is neither truncated nor created. Opening the name
+    /// used to follow the link.
+    #[cfg(unix)]
+    #[test]
+    fn a_stale_temporary_link_is_removed_not_followed() {
+        let tmp = TempDir::new("link");
+        let f = tmp.0.join("summary.json");
+        let victim = tmp.0.join("victim");
+        std::fs::write(&victim, b"precious").unwrap();
+        std::os::unix::fs::symlink(&victim, process_tmp_path(&f)).unwrap();
+        write_file(&f, b"new").unwrap();
+        assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
+        assert_eq!(std::fs::read(&f).unwrap(), b"new");
+        let nowhere = tmp.0.join("nowhere");
+        std::os::unix::fs::symlink(&nowhere, process_tmp_path(&f)).unwrap();
+        write_file(&f, b"newer").unwrap();
+        assert!(
+            nowhere.symlink_metadata().is_err(),
+            "the dangling link's target was created"
+        );
+        assert_eq!(std::fs::read(&f).unwrap(), b"newer");
+        assert_eq!(
+            tmp.names(),
+            vec!["summary.json".to_string(), "victim".to_string()]
+        );
     }
 }

@@ -117,7 +117,7 @@ impl Recorder {
         let mcap_path = dir.join(MCAP_FILE);
         let csv_path = dir.join(CSV_FILE);
         let mcap_tmp = tmp_path(&mcap_path);
-        let file = FaultFile::create(&mcap_tmp).map_err(|e| Error::io(&mcap_tmp, e))?;
+        let file = FaultFile::create_tmp(&mcap_tmp).map_err(|e| Error::io(&mcap_tmp, e))?;
         let sync = file.0.try_clone().map_err(|e| Error::io(&mcap_tmp, e))?;
         let mcap_err = |e| mcap_error(&mcap_tmp, e);
         let options = WriteOptions::new()
@@ -177,7 +177,7 @@ impl Recorder {
         mcap.flush().map_err(mcap_err)?;
 
         let csv_tmp = tmp_path(&csv_path);
-        let csv_file = FaultFile::create(&csv_tmp).map_err(|e| Error::io(&csv_tmp, e))?;
+        let csv_file = FaultFile::create_tmp(&csv_tmp).map_err(|e| Error::io(&csv_tmp, e))?;
         let csv_sync = csv_file.0.try_clone().map_err(|e| Error::io(&csv_tmp, e))?;
         let mut csv = BufWriter::new(csv_file);
         writeln!(csv, "{}", csv_header())
