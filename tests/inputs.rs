@@ -270,3 +270,87 @@ fn output_to_a_full_device_ends_cleanly() {
         assert_eq!(status.code(), Some(1), "{args:?}");
     }
 }
+
+/// Makes a FIFO at `path`.
+#[cfg(unix)]
+fn mkfifo(path: &std::path::Path) {
+    let c = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).unwrap();
+    // SAFETY: a valid NUL-terminated path and mode.
+    assert_eq!(
+        unsafe { libc::mkfifo(c.as_ptr(), 0o600) },
+        0,
+        "{}",
+        path.display()
+    );
+}
+
+/// An output that exists and is not a regular file is refused up front, with or without
+/// --force, naming the path and what it is, and left as it was (issue 36, item 3: `prepare
+/// -o X --force` renamed over a link, a FIFO or a device node, and as root replaced a
+/// device of the system): `prepare -o` a link (to a file, or dangling) or a FIFO, and a
+/// run directory whose record or summary is one.
+#[cfg(unix)]
+#[test]
+fn outputs_that_are_not_regular_files_are_refused() {
+    use std::os::unix::fs::symlink;
+    let base = scratch("special");
+    let cfg = small_config(&base);
+    let c = cfg.to_str().unwrap();
+    let victim = base.join("victim.bin");
+    std::fs::write(&victim, b"not cdlab's").unwrap();
+    let link = base.join("link.bin");
+    symlink(&victim, &link).unwrap();
+    let dangling = base.join("dangling.bin");
+    symlink(base.join("nowhere.bin"), &dangling).unwrap();
+    let fifo = base.join("fifo.bin");
+    mkfifo(&fifo);
+    for (path, what, force) in [
+        (&link, "is a symbolic link", true),
+        (&dangling, "is a symbolic link", false),
+        (&fifo, "is a FIFO", true),
+    ] {
+        let mut args = vec!["prepare", "--config", c, "-o", path.to_str().unwrap()];
+        if force {
+            args.push("--force");
+        }
+        let text = exits_with_error(&args);
+        assert!(
+            text.contains(&format!("{} {what}", path.display())) && text.contains("not a regular file"),
+            "{args:?}: {text}"
+        );
+        assert!(!path.symlink_metadata().unwrap().file_type().is_file());
+    }
+    assert_eq!(std::fs::read(&victim).unwrap(), b"not cdlab's");
+    assert!(!base.join("nowhere.bin").exists());
+
+    // A run directory: its record a FIFO, then its summary a link.
+    let out = base.join("run");
+    std::fs::create_dir_all(&out).unwrap();
+    mkfifo(&out.join("run.mcap"));
+    let o = out.to_str().unwrap();
+    let text = exits_with_error(&["biaxial", "--config", c, "--out", o, "--force", "--quiet"]);
+    assert!(
+        text.contains(&format!("{} is a FIFO", out.join("run.mcap").display())),
+        "{text}"
+    );
+    std::fs::remove_file(out.join("run.mcap")).unwrap();
+    symlink(&victim, out.join("summary.json")).unwrap();
+    let text = exits_with_error(&["biaxial", "--config", c, "--out", o, "--force", "--quiet"]);
+    assert!(
+        text.contains(&format!(
+            "{} is a symbolic link",
+            out.join("summary.json").display()
+        )),
+        "{text}"
+    );
+    assert!(
+        out.join("summary.json")
+            .symlink_metadata()
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+    assert!(!out.join("run.mcap").exists() && !out.join("series.csv").exists());
+    assert_eq!(std::fs::read(&victim).unwrap(), b"not cdlab's");
+    let _ = std::fs::remove_dir_all(&base);
+}

@@ -31,7 +31,10 @@ pub struct Args {
 
 /// Runs `cdlab prepare`.
 pub fn run(args: &Args) -> Result<()> {
-    if args.output.exists() && !args.force {
+    // A link, a FIFO or a device under that name is refused with or without --force; a
+    // dangling link counts as existing (`exists()` would follow it and say no).
+    crate::fsio::check_replaceable(&args.output)?;
+    if args.output.symlink_metadata().is_ok() && !args.force {
         return Err(Error::Run {
             path: args.output.clone(),
             fault: RunFault::Occupied,
