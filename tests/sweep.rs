@@ -664,3 +664,33 @@ fn an_archive_that_overlaps_its_sources_is_refused() {
     assert_eq!(cdlab::record::read_run(&test).unwrap().snapshots.len(), 1);
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// A sweep whose output cannot be written (stdout and stderr on /dev/full, where every
+/// write fails with ENOSPC) runs every test to its end and exits 0 (issue 36, item 9: the
+/// first failed progress line panicked, exit 101 from a worker thread, and the tests left
+/// never started). Progress lines are asked for at every row (`--log-every 0`).
+#[cfg(target_os = "linux")]
+#[test]
+fn a_sweep_whose_output_hits_a_full_disk_runs_every_test() {
+    let (base, sweep) = tiny_campaign("sweep-full", "mu = [0.3]\nsigma3 = [\"1 MPa\", \"2 MPa\"]\n");
+    let full = || std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args([
+            "sweep",
+            sweep.to_str().unwrap(),
+            "--jobs",
+            "1",
+            "--log-every",
+            "0",
+        ])
+        .stdout(full())
+        .stderr(full())
+        .status()
+        .expect("cdlab runs");
+    assert_eq!(status.code(), Some(0));
+    for name in ["seed1_mu0.3_s1MPa", "seed1_mu0.3_s2MPa"] {
+        let summary = base.join("campaign").join(name).join("summary.json");
+        assert!(summary.exists(), "{} was not finished", summary.display());
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}

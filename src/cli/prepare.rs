@@ -50,9 +50,13 @@ pub fn run(args: &Args) -> Result<()> {
     })?;
     let mut progress = |e: &Event| {
         if let Event::Deposited { disks, report: r } = e {
-            eprintln!(
+            note!(
                 "deposited {disks} disks in {:.2} s: packing fraction {:.3}, coordination {:.2}, D10 {:.2} m, D60 {:.2} m",
-                r.seconds, r.packing_fraction, r.coordination, r.d10_m, r.d60_m
+                r.seconds,
+                r.packing_fraction,
+                r.coordination,
+                r.d10_m,
+                r.d60_m
             );
         }
     };
