@@ -98,7 +98,8 @@ fn too_few_disks_for_the_strips_is_refused_up_front() {
 
 /// A prepared sample with one flipped bit, cut short, or in the old format without a
 /// checksum is refused by `biaxial --sample` with the file's name, before the test starts
-/// (a flipped bit in a position used to run the test with a 2.7% overlap).
+/// (a flipped bit in a position used to run the test with a 2.7% overlap); so is one whose
+/// checksum is right but whose values are not, with the file's name and the field.
 #[test]
 fn a_damaged_sample_is_refused_before_use() {
     let base = scratch("sample");
@@ -122,11 +123,44 @@ fn a_damaged_sample_is_refused_before_use() {
     *last.last_mut().unwrap() ^= 1;
     let cut = good[..good.len() - 100].to_vec();
     let old = good[20..].to_vec(); // the bare checkpoint: the old format
+    // Valid CRCs over bad values (issue 36, item 10): the sample re-encoded with a scene
+    // edited into one the engine cannot run, and a `glued_to` patched to 2^32, which the
+    // scene's 32-bit field cannot hold, with the CRC computed again. The first panicked
+    // with an index out of bounds in the engine; the second was read as wall 0.
+    let ck = cdlab::protocol::checkpoint::decode(&good[20..]).unwrap();
+    let edited = |edit: &dyn Fn(&mut cdlab::model::Scene)| {
+        let mut scene = ck.scene.clone();
+        edit(&mut scene);
+        cdlab::protocol::sample_file::encode_sample(&ck.state, &scene)
+    };
+    let walls = ck.scene.walls.len() as u32;
+    let glued = edited(&|s| s.disks.glued_to[5] = walls + 3);
+    let radius = edited(&|s| s.disks.radius[7] = -0.5);
+    let mass = edited(&|s| s.disks.mass[9] = f64::NAN);
+    let velocity = edited(&|s| s.disks.vel[11].x = f64::INFINITY);
+    let wide = {
+        let mut payload = good[20..].to_vec();
+        let json = u64::from_le_bytes(payload[8..16].try_into().unwrap()) as usize;
+        // Disk 0's `glued_to`, its 15th word (the layout of `checkpoint::encode`).
+        let at = 16 + json + 8 + 8 * 14;
+        payload[at..at + 8].copy_from_slice(&(1u64 << 32).to_le_bytes());
+        let mut b = good[..8].to_vec();
+        b.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+        b.extend_from_slice(&crc32fast::hash(&payload).to_le_bytes());
+        b.extend_from_slice(&payload);
+        b
+    };
+    let glued_what = format!("disk 5 glued_to = {}", walls + 3);
     for (name, bytes, expect) in [
         ("flipped", flipped, "CRC-32"),
         ("last", last, "CRC-32"),
         ("cut", cut, "truncated"),
         ("old", old, "cdlab prepare"),
+        ("glued", glued, glued_what.as_str()),
+        ("radius", radius, "disk 7 radius = -0.5"),
+        ("mass", mass, "disk 9 mass = NaN"),
+        ("velocity", velocity, "disk 11 velocity = inf"),
+        ("wide", wide, "disk 0 glued_to = 4294967296"),
     ] {
         let path = base.join(format!("{name}.bin"));
         std::fs::write(&path, bytes).unwrap();
