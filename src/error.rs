@@ -256,6 +256,9 @@ pub enum RunFault {
     OtherSettings,
     /// A record or file whose content cannot be used (damaged, or not what it should be).
     Damaged,
+    /// An output path that exists and is not a regular file (a symbolic link, a FIFO, a
+    /// device node, a directory): cdlab never replaces one ([`crate::fsio::check_replaceable`]).
+    NotRegular,
 }
 
 /// What makes a prepared-sample file unusable ([`Error::BadSample`]).

@@ -10,12 +10,16 @@
 //! `FaultFile` and [`rename`]. The fault hooks of [`fault`] sit under both, so tests can
 //! fail or kill the process at any of their writes. This module sits low in the module
 //! map (it knows only [`crate::error`]) so that every module that writes can use it.
+//!
+//! A temporary file is always created new ([`create_tmp`]), never opened through whatever
+//! already holds its name, and a rename never replaces anything but a regular file
+//! ([`check_replaceable`]): an output path that is a link, a FIFO or a device is refused.
 
 use std::fs::File;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, RunFault};
 
 /// Suffix of the temporary names.
 pub const TMP_SUFFIX: &str = ".tmp";
@@ -40,16 +44,20 @@ pub fn process_tmp_path(path: &Path) -> PathBuf {
 
 /// Writes `bytes` as the file `path`: to its temporary name ([`process_tmp_path`]),
 /// synced, renamed into place, the directory synced. On error the real file is untouched
-/// and the temporary one removed. A path that names no file (`/`, `..`) is refused.
+/// and the temporary one removed. A path that names no file (`/`, `..`) is refused, and so
+/// is one that exists and is not a regular file ([`check_replaceable`]).
 pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
     if path.file_name().is_none() {
         return Err(Error::NotAFile {
             path: path.to_path_buf(),
         });
     }
+    // Before any byte is written: the rename checks again, but a refusal there would
+    // have written the temporary file for nothing.
+    check_replaceable(path)?;
     let tmp = process_tmp_path(path);
     let written = (|| -> std::io::Result<()> {
-        let mut f = FaultFile::create(&tmp)?;
+        let mut f = FaultFile::create_tmp(&tmp)?;
         f.write_all(bytes)?;
         f.sync()
     })();
@@ -60,11 +68,67 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
     rename(&tmp, path)
 }
 
-/// Renames `from` to `to` (replacing it) and syncs the directory of `to`.
+/// Renames `from` to `to` (replacing it) and syncs the directory of `to`. A `to` that
+/// exists and is not a regular file is refused ([`check_replaceable`]).
 pub fn rename(from: &Path, to: &Path) -> Result<()> {
+    check_replaceable(to)?;
     fault::point(false).map_err(|e| Error::io(to, e))?;
     std::fs::rename(from, to).map_err(|e| Error::io(to, e))?;
     sync_dir(to)
+}
+
+/// Refuses `path` as a file to replace when it exists and is not a regular file: a
+/// symbolic link, a FIFO, a device node, a socket or a directory. A rename would replace
+/// the link or the node itself, which is never what an output path means (as root it
+/// replaced a device file of the system), and writing through it would reach whatever it
+/// points to. The error names the path and what it is. A path that cannot be examined
+/// (it does not exist, or its directory does not) passes: the write itself then says why
+/// it fails.
+pub fn check_replaceable(path: &Path) -> Result<()> {
+    let Ok(meta) = std::fs::symlink_metadata(path) else {
+        return Ok(());
+    };
+    let kind = meta.file_type();
+    if kind.is_file() {
+        return Ok(());
+    }
+    let what = file_kind(&kind);
+    Err(Error::Run {
+        path: path.to_path_buf(),
+        fault: RunFault::NotRegular,
+        message: format!(
+            "{} is {what}, not a regular file: cdlab replaces only regular files; remove it or \
+             write elsewhere",
+            path.display()
+        ),
+    })
+}
+
+/// What a file type is, in words, for [`check_replaceable`].
+fn file_kind(kind: &std::fs::FileType) -> &'static str {
+    if kind.is_symlink() {
+        return "a symbolic link";
+    }
+    if kind.is_dir() {
+        return "a directory";
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if kind.is_fifo() {
+            return "a FIFO (named pipe)";
+        }
+        if kind.is_char_device() {
+            return "a character device";
+        }
+        if kind.is_block_device() {
+            return "a block device";
+        }
+        if kind.is_socket() {
+            return "a socket";
+        }
+    }
+    "a special file"
 }
 
 /// Removes `path` if it exists and syncs its directory, so that the removal is on disk
@@ -75,6 +139,25 @@ pub fn remove_file(path: &Path) -> Result<()> {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
         Err(e) => Err(Error::io(path, e)),
     }
+}
+
+/// Creates the temporary file `path`, new and empty, for writing. It is created
+/// exclusively (`O_CREAT | O_EXCL`), which never follows a symbolic link nor opens a FIFO
+/// or a device already there: opening an existing `run.mcap.tmp` that was a link used to
+/// truncate and overwrite the link's target. A stale temporary file (left by a kill, or
+/// planted) is first unlinked by its name, which removes a link and leaves its target
+/// alone. Should another process create the name in between, the creation fails rather
+/// than share the file.
+pub fn create_tmp(path: &Path) -> std::io::Result<File> {
+    match std::fs::remove_file(path) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => return Err(e),
+    }
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(path)
 }
 
 /// Syncs the directory holding `path` (its entries: creations, renames, removals). Where
@@ -99,9 +182,9 @@ pub fn sync_dir(path: &Path) -> Result<()> {
 pub(crate) struct FaultFile(pub(crate) File);
 
 impl FaultFile {
-    /// Creates (truncates) `path` for writing.
-    pub(crate) fn create(path: &Path) -> std::io::Result<Self> {
-        Ok(FaultFile(File::create(path)?))
+    /// Creates the temporary file `path` for writing ([`create_tmp`]).
+    pub(crate) fn create_tmp(path: &Path) -> std::io::Result<Self> {
+        Ok(FaultFile(create_tmp(path)?))
     }
 
     /// Syncs the data and metadata of the file.
@@ -292,5 +375,76 @@ mod tests {
             "{e:?}"
         );
         assert_eq!(e.to_string(), "/: not a file name");
+    }
+
+    /// A stale temporary file that is a symbolic link (to a file, or dangling) is replaced
+    /// by a new file: the link's target is neither truncated nor created. Opening the name
+    /// used to follow the link.
+    #[cfg(unix)]
+    #[test]
+    fn a_stale_temporary_link_is_removed_not_followed() {
+        let tmp = TempDir::new("link");
+        let f = tmp.0.join("summary.json");
+        let victim = tmp.0.join("victim");
+        std::fs::write(&victim, b"precious").unwrap();
+        std::os::unix::fs::symlink(&victim, process_tmp_path(&f)).unwrap();
+        write_file(&f, b"new").unwrap();
+        assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
+        assert_eq!(std::fs::read(&f).unwrap(), b"new");
+        let nowhere = tmp.0.join("nowhere");
+        std::os::unix::fs::symlink(&nowhere, process_tmp_path(&f)).unwrap();
+        write_file(&f, b"newer").unwrap();
+        assert!(
+            nowhere.symlink_metadata().is_err(),
+            "the dangling link's target was created"
+        );
+        assert_eq!(std::fs::read(&f).unwrap(), b"newer");
+        assert_eq!(
+            tmp.names(),
+            vec!["summary.json".to_string(), "victim".to_string()]
+        );
+    }
+
+    /// A file to replace that is a link, a FIFO, a directory or a device is refused, by
+    /// [`write_file`] and by [`rename`], with its path and what it is; nothing changes.
+    #[cfg(unix)]
+    #[test]
+    fn only_regular_files_are_replaced() {
+        let tmp = TempDir::new("special");
+        let victim = tmp.0.join("victim");
+        std::fs::write(&victim, b"precious").unwrap();
+        let link = tmp.0.join("link.bin");
+        std::os::unix::fs::symlink(&victim, &link).unwrap();
+        let fifo = tmp.0.join("fifo.bin");
+        let c = std::ffi::CString::new(fifo.as_os_str().as_encoded_bytes()).unwrap();
+        // SAFETY: a valid NUL-terminated path and mode.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        let dir = tmp.0.join("dir.bin");
+        std::fs::create_dir(&dir).unwrap();
+        for (path, what) in [
+            (&link, "a symbolic link"),
+            (&fifo, "a FIFO"),
+            (&dir, "a directory"),
+        ] {
+            let e = write_file(path, b"x").unwrap_err();
+            assert!(
+                matches!(&e, Error::Run { path: p, fault: RunFault::NotRegular, .. } if p == path),
+                "{e:?}"
+            );
+            let text = e.to_string();
+            assert!(
+                text.contains(&path.display().to_string()) && text.contains(what),
+                "{text}"
+            );
+            let from = tmp.0.join("new");
+            std::fs::write(&from, b"x").unwrap();
+            assert!(rename(&from, path).is_err());
+        }
+        assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
+        assert!(link.symlink_metadata().unwrap().file_type().is_symlink());
+        let e = check_replaceable(Path::new("/dev/null")).unwrap_err().to_string();
+        assert!(e.contains("/dev/null is a character device"), "{e}");
+        check_replaceable(&victim).unwrap();
+        check_replaceable(&tmp.0.join("absent")).unwrap();
     }
 }

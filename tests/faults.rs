@@ -269,7 +269,13 @@ fn stale_or_lost_summaries_are_removed_refused_or_rebuilt() {
     let (ok, text) = resume_cli(&run);
     assert!(!ok && text.contains("already complete"), "{text}");
 
-    // A forced run over it, killed once its new record is on disk.
+    // A forced run over it, killed once its new record is on disk. A stale temporary
+    // record that is a link to another file is removed, not written through (issue 36,
+    // item 2: the forced run truncated and overwrote the link's target).
+    let victim = base.join("victim.bin");
+    std::fs::write(&victim, b"not cdlab's").unwrap();
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(&victim, run.join("run.mcap.tmp")).unwrap();
     let toml = base.join("run.toml");
     std::fs::write(&toml, cfg.to_toml_string().unwrap()).unwrap();
     let old_id = cdlab::record::read_run_id(&run).unwrap();
@@ -291,6 +297,7 @@ fn stale_or_lost_summaries_are_removed_refused_or_rebuilt() {
     }
     child.kill().unwrap();
     child.wait().unwrap();
+    assert_eq!(std::fs::read(&victim).unwrap(), b"not cdlab's");
     assert!(!summary.exists() && !run.join("summary.txt").exists());
     let (points, missing) = collect(std::slice::from_ref(&run));
     assert!(points.is_empty() && missing.len() == 1, "{missing:?}");
@@ -299,5 +306,49 @@ fn stale_or_lost_summaries_are_removed_refused_or_rebuilt() {
     let (points, missing) = collect(std::slice::from_ref(&run));
     assert!(points.is_empty(), "a stale summary was counted");
     assert!(missing[0].1.contains("another record"), "{missing:?}");
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// Every temporary file is created new, never through what holds its name (issue 36,
+/// item 2): stale `run.mcap.tmp` and `series.csv.tmp` links, one to a file and one
+/// dangling, and a stale `NAME.PID.tmp` link of an atomic write are removed, their targets
+/// untouched (the record's were truncated and overwritten, the dangling one created), and
+/// the new files are regular files under their real names.
+#[cfg(unix)]
+#[test]
+fn temporary_files_are_created_new_never_through_a_link() {
+    use cdlab::record::atomic;
+    use std::os::unix::fs::symlink;
+    let _turn = turn();
+    let base = scratch("tmp-links");
+    let run = base.join("run");
+    std::fs::create_dir_all(&run).unwrap();
+    let victim = base.join("victim.bin");
+    std::fs::write(&victim, b"not cdlab's").unwrap();
+    let nowhere = base.join("nowhere.bin");
+    symlink(&victim, run.join("run.mcap.tmp")).unwrap();
+    symlink(&nowhere, run.join("series.csv.tmp")).unwrap();
+    let mut rec = cdlab::record::Recorder::create(&run, &config(10)).unwrap();
+    rec.checkpoint(1, 0.0, b"state").unwrap();
+    rec.finish().unwrap();
+    let summary = run.join("summary.json");
+    symlink(&victim, atomic::process_tmp_path(&summary)).unwrap();
+    atomic::write_file(&summary, b"{}").unwrap();
+    assert_eq!(std::fs::read(&victim).unwrap(), b"not cdlab's");
+    assert!(
+        nowhere.symlink_metadata().is_err(),
+        "the dangling link's target was created"
+    );
+    for name in [MCAP_FILE, "series.csv", "summary.json"] {
+        let meta = run.join(name).symlink_metadata().unwrap();
+        assert!(meta.file_type().is_file(), "{name}: {meta:?}");
+    }
+    assert!(read_run(&run).unwrap().last_checkpoint.is_some());
+    let left: Vec<_> = std::fs::read_dir(&run)
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
     let _ = std::fs::remove_dir_all(&base);
 }

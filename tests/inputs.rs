@@ -98,7 +98,8 @@ fn too_few_disks_for_the_strips_is_refused_up_front() {
 
 /// A prepared sample with one flipped bit, cut short, or in the old format without a
 /// checksum is refused by `biaxial --sample` with the file's name, before the test starts
-/// (a flipped bit in a position used to run the test with a 2.7% overlap).
+/// (a flipped bit in a position used to run the test with a 2.7% overlap); so is one whose
+/// checksum is right but whose values are not, with the file's name and the field.
 #[test]
 fn a_damaged_sample_is_refused_before_use() {
     let base = scratch("sample");
@@ -122,11 +123,44 @@ fn a_damaged_sample_is_refused_before_use() {
     *last.last_mut().unwrap() ^= 1;
     let cut = good[..good.len() - 100].to_vec();
     let old = good[20..].to_vec(); // the bare checkpoint: the old format
+    // Valid CRCs over bad values (issue 36, item 10): the sample re-encoded with a scene
+    // edited into one the engine cannot run, and a `glued_to` patched to 2^32, which the
+    // scene's 32-bit field cannot hold, with the CRC computed again. The first panicked
+    // with an index out of bounds in the engine; the second was read as wall 0.
+    let ck = cdlab::protocol::checkpoint::decode(&good[20..]).unwrap();
+    let edited = |edit: &dyn Fn(&mut cdlab::model::Scene)| {
+        let mut scene = ck.scene.clone();
+        edit(&mut scene);
+        cdlab::protocol::sample_file::encode_sample(&ck.state, &scene)
+    };
+    let walls = ck.scene.walls.len() as u32;
+    let glued = edited(&|s| s.disks.glued_to[5] = walls + 3);
+    let radius = edited(&|s| s.disks.radius[7] = -0.5);
+    let mass = edited(&|s| s.disks.mass[9] = f64::NAN);
+    let velocity = edited(&|s| s.disks.vel[11].x = f64::INFINITY);
+    let wide = {
+        let mut payload = good[20..].to_vec();
+        let json = u64::from_le_bytes(payload[8..16].try_into().unwrap()) as usize;
+        // Disk 0's `glued_to`, its 15th word (the layout of `checkpoint::encode`).
+        let at = 16 + json + 8 + 8 * 14;
+        payload[at..at + 8].copy_from_slice(&(1u64 << 32).to_le_bytes());
+        let mut b = good[..8].to_vec();
+        b.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+        b.extend_from_slice(&crc32fast::hash(&payload).to_le_bytes());
+        b.extend_from_slice(&payload);
+        b
+    };
+    let glued_what = format!("disk 5 glued_to = {}", walls + 3);
     for (name, bytes, expect) in [
         ("flipped", flipped, "CRC-32"),
         ("last", last, "CRC-32"),
         ("cut", cut, "truncated"),
         ("old", old, "cdlab prepare"),
+        ("glued", glued, glued_what.as_str()),
+        ("radius", radius, "disk 7 radius = -0.5"),
+        ("mass", mass, "disk 9 mass = NaN"),
+        ("velocity", velocity, "disk 11 velocity = inf"),
+        ("wide", wide, "disk 0 glued_to = 4294967296"),
     ] {
         let path = base.join(format!("{name}.bin"));
         std::fs::write(&path, bytes).unwrap();
@@ -269,4 +303,88 @@ fn output_to_a_full_device_ends_cleanly() {
             .expect("cdlab runs");
         assert_eq!(status.code(), Some(1), "{args:?}");
     }
+}
+
+/// Makes a FIFO at `path`.
+#[cfg(unix)]
+fn mkfifo(path: &std::path::Path) {
+    let c = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).unwrap();
+    // SAFETY: a valid NUL-terminated path and mode.
+    assert_eq!(
+        unsafe { libc::mkfifo(c.as_ptr(), 0o600) },
+        0,
+        "{}",
+        path.display()
+    );
+}
+
+/// An output that exists and is not a regular file is refused up front, with or without
+/// --force, naming the path and what it is, and left as it was (issue 36, item 3: `prepare
+/// -o X --force` renamed over a link, a FIFO or a device node, and as root replaced a
+/// device of the system): `prepare -o` a link (to a file, or dangling) or a FIFO, and a
+/// run directory whose record or summary is one.
+#[cfg(unix)]
+#[test]
+fn outputs_that_are_not_regular_files_are_refused() {
+    use std::os::unix::fs::symlink;
+    let base = scratch("special");
+    let cfg = small_config(&base);
+    let c = cfg.to_str().unwrap();
+    let victim = base.join("victim.bin");
+    std::fs::write(&victim, b"not cdlab's").unwrap();
+    let link = base.join("link.bin");
+    symlink(&victim, &link).unwrap();
+    let dangling = base.join("dangling.bin");
+    symlink(base.join("nowhere.bin"), &dangling).unwrap();
+    let fifo = base.join("fifo.bin");
+    mkfifo(&fifo);
+    for (path, what, force) in [
+        (&link, "is a symbolic link", true),
+        (&dangling, "is a symbolic link", false),
+        (&fifo, "is a FIFO", true),
+    ] {
+        let mut args = vec!["prepare", "--config", c, "-o", path.to_str().unwrap()];
+        if force {
+            args.push("--force");
+        }
+        let text = exits_with_error(&args);
+        assert!(
+            text.contains(&format!("{} {what}", path.display())) && text.contains("not a regular file"),
+            "{args:?}: {text}"
+        );
+        assert!(!path.symlink_metadata().unwrap().file_type().is_file());
+    }
+    assert_eq!(std::fs::read(&victim).unwrap(), b"not cdlab's");
+    assert!(!base.join("nowhere.bin").exists());
+
+    // A run directory: its record a FIFO, then its summary a link.
+    let out = base.join("run");
+    std::fs::create_dir_all(&out).unwrap();
+    mkfifo(&out.join("run.mcap"));
+    let o = out.to_str().unwrap();
+    let text = exits_with_error(&["biaxial", "--config", c, "--out", o, "--force", "--quiet"]);
+    assert!(
+        text.contains(&format!("{} is a FIFO", out.join("run.mcap").display())),
+        "{text}"
+    );
+    std::fs::remove_file(out.join("run.mcap")).unwrap();
+    symlink(&victim, out.join("summary.json")).unwrap();
+    let text = exits_with_error(&["biaxial", "--config", c, "--out", o, "--force", "--quiet"]);
+    assert!(
+        text.contains(&format!(
+            "{} is a symbolic link",
+            out.join("summary.json").display()
+        )),
+        "{text}"
+    );
+    assert!(
+        out.join("summary.json")
+            .symlink_metadata()
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+    assert!(!out.join("run.mcap").exists() && !out.join("series.csv").exists());
+    assert_eq!(std::fs::read(&victim).unwrap(), b"not cdlab's");
+    let _ = std::fs::remove_dir_all(&base);
 }

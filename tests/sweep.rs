@@ -586,3 +586,111 @@ fn a_signal_stops_a_sweep_that_the_same_command_resumes() {
     assert!(text.contains("all 2 tests of this shard finished"), "{text}");
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// An archive is never written over, into or around the tests it archives (issue 36, item
+/// 1: `archive CAMP --to CAMP --with-unfinished` replaced a running test's full record,
+/// snapshots and all, with its slim copy). The destination is refused when it is the
+/// source, lies inside it (even where it does not exist yet) or contains it, through a
+/// link too, with both paths named; the record stays as it was and nothing is created. Apart
+/// from its source the same test archives.
+#[cfg(unix)]
+#[test]
+fn an_archive_that_overlaps_its_sources_is_refused() {
+    use cdlab::protocol::{LabState, ProtocolParams, checkpoint};
+    let base = std::env::temp_dir().join(format!("cdlab-archive-overlap-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&base);
+    let campaign = base.join("campaign");
+    let test = campaign.join("seed1_mu0.3_s2MPa");
+    // An unfinished test: a snapshot and a checkpoint, no summary.
+    let mut scene = cdlab::model::Scene::default();
+    for k in 0..4 {
+        scene
+            .disks
+            .push(glam::DVec2::new(3.0 * k as f64, 0.0), 1.0, 1.0)
+            .unwrap();
+    }
+    let state = LabState::new(
+        ProtocolParams::paper_defaults(4),
+        Default::default(),
+        Default::default(),
+        0.0,
+    );
+    let mut rec = cdlab::record::Recorder::create(&test, &cdlab::config::Config::default()).unwrap();
+    rec.snapshot(&cdlab::run::snapshot(0.001, &scene, &[], &[]))
+        .unwrap();
+    rec.checkpoint(100, 0.0, &checkpoint::encode(&state, &scene, &[], &[]))
+        .unwrap();
+    rec.finish().unwrap();
+    let record = test.join("run.mcap");
+    let before = std::fs::read(&record).unwrap();
+    let link = base.join("link");
+    std::os::unix::fs::symlink(&campaign, &link).unwrap();
+    let inside = campaign.join("archive");
+    let deeper = campaign.join("new").join("deeper");
+    for (from, to, how) in [
+        (&campaign, &campaign, "is the source"),
+        (&test, &campaign, "contains the source"),
+        (&campaign, &inside, "lies inside the source"),
+        (&campaign, &deeper, "lies inside the source"),
+        (&link, &campaign, "is the source"),
+    ] {
+        let (f, t) = (from.to_str().unwrap(), to.to_str().unwrap());
+        for extra in [&["--with-unfinished"][..], &[][..]] {
+            let mut args = vec!["archive", f, "--to", t];
+            args.extend_from_slice(extra);
+            let (ok, text) = cdlab(&args);
+            assert_eq!(std::fs::read(&record).unwrap(), before, "{args:?}: {text}");
+            assert!(
+                !ok && text.contains(&format!("cannot archive {f} into {t}")) && text.contains(how),
+                "{args:?}: {text}"
+            );
+        }
+    }
+    assert!(!inside.exists() && !campaign.join("new").exists());
+    assert_eq!(
+        std::fs::read_dir(&campaign).unwrap().count(),
+        1,
+        "something was created beside the test"
+    );
+    let apart = base.join("archive");
+    let (ok, text) = cdlab(&[
+        "archive",
+        campaign.to_str().unwrap(),
+        "--to",
+        apart.to_str().unwrap(),
+        "--with-unfinished",
+    ]);
+    assert!(ok && text.contains("kept to resume from step 100"), "{text}");
+    assert_eq!(cdlab::record::read_run(&test).unwrap().snapshots.len(), 1);
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// A sweep whose output cannot be written (stdout and stderr on /dev/full, where every
+/// write fails with ENOSPC) runs every test to its end and exits 0 (issue 36, item 9: the
+/// first failed progress line panicked, exit 101 from a worker thread, and the tests left
+/// never started). Progress lines are asked for at every row (`--log-every 0`).
+#[cfg(target_os = "linux")]
+#[test]
+fn a_sweep_whose_output_hits_a_full_disk_runs_every_test() {
+    let (base, sweep) = tiny_campaign("sweep-full", "mu = [0.3]\nsigma3 = [\"1 MPa\", \"2 MPa\"]\n");
+    let full = || std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args([
+            "sweep",
+            sweep.to_str().unwrap(),
+            "--jobs",
+            "1",
+            "--log-every",
+            "0",
+        ])
+        .stdout(full())
+        .stderr(full())
+        .status()
+        .expect("cdlab runs");
+    assert_eq!(status.code(), Some(0));
+    for name in ["seed1_mu0.3_s1MPa", "seed1_mu0.3_s2MPa"] {
+        let summary = base.join("campaign").join(name).join("summary.json");
+        assert!(summary.exists(), "{} was not finished", summary.display());
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}

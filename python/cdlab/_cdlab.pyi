@@ -52,7 +52,7 @@ class RunError(CdlabError):
     """A run directory or file that cannot be used as asked."""
 
     path: str
-    #: NoRun, Occupied, NoCheckpoint, Complete, Unfinished, OtherSettings or Damaged.
+    #: NoRun, Occupied, NoCheckpoint, Complete, Unfinished, OtherSettings, Damaged or NotRegular.
     fault: str
 
 class CampaignError(CdlabError):

@@ -7,7 +7,7 @@
 //! (configuration, time series up to its last checkpoint, that checkpoint, no snapshots),
 //! which a campaign resumes from as from its full record.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result, RunFault};
 use crate::protocol::checkpoint::decode;
@@ -16,6 +16,66 @@ use crate::record::{
 };
 
 pub use crate::record::LAST_SNAPSHOT_FILE;
+
+/// Refuses to archive `source` into `dest` when they overlap: `dest` is `source`, lies
+/// inside it, or contains it. An archive written there replaces the source's own files
+/// (a running test's full record became its slim copy) or is found again among the tests
+/// to archive. Both are compared resolved (symbolic links, `..` and relative paths), `dest`
+/// through its nearest existing ancestor when it does not exist yet.
+pub fn check_apart(source: &Path, dest: &Path) -> Result<()> {
+    let (s, d) = (resolved(source)?, resolved(dest)?);
+    let how = if s == d {
+        "is the source"
+    } else if d.starts_with(&s) {
+        "lies inside the source"
+    } else if s.starts_with(&d) {
+        "contains the source"
+    } else {
+        return Ok(());
+    };
+    Err(Error::Run {
+        path: dest.to_path_buf(),
+        fault: RunFault::Occupied,
+        message: format!(
+            "cannot archive {} into {}: the destination {how} ({} and {} resolved); archive into \
+             a directory apart from the tests",
+            source.display(),
+            dest.display(),
+            s.display(),
+            d.display()
+        ),
+    })
+}
+
+/// `path` made absolute, with its symbolic links, `.` and `..` resolved as far as it
+/// exists; the part that does not exist yet is appended as written (it holds no link).
+fn resolved(path: &Path) -> Result<PathBuf> {
+    use std::path::Component;
+    let abs = if path.is_absolute() {
+        path.to_path_buf()
+    } else {
+        let cwd = std::env::current_dir().map_err(|e| Error::io(".", e))?;
+        cwd.join(path)
+    };
+    let mut out = PathBuf::new();
+    for part in abs.components() {
+        match part {
+            Component::Prefix(_) | Component::RootDir => out.push(part),
+            Component::CurDir => {}
+            // `out` is canonical or, past its existing part, free of links: `..` is its parent.
+            Component::ParentDir => {
+                out.pop();
+            }
+            Component::Normal(name) => {
+                out.push(name);
+                if let Ok(real) = out.canonicalize() {
+                    out = real;
+                }
+            }
+        }
+    }
+    Ok(out)
+}
 
 /// Writes the last snapshot of the run in `src` into the archived test `dest`, through a
 /// temporary file synced and renamed; nothing when the record holds no snapshot.
@@ -29,9 +89,11 @@ pub fn keep_last_snapshot(src: &Path, dest: &Path) -> Result<()> {
 }
 
 /// Keeps the unfinished test in `src` as a slim record in `dest` (see the module
-/// documentation) and returns the step of its checkpoint. A finished test in `dest`, or an
-/// unfinished one of other settings, is an error.
+/// documentation) and returns the step of its checkpoint. A finished test in `dest`, an
+/// unfinished one of other settings, or a `dest` that overlaps `src` ([`check_apart`]), is
+/// an error.
 pub fn archive_unfinished(src: &Path, dest: &Path) -> Result<u64> {
+    check_apart(src, dest)?;
     if dest.join("summary.json").exists() {
         return Err(occupied(
             dest,
@@ -65,8 +127,8 @@ pub fn archive_unfinished(src: &Path, dest: &Path) -> Result<u64> {
     let csv = part.join(CSV_FILE);
     std::fs::remove_file(&csv).map_err(|e| Error::io(&csv, e))?;
     std::fs::create_dir_all(dest).map_err(|e| Error::io(dest, e))?;
-    let to = dest.join(MCAP_FILE);
-    std::fs::rename(part.join(MCAP_FILE), &to).map_err(|e| Error::io(&to, e))?;
+    // Through the atomic rename: synced, and never over a link or a device.
+    crate::record::atomic::rename(&part.join(MCAP_FILE), &dest.join(MCAP_FILE))?;
     let _ = std::fs::remove_dir_all(&part);
     Ok(*step)
 }
@@ -118,14 +180,16 @@ pub enum Archived {
 }
 
 /// Archives the finished test in `src` to `dest`, its series thinned to about
-/// `series_rows` rows (none kept at 0), with its last snapshot when `keep_snapshot`. A different test already in `dest` is an
-/// error: an archive never overwrites one test with another.
+/// `series_rows` rows (none kept at 0), with its last snapshot when `keep_snapshot`. A
+/// different test already in `dest` is an error: an archive never overwrites one test with
+/// another; so is a `dest` that overlaps `src` ([`check_apart`]).
 pub fn archive_finished(
     src: &Path,
     dest: &Path,
     series_rows: usize,
     keep_snapshot: bool,
 ) -> Result<Archived> {
+    check_apart(src, dest)?;
     let read = |p: &Path| std::fs::read(p).map_err(|e| Error::io(p, e));
     let summary = read(&src.join("summary.json"))?;
     let kept = dest.join("summary.json");

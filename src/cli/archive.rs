@@ -16,7 +16,7 @@
 
 use std::path::PathBuf;
 
-use crate::campaign::archive::{Archived, archive_finished, archive_unfinished};
+use crate::campaign::archive::{Archived, archive_finished, archive_unfinished, check_apart};
 use crate::campaign::{GRID_FILE, NOT_RUN, add_to_grid, read_grid};
 use crate::error::{Error, Result};
 use crate::record::MCAP_FILE;
@@ -49,6 +49,11 @@ pub struct Args {
 
 /// Runs `cdlab archive`.
 pub fn run(args: &Args) -> Result<()> {
+    // Before anything is read or created: an archive inside, over or around its sources
+    // would replace their files.
+    for dir in &args.dirs {
+        check_apart(dir, &args.to)?;
+    }
     // Unfinished tests alone are worth keeping when asked for.
     let (points, missing) = super::report::collect_dirs(&args.dirs, !args.with_unfinished)?;
     std::fs::create_dir_all(&args.to).map_err(|e| Error::io(&args.to, e))?;

@@ -129,7 +129,7 @@ fn hint_resume<T>(outcome: Result<T>, dir: &Path) -> Result<T> {
     if let Err(Error::Interrupted { step, .. }) = &outcome
         && *step > 0
     {
-        eprintln!(
+        note!(
             "the run in {} ends at its checkpoint of step {step}: `cdlab biaxial --resume {}` \
              continues it",
             dir.display(),

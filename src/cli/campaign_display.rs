@@ -37,7 +37,7 @@ impl CampaignDisplay {
             Some(m) => {
                 let _ = m.println(line);
             }
-            None => eprintln!("{line}"),
+            None => note!("{line}"),
         }
     }
 }

@@ -17,7 +17,7 @@ impl CampaignDisplay {
                 jobs,
                 out,
             } => {
-                eprintln!(
+                note!(
                     "sweep: {} in the grid, {mine} in this shard, {jobs} at a time -> {}",
                     tests(*grid),
                     out.display()
@@ -34,7 +34,7 @@ impl CampaignDisplay {
                     let _ = self.overall.set(b);
                 }
             }
-            Event::GridNotWritten(e) => eprintln!(
+            Event::GridNotWritten(e) => note!(
                 "warning: the campaign's list of tests ({}) was not updated: {e}; the report \
                  will not name the tests that were never run",
                 crate::campaign::GRID_FILE
@@ -47,7 +47,7 @@ impl CampaignDisplay {
                 };
                 self.say(&format!("sweep: {how} {}", point.dir.display()));
             }
-            Event::WaitingForSample(path) => eprintln!(
+            Event::WaitingForSample(path) => note!(
                 "sweep: another process is preparing {}; waiting for it",
                 path.display()
             ),

@@ -3,6 +3,19 @@
 //! campaigns is the library's ([`crate::run`], [`crate::campaign`]): the subcommands parse,
 //! call it and print, and their progress displays are implementations of its callbacks.
 
+/// `eprintln!` for progress and the messages around a run or a campaign, which must never
+/// stop it: a line that cannot be written (stderr on a full disk, a log whose file system
+/// fails) is dropped. `eprintln!` panics there instead, and in a sweep's worker thread
+/// that panic ended the whole campaign, leaving its other tests unstarted. What a command
+/// exists to print (a table, a report) keeps `println!`, whose failure [`main`] turns into
+/// exit code 1.
+macro_rules! note {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
 pub mod archive;
 pub mod bands;
 pub mod bench;
@@ -139,15 +152,16 @@ fn run_command() -> i32 {
         Command::Config(args) => config::run(&args),
         Command::Info(args) => info::run(&args),
     };
+    // The exit code says how the command ended even when its last words cannot be written.
     match result {
         Ok(()) => 0,
         // 128 + the signal, as a shell reports a process the signal ended.
         Err(e @ crate::Error::Interrupted { signal, .. }) => {
-            eprintln!("{e}");
+            note!("{e}");
             128 + signal
         }
         Err(e) => {
-            eprintln!("error: {e}");
+            note!("error: {e}");
             1
         }
     }

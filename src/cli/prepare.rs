@@ -31,7 +31,10 @@ pub struct Args {
 
 /// Runs `cdlab prepare`.
 pub fn run(args: &Args) -> Result<()> {
-    if args.output.exists() && !args.force {
+    // A link, a FIFO or a device under that name is refused with or without --force; a
+    // dangling link counts as existing (`exists()` would follow it and say no).
+    crate::fsio::check_replaceable(&args.output)?;
+    if args.output.symlink_metadata().is_ok() && !args.force {
         return Err(Error::Run {
             path: args.output.clone(),
             fault: RunFault::Occupied,
@@ -47,9 +50,13 @@ pub fn run(args: &Args) -> Result<()> {
     })?;
     let mut progress = |e: &Event| {
         if let Event::Deposited { disks, report: r } = e {
-            eprintln!(
+            note!(
                 "deposited {disks} disks in {:.2} s: packing fraction {:.3}, coordination {:.2}, D10 {:.2} m, D60 {:.2} m",
-                r.seconds, r.packing_fraction, r.coordination, r.d10_m, r.d60_m
+                r.seconds,
+                r.packing_fraction,
+                r.coordination,
+                r.d10_m,
+                r.d60_m
             );
         }
     };

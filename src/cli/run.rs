@@ -101,7 +101,7 @@ impl Display {
     pub(super) fn say(&self, line: String) {
         match &self.bar {
             Some(b) => b.println(line),
-            None => eprintln!("{line}"),
+            None => note!("{line}"),
         }
     }
 
@@ -131,7 +131,7 @@ impl Display {
                     .compression_start
                     .and_then(|(w0, e0)| time_left(w0, e0, row.wall_s, row.strain_axial, strain_end))
                     .map_or(String::new(), |s| format!("  about {} left", duration(s)));
-                eprintln!("{label}[{:7.1} s] {msg}{left}", row.wall_s);
+                note!("{label}[{:7.1} s] {msg}{left}", row.wall_s);
                 self.last_line = Instant::now();
             }
         }

@@ -10,10 +10,15 @@ impl crate::run::Progress for Display {
     fn event(&mut self, event: &Event<'_>) {
         let quiet = self.mode.quiet();
         match event {
-            Event::Deposited { disks, report: r } if !quiet => eprintln!(
+            Event::Deposited { disks, report: r } if !quiet => note!(
                 "deposited {disks} disks in {:.2} s: packing fraction {:.3}, coordination {:.2}, \
                  D10 {:.2} m, D60 {:.2} m, height/width {:.2}",
-                r.seconds, r.packing_fraction, r.coordination, r.d10_m, r.d60_m, r.aspect
+                r.seconds,
+                r.packing_fraction,
+                r.coordination,
+                r.d10_m,
+                r.d60_m,
+                r.aspect
             ),
             Event::FellBack {
                 file,
@@ -21,14 +26,14 @@ impl crate::run::Progress for Display {
                 step,
                 phase,
                 strain,
-            } => eprintln!(
+            } => note!(
                 "warning: {}: {why}; falling back to the last intact checkpoint before the damage: \
                  step {step} (phase {}{}); the run is recomputed from there",
                 file.display(),
                 phase.name(),
                 strain.map_or(String::new(), |e| format!(", axial strain {e:.5}"))
             ),
-            Event::SummaryRewritten { dir, fault } => eprintln!(
+            Event::SummaryRewritten { dir, fault } => note!(
                 "{}: the record is complete but its summary.json {fault}: written again from the \
                  record",
                 dir.display()
@@ -41,7 +46,7 @@ impl crate::run::Progress for Display {
             } => {
                 self.start();
                 if !quiet {
-                    eprintln!(
+                    note!(
                         "resuming {} from step {step} (t = {time_s:.3} s, phase {})",
                         dir.display(),
                         phase.name()
@@ -50,7 +55,7 @@ impl crate::run::Progress for Display {
             }
             Event::Running { backend, dir } => {
                 if !quiet {
-                    eprintln!("running on {backend} -> {}", dir.display());
+                    note!("running on {backend} -> {}", dir.display());
                 }
                 self.start();
             }
@@ -77,7 +82,7 @@ impl crate::run::Progress for Display {
                     b.finish_and_clear();
                 }
             }
-            Event::NoShearBands(e) if !quiet => eprintln!("no shear-band analysis: {e}"),
+            Event::NoShearBands(e) if !quiet => note!("no shear-band analysis: {e}"),
             _ => {}
         }
     }

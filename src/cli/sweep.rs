@@ -84,7 +84,7 @@ pub fn run(args: &Args) -> Result<()> {
 fn conclude(o: &CampaignOutcome, sweep: &Sweep, dry_run: bool) -> Result<()> {
     let (ended, total) = (o.ended, o.total);
     if let Some(signal) = o.cancelled {
-        eprintln!(
+        note!(
             "sweep: stopped by {}: {ended} of {total} tests ended or were found finished ({} \
              failed), {} stopped at a checkpoint or before starting, {} running in another \
              process, {} not started; the same command resumes the campaign",
@@ -97,9 +97,9 @@ fn conclude(o: &CampaignOutcome, sweep: &Sweep, dry_run: bool) -> Result<()> {
         return Err(Error::Interrupted { signal, step: 0 });
     }
     if o.failed.is_empty() && dry_run {
-        eprintln!("sweep: dry run, nothing was run; {} checked", tests(total));
+        note!("sweep: dry run, nothing was run; {} checked", tests(total));
     } else if o.failed.is_empty() && !o.elsewhere.is_empty() {
-        eprintln!(
+        note!(
             "sweep: {ended} of this shard's {} finished, {} running in another process \
              (not failed: that process ends them); `cdlab report {}` analyses the campaign \
              once it has",
@@ -113,7 +113,7 @@ fn conclude(o: &CampaignOutcome, sweep: &Sweep, dry_run: bool) -> Result<()> {
         } else {
             format!("all {total} tests")
         };
-        eprintln!(
+        note!(
             "sweep: {which} of this shard finished; `cdlab report {}` analyses the campaign",
             sweep.out.display()
         );

@@ -10,7 +10,7 @@ use glam::DVec2;
 use super::LabState;
 use crate::backend::{ContactClass, ContactRecord};
 use crate::error::{Error, Result};
-use crate::model::{BodyKind, Disks, Material, Scene, Wall, WallDrive};
+use crate::model::{BodyKind, Disks, Material, NOT_GLUED, Scene, Wall, WallDrive};
 
 const MAGIC: &[u8; 8] = b"CDLABCK1";
 
@@ -65,8 +65,50 @@ impl R<'_> {
     fn f(&mut self) -> Result<f64> {
         Ok(f64::from_bits(self.u()?))
     }
-    fn v(&mut self) -> Result<DVec2> {
-        Ok(DVec2::new(self.f()?, self.f()?))
+    /// The byte the next read starts at.
+    fn at(&self) -> usize {
+        self.1 - self.0.len()
+    }
+    /// An f64 that must pass `ok`; otherwise an error at its first byte naming `field` and
+    /// what it must be (`rule`).
+    fn checked(&mut self, field: &dyn Fn() -> String, rule: &str, ok: fn(f64) -> bool) -> Result<f64> {
+        let at = self.at();
+        let x = self.f()?;
+        if ok(x) {
+            return Ok(x);
+        }
+        Err(Error::BadCheckpoint {
+            offset: at,
+            message: format!("checkpoint: {} = {x}: must be {rule}", field()),
+        })
+    }
+    /// A finite f64 (`field` names it in the error).
+    fn finite(&mut self, field: &dyn Fn() -> String) -> Result<f64> {
+        self.checked(field, "finite", f64::is_finite)
+    }
+    /// A finite, strictly positive f64.
+    fn positive(&mut self, field: &dyn Fn() -> String) -> Result<f64> {
+        self.checked(field, "finite and > 0", |x| x.is_finite() && x > 0.0)
+    }
+    /// A finite f64 >= 0.
+    fn non_negative(&mut self, field: &dyn Fn() -> String) -> Result<f64> {
+        self.checked(field, "finite and >= 0", |x| x.is_finite() && x >= 0.0)
+    }
+    /// A vector of finite components.
+    fn finite_v(&mut self, field: &dyn Fn() -> String) -> Result<DVec2> {
+        Ok(DVec2::new(self.finite(field)?, self.finite(field)?))
+    }
+    /// A u64 that is 0 or 1.
+    fn flag(&mut self, field: &dyn Fn() -> String) -> Result<bool> {
+        let at = self.at();
+        match self.u()? {
+            0 => Ok(false),
+            1 => Ok(true),
+            x => Err(Error::BadCheckpoint {
+                offset: at,
+                message: format!("checkpoint: {} = {x}: must be 0 or 1", field()),
+            }),
+        }
     }
     fn count(&mut self, what: &str) -> Result<usize> {
         let n = self.u()?;
@@ -139,7 +181,11 @@ pub fn encode(state: &LabState, scene: &Scene, reference: &[DVec2], warm: &[Cont
     w.0
 }
 
-/// Decodes a checkpoint; a foreign or damaged byte string is an error, never a panic.
+/// Decodes a checkpoint; a foreign or damaged byte string is an error, never a panic. Every
+/// value is checked, whatever checksum came with the bytes: finite positions, velocities,
+/// forces and times, finite positive radii and masses, known body kinds, `glued_to` a wall
+/// of the scene (or [`NOT_GLUED`]), warm-start contacts between its bodies, and as many
+/// reference positions as disks, or none.
 pub fn decode(bytes: &[u8]) -> Result<Checkpoint> {
     let mut r = R(bytes, bytes.len());
     if r.take(8)? != MAGIC {
@@ -157,39 +203,72 @@ pub fn decode(bytes: &[u8]) -> Result<Checkpoint> {
     let n = n as usize;
     let state: LabState =
         serde_json::from_slice(r.take(n)?).map_err(|e| r.bad(format!("checkpoint state: {e}")))?;
+    // Every value is checked as it is decoded, not only the checksum around it: a file
+    // whose CRC was computed over bad values (a bug, a foreign writer, a crafted file)
+    // would otherwise reach the engine, which indexes walls by `glued_to` and divides by
+    // radii and masses. The error names the field and the byte it starts at.
     let nd = r.count("disk")?;
     let mut d = Disks::default();
-    for _ in 0..nd {
-        d.pos.push(r.v()?);
-        d.theta.push(r.f()?);
-        d.vel.push(r.v()?);
-        d.spin.push(r.f()?);
-        d.radius.push(r.f()?);
-        d.inv_mass.push(r.f()?);
-        d.inv_inertia.push(r.f()?);
-        d.mass.push(r.f()?);
+    // Checked once the walls are known, with the byte each was read at.
+    let mut glued = Vec::with_capacity(nd);
+    for k in 0..nd {
+        let field = |name: &'static str| move || format!("disk {k} {name}");
+        d.pos.push(r.finite_v(&field("position"))?);
+        d.theta.push(r.finite(&field("angle"))?);
+        d.vel.push(r.finite_v(&field("velocity"))?);
+        d.spin.push(r.finite(&field("spin"))?);
+        d.radius.push(r.positive(&field("radius"))?);
+        d.inv_mass.push(r.non_negative(&field("inverse mass"))?);
+        d.inv_inertia.push(r.non_negative(&field("inverse inertia"))?);
+        d.mass.push(r.positive(&field("mass"))?);
+        let at = r.at();
         d.kind.push(match r.u()? {
             0 => BodyKind::Free,
             1 => BodyKind::Kinematic,
             2 => BodyKind::Fixed,
-            k => return Err(r.bad(format!("checkpoint: bad body kind {k}"))),
+            k => {
+                return Err(Error::BadCheckpoint {
+                    offset: at,
+                    message: format!("checkpoint: bad body kind {k} (0, 1 or 2 expected)"),
+                });
+            }
         });
-        d.force.push(r.v()?);
-        d.torque.push(r.f()?);
-        d.glued_to.push(r.u()? as u32);
+        d.force.push(r.finite_v(&field("force"))?);
+        d.torque.push(r.finite(&field("torque"))?);
+        glued.push((r.at(), r.u()?));
+        // Filled in below, once the value is known to be in range.
+        d.glued_to.push(NOT_GLUED);
     }
     let nw = r.count("wall")?;
     let mut walls = Vec::with_capacity(nw);
-    for _ in 0..nw {
-        let (normal, point, vel) = (r.v()?, r.v()?, r.v()?);
+    for k in 0..nw {
+        let field = |name: &'static str| move || format!("wall {k} {name}");
+        let normal = r.finite_v(&field("normal"))?;
+        let point = r.finite_v(&field("point"))?;
+        let vel = r.finite_v(&field("velocity"))?;
+        let at = r.at();
         let tag = r.u()?;
         let (mass, force) = (r.f()?, r.f()?);
-        let drive = if tag == 0 {
-            WallDrive::Kinematic
-        } else {
-            WallDrive::Force { mass, force }
+        let drive = match tag {
+            0 => WallDrive::Kinematic,
+            1 if mass.is_finite() && mass > 0.0 && force.is_finite() => WallDrive::Force { mass, force },
+            1 => {
+                return Err(Error::BadCheckpoint {
+                    offset: at,
+                    message: format!(
+                        "checkpoint: wall {k} drive: mass {mass} kg/m and force {force} N/m: the mass must \
+                         be finite and > 0, the force finite"
+                    ),
+                });
+            }
+            t => {
+                return Err(Error::BadCheckpoint {
+                    offset: at,
+                    message: format!("checkpoint: wall {k} drive = {t}: must be 0 or 1"),
+                });
+            }
         };
-        let active = r.u()? != 0;
+        let active = r.flag(&field("active"))?;
         walls.push(Wall {
             normal,
             point,
@@ -198,14 +277,29 @@ pub fn decode(bytes: &[u8]) -> Result<Checkpoint> {
             active,
         });
     }
-    let gravity = r.v()?;
+    for (k, &(at, g)) in glued.iter().enumerate() {
+        if g == u64::from(NOT_GLUED) {
+            continue;
+        }
+        if g >= nw as u64 {
+            return Err(Error::BadCheckpoint {
+                offset: at,
+                message: format!(
+                    "checkpoint: disk {k} glued_to = {g}: the scene has {nw} walls, so it must be \
+                     below {nw}, or {NOT_GLUED} for a disk glued to none"
+                ),
+            });
+        }
+        d.glued_to[k] = g as u32;
+    }
+    let gravity = r.finite_v(&|| "gravity".to_string())?;
     let material = Material {
         mu_disk: r.f()?,
         mu_wall: r.f()?,
         e_n: r.f()?,
         e_t: r.f()?,
     };
-    let time = r.f()?;
+    let time = r.finite(&|| "time".to_string())?;
     let step = r.u()?;
     let scene = Scene {
         disks: d,
@@ -215,19 +309,41 @@ pub fn decode(bytes: &[u8]) -> Result<Checkpoint> {
         time,
         step,
     };
+    let at = r.at();
     let nr = r.count("reference")?;
-    let reference = (0..nr).map(|_| r.v()).collect::<Result<Vec<_>>>()?;
+    // The reference positions are the disks' at the start of compression: all or none.
+    if nr != 0 && nr != nd {
+        return Err(Error::BadCheckpoint {
+            offset: at,
+            message: format!("checkpoint: {nr} reference positions for {nd} disks (0 or {nd} expected)"),
+        });
+    }
+    let reference = (0..nr)
+        .map(|k| r.finite_v(&|| format!("reference position {k}")))
+        .collect::<Result<Vec<_>>>()?;
     let nwarm = r.count("warm-start")?;
+    let bodies = (nd + nw) as u64;
     let mut warm = Vec::with_capacity(nwarm);
-    for _ in 0..nwarm {
+    for k in 0..nwarm {
+        let at = r.at();
         let key = r.u()?;
+        let (i, j) = (key >> 32, key & u64::from(u32::MAX));
+        if i >= bodies || j >= bodies {
+            return Err(Error::BadCheckpoint {
+                offset: at,
+                message: format!(
+                    "checkpoint: warm-start contact {k} between bodies {i} and {j}: the scene has \
+                     {bodies} bodies ({nd} disks, {nw} walls)"
+                ),
+            });
+        }
         warm.push(ContactRecord {
-            i: (key >> 32) as u32,
-            j: key as u32,
+            i: i as u32,
+            j: j as u32,
             n: DVec2::ZERO,
             gap: 0.0,
-            rn: r.f()?,
-            rt: r.f()?,
+            rn: r.finite(&|| format!("warm-start contact {k} normal impulse"))?,
+            rt: r.finite(&|| format!("warm-start contact {k} tangential impulse"))?,
             f_n: 0.0,
             f_t: 0.0,
             class: ContactClass::Open,
@@ -279,6 +395,123 @@ mod tests {
                     "cut {cut}: expected a bad checkpoint, got {:?}",
                     other.map(|_| ())
                 ),
+            }
+        }
+    }
+
+    /// Every decoded value is checked, not only the bytes' framing: a scene edited into
+    /// something the engine cannot run (a `glued_to` past the walls used to panic with an
+    /// index out of bounds in the engine), or bytes patched where the types cannot go (a
+    /// `glued_to` of 2^32 used to wrap to wall 0, a body kind, a drive tag or a flag out of
+    /// range), is an error naming the field; the untouched scene decodes.
+    #[test]
+    fn every_decoded_value_is_checked() {
+        use crate::model::Wall;
+        let params = crate::protocol::ProtocolParams::paper_defaults(4);
+        let mut scene = Scene::default();
+        for k in 0..4 {
+            scene
+                .disks
+                .push(DVec2::new(3.0 * k as f64, 0.0), 1.0, 1.0)
+                .unwrap();
+        }
+        scene.walls.push(Wall::fixed(DVec2::new(0.0, -1.0), DVec2::Y));
+        scene.walls.push(Wall {
+            drive: WallDrive::Force {
+                mass: 2.0,
+                force: -1.0,
+            },
+            ..Wall::fixed(DVec2::new(0.0, 10.0), -DVec2::Y)
+        });
+        scene.disks.glue(3, 1);
+        let state = LabState::new(params, Default::default(), Default::default(), 0.0);
+        let warm = |i: u32, j: u32, rn: f64| ContactRecord {
+            i,
+            j,
+            n: DVec2::ZERO,
+            gap: 0.0,
+            rn,
+            rt: 0.0,
+            f_n: 0.0,
+            f_t: 0.0,
+            class: ContactClass::Open,
+        };
+        let good = encode(&state, &scene, &[DVec2::ZERO; 4], &[warm(0, 5, 1.0)]);
+        let back = decode(&good).unwrap();
+        assert_eq!(back.scene.disks.glued_to, scene.disks.glued_to);
+        assert_eq!(back.warm.len(), 1);
+
+        let edited = |edit: &dyn Fn(&mut Scene)| {
+            let mut s = scene.clone();
+            edit(&mut s);
+            encode(&state, &s, &[], &[])
+        };
+        let cases: Vec<(Vec<u8>, &str)> = vec![
+            (edited(&|s| s.disks.glued_to[0] = 2), "disk 0 glued_to = 2"),
+            (edited(&|s| s.disks.glued_to[2] = 99), "disk 2 glued_to = 99"),
+            (edited(&|s| s.disks.radius[1] = 0.0), "disk 1 radius"),
+            (edited(&|s| s.disks.radius[1] = f64::NAN), "disk 1 radius"),
+            (edited(&|s| s.disks.mass[2] = -1.0), "disk 2 mass"),
+            (edited(&|s| s.disks.inv_mass[0] = f64::NAN), "disk 0 inverse mass"),
+            (
+                edited(&|s| s.disks.inv_inertia[0] = -1.0),
+                "disk 0 inverse inertia",
+            ),
+            (edited(&|s| s.disks.pos[3].x = f64::INFINITY), "disk 3 position"),
+            (edited(&|s| s.disks.vel[1].y = f64::NAN), "disk 1 velocity"),
+            (edited(&|s| s.disks.theta[1] = f64::NAN), "disk 1 angle"),
+            (edited(&|s| s.disks.spin[1] = f64::INFINITY), "disk 1 spin"),
+            (edited(&|s| s.disks.force[2].x = f64::NAN), "disk 2 force"),
+            (edited(&|s| s.disks.torque[2] = f64::NAN), "disk 2 torque"),
+            (edited(&|s| s.walls[0].point.y = f64::NAN), "wall 0 point"),
+            (edited(&|s| s.walls[1].vel.x = f64::INFINITY), "wall 1 velocity"),
+            (
+                edited(&|s| {
+                    s.walls[1].drive = WallDrive::Force {
+                        mass: 0.0,
+                        force: 1.0,
+                    }
+                }),
+                "wall 1 drive",
+            ),
+            (edited(&|s| s.gravity.y = f64::NAN), "gravity"),
+            (edited(&|s| s.time = f64::INFINITY), "time"),
+            (
+                encode(&state, &scene, &[DVec2::ZERO; 3], &[]),
+                "3 reference positions for 4 disks",
+            ),
+            (
+                encode(&state, &scene, &[], &[warm(0, 6, 1.0)]),
+                "warm-start contact 0 between bodies 0 and 6",
+            ),
+            (
+                encode(&state, &scene, &[], &[warm(0, 1, f64::NAN)]),
+                "warm-start contact 0 normal impulse",
+            ),
+        ];
+        // Byte offsets of the layout (see `encode`): 15 words per disk, 10 per wall.
+        let json = u64::from_le_bytes(good[8..16].try_into().unwrap()) as usize;
+        let disk = |k: usize, word: usize| 16 + json + 8 + 120 * k + 8 * word;
+        let wall = |k: usize, word: usize| disk(4, 0) + 8 + 80 * k + 8 * word;
+        let patched = |at: usize, value: u64| {
+            let mut b = good.clone();
+            b[at..at + 8].copy_from_slice(&value.to_le_bytes());
+            b
+        };
+        let bytes_cases = [
+            (patched(disk(0, 14), 1 << 32), "disk 0 glued_to = 4294967296"),
+            (patched(disk(1, 10), 7), "bad body kind 7"),
+            (patched(wall(0, 6), 5), "wall 0 drive = 5"),
+            (patched(wall(1, 9), 2), "wall 1 active = 2"),
+        ];
+        for (bytes, field) in cases.into_iter().chain(bytes_cases) {
+            match decode(&bytes) {
+                Err(Error::BadCheckpoint { offset, message }) => {
+                    assert!(message.contains(field), "{field}: {message}");
+                    assert!(offset < bytes.len(), "{field}: offset {offset}");
+                }
+                Err(other) => panic!("{field}: expected a bad checkpoint, got {other}"),
+                Ok(_) => panic!("{field}: decoded"),
             }
         }
     }

@@ -13,7 +13,7 @@ use super::snapshot::{SNAPSHOT_SCHEMA, Snapshot, layout_description};
 use super::*;
 use crate::config::Config;
 use crate::error::{Error, Result};
-use crate::fsio::{FaultFile, rename, sync_dir, tmp_path};
+use crate::fsio::{FaultFile, check_replaceable, rename, sync_dir, tmp_path};
 use crate::measure::SeriesRow;
 
 /// Target uncompressed chunk size. Small, so that little is lost when a run is killed
@@ -110,14 +110,19 @@ impl Recorder {
 
     /// Starts the record in `dir` (created if needed) under temporary names
     /// (`run.mcap.tmp`, `series.csv.tmp`), with the configuration written and flushed:
-    /// the files of those names in `dir` are untouched until [`Recorder::commit`].
+    /// the files of those names in `dir` are untouched until [`Recorder::commit`]. Either
+    /// of them existing as anything but a regular file is refused before anything is
+    /// written ([`check_replaceable`]).
     pub fn stage(dir: impl AsRef<Path>, config: &Config, head: &RecordHead) -> Result<Self> {
         let dir = dir.as_ref();
         std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let mcap_path = dir.join(MCAP_FILE);
         let csv_path = dir.join(CSV_FILE);
+        // The commit would refuse them too, but only after a resume's copy of the record.
+        check_replaceable(&mcap_path)?;
+        check_replaceable(&csv_path)?;
         let mcap_tmp = tmp_path(&mcap_path);
-        let file = FaultFile::create(&mcap_tmp).map_err(|e| Error::io(&mcap_tmp, e))?;
+        let file = FaultFile::create_tmp(&mcap_tmp).map_err(|e| Error::io(&mcap_tmp, e))?;
         let sync = file.0.try_clone().map_err(|e| Error::io(&mcap_tmp, e))?;
         let mcap_err = |e| mcap_error(&mcap_tmp, e);
         let options = WriteOptions::new()
@@ -177,7 +182,7 @@ impl Recorder {
         mcap.flush().map_err(mcap_err)?;
 
         let csv_tmp = tmp_path(&csv_path);
-        let csv_file = FaultFile::create(&csv_tmp).map_err(|e| Error::io(&csv_tmp, e))?;
+        let csv_file = FaultFile::create_tmp(&csv_tmp).map_err(|e| Error::io(&csv_tmp, e))?;
         let csv_sync = csv_file.0.try_clone().map_err(|e| Error::io(&csv_tmp, e))?;
         let mut csv = BufWriter::new(csv_file);
         writeln!(csv, "{}", csv_header())

@@ -45,15 +45,19 @@ impl Prepared {
     }
 }
 
-/// Deposits and compacts the sample of `config` and writes it to `path` (replacing a file
-/// there). `cancel` stops it between windows of steps, with nothing written (a sample has no
-/// checkpoint to resume from): [`Error::Interrupted`] at step 0.
+/// Deposits and compacts the sample of `config` and writes it to `path` (replacing a
+/// regular file there; anything else there is refused before any work:
+/// [`crate::fsio::check_replaceable`]). `cancel` stops it between windows of steps, with
+/// nothing written (a sample has no checkpoint to resume from): [`Error::Interrupted`] at
+/// step 0.
 pub fn prepare(
     config: &Config,
     path: &Path,
     progress: &mut dyn Progress,
     cancel: &Cancel,
 ) -> Result<Prepared> {
+    // Refused now rather than after minutes of compaction (the write checks again).
+    crate::fsio::check_replaceable(path)?;
     let params = config.protocol();
     let t0 = Instant::now();
     let (scene, rep) = protocol_prepare::deposit_scene(&params)?;

@@ -59,8 +59,24 @@ pub fn resume(
     run_resume(dir, backend, progress, cancel)
 }
 
-/// Refuses an output directory that already holds files, unless `replace`.
+/// The files a run writes into its directory besides [`RESULT_FILES`]: the record, its CSV
+/// copy and the figures.
+const OUTPUT_FILES: [&str; 6] = [
+    MCAP_FILE,
+    crate::record::CSV_FILE,
+    "stress_strain.png",
+    "stress_strain.svg",
+    "contacts.png",
+    "contacts.svg",
+];
+
+/// Refuses an output directory that already holds files, unless `replace`, and one where
+/// a file the run would replace exists as something else than a regular file (a link, a
+/// FIFO, a device: [`atomic::check_replaceable`]), before anything there is removed.
 pub fn check_out_dir(dir: &Path, replace: bool) -> Result<()> {
+    for name in RESULT_FILES.iter().chain(&OUTPUT_FILES) {
+        atomic::check_replaceable(&dir.join(name))?;
+    }
     if dir.exists() && !replace {
         // The lock file of this process (or of an ended run) is not a result.
         let busy = std::fs::read_dir(dir)
