@@ -63,6 +63,10 @@ const FR_MICRO: u32 = 16u;              // micromechanical counts (reduce.wgsl, 
 const FR_MICRO_SUMS: u32 = 36u;         // micromechanical sums, after the counts
 const FR_MICRO_COUNTS: u32 = 20u;       // the counts: force-carrying, strong, 18 bins
 const FR_MICRO_SUM_COUNT: u32 = 19u;    // the sums
+const FR_EDGE_LEFT: u32 = 56u;          // sum of the left outline (reduce.wgsl, outline_sum)
+const FR_EDGE_RIGHT: u32 = 57u;         // sum of the right outline
+const FR_EDGE_COUNT: u32 = 58u;         // heights where both are set (u32 bits)
+const OUTLINE_BINS: u32 = 65536u;       // heights of the outline, at most (buffers::OUTLINE_BINS)
 const FG_ORIGIN_X: u32 = 0u;            // grid origin x
 const FG_ORIGIN_Y: u32 = 1u;            // grid origin y
 const FG_CELL: u32 = 2u;                // cell size
@@ -91,6 +95,7 @@ struct Sim {
     o_color: u32, o_left: u32, max_rounds: u32, o_inc_tmp: u32,
     f_deep: u32, deep_gap: f32, deep_sweeps: u32, deep_budget: u32,
     o_disp: u32, max_iter: u32, tol: f32, velocity_tol: f32,
+    r_min: f32, o_outline: u32,
 }
 
 // Per-dispatch arguments (a region to scan, a color to sweep), bound at a dynamic offset.

@@ -228,3 +228,82 @@ fn micro_sums(t: u32, threshold: f32) {
         }
     }
 }
+
+// The strips' outer edges (CPU twin: backend::reduce::strip_outer_edges): the outlines of
+// the left and right strips' disks sampled at heights y0 + (i + 1/2) h between the bottom
+// and the top wall, h about r_min / 2, and their means over the heights where both are set.
+// Each height keeps the outermost point of the strip's disks the horizontal line crosses,
+// with an atomic min (left) or max (right) on order-preserving bits of the f32 abscissa.
+
+// The heights: bottom y0, spacing h, count n (at least 16, at most OUTLINE_BINS).
+fn outline_heights() -> vec3<f32> {
+    let y0 = walls[sim.bottom].py;
+    let y1 = walls[sim.top].py;
+    let n = clamp(ceil((y1 - y0) / (0.5 * sim.r_min)), 16.0, f32(OUTLINE_BINS));
+    return vec3<f32>(y0, (y1 - y0) / n, n);
+}
+
+// f32 to u32 bits that sort as the floats do (negative floats reversed).
+fn sortable(x: f32) -> u32 {
+    let b = bitcast<u32>(x);
+    return select(b | 0x80000000u, ~b, (b & 0x80000000u) != 0u);
+}
+
+fn unsortable(b: u32) -> f32 {
+    return bitcast<f32>(select(~b, b & 0x7fffffffu, (b & 0x80000000u) != 0u));
+}
+
+// Every height unset: the left outline at the largest bits, the right one at 0.
+@compute @workgroup_size(WG)
+fn outline_clear(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= OUTLINE_BINS { return; }
+    st(sim.o_outline + i, 0xffffffffu);
+    st(sim.o_outline + OUTLINE_BINS + i, 0u);
+}
+
+// One thread per disk of a strip: the heights its disk crosses.
+@compute @workgroup_size(WG)
+fn strip_outline(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if k >= sim.n_disks { return; }
+    let d = disks[k];
+    if d.strip == 0 { return; }
+    let hs = outline_heights();
+    let first = max(ceil((d.y - d.radius - hs.x) / hs.y - 0.5), 0.0);
+    let last = min(floor((d.y + d.radius - hs.x) / hs.y - 0.5), hs.z - 1.0);
+    if last < first { return; }
+    for (var i = u32(first); i <= u32(last); i++) {
+        let dy = hs.x + (f32(i) + 0.5) * hs.y - d.y;
+        let half = sqrt(max(d.radius * d.radius - dy * dy, 0.0));
+        if d.strip < 0 {
+            atomicMin(&ints[sim.o_outline + i], sortable(d.x - half));
+        } else {
+            atomicMax(&ints[sim.o_outline + OUTLINE_BINS + i], sortable(d.x + half));
+        }
+    }
+}
+
+// One workgroup: the sums of both outlines over the heights where both are set, and their
+// count, to floats[f_red + FR_EDGE_*].
+@compute @workgroup_size(256)
+fn outline_sum(@builtin(local_invocation_index) t: u32) {
+    let n = u32(outline_heights().z);
+    var s = vec2<f32>(0.0);
+    var m = 0u;
+    for (var i = t; i < n; i += 256u) {
+        let l = ld(sim.o_outline + i);
+        let r = ld(sim.o_outline + OUTLINE_BINS + i);
+        if l != 0xffffffffu && r != 0u {
+            s += vec2<f32>(unsortable(l), unsortable(r));
+            m += 1u;
+        }
+    }
+    let tot = wg_sum2(t, s);
+    let count = wg_sum2(t, vec2<f32>(f32(m), 0.0));
+    if t == 0u {
+        floats[sim.f_red + FR_EDGE_LEFT] = tot.x;
+        floats[sim.f_red + FR_EDGE_RIGHT] = tot.y;
+        floats[sim.f_red + FR_EDGE_COUNT] = bitcast<f32>(u32(count.x));
+    }
+}

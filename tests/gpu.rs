@@ -619,3 +619,55 @@ fn gpu_resume_continues_from_the_warm_start() {
         "from zero: {cold_it} iterations; warm: {warm_it}"
     );
 }
+
+/// The strips' outer edges come from the device (reduce.wgsl, `outline_sum`) and equal the
+/// CPU twin's (`backend::reduce::strip_outer_edges`) on the same positions: a jittered
+/// lattice with its two outer columns as strips, one step, then the CPU's edges of the
+/// positions the GPU reached. The window waits once: no scene download for the edges.
+#[test]
+fn gpu_strip_edges_equal_the_cpu_outline_of_the_same_positions() {
+    let n = 14;
+    let s = lattice(n, 5);
+    let mut p = tight(Method::ColoredGs);
+    p.solver.tol = 1e-4;
+    p.solver.max_iter = 500;
+    let Some(mut g) = gpu_or_skip("strip edges", &s, p) else {
+        return;
+    };
+    // Disks are pushed column by column (a x n + b): the first and last columns.
+    let strip: Vec<i8> = (0..n * n)
+        .map(|k| match k / n {
+            0 => -1,
+            a if a == n - 1 => 1,
+            _ => 0,
+        })
+        .collect();
+    let loading = Loading {
+        sigma3: 1.0e3,
+        strip,
+        top: 1,
+        bottom: 0,
+        wall_forces: Vec::new(),
+    };
+    g.run(2, &loading).unwrap();
+    let k0 = g.counters();
+    let red = g.run(3, &loading).unwrap();
+    assert_eq!((g.counters() - k0).readbacks, 1, "the edges need no download");
+    let cpu = cdlab::backend::reduce::strip_outer_edges(&g.scene().unwrap(), &loading);
+    // The left strip's disks sit in a column at x = 0, touching, radius about 1: the mean
+    // of -sqrt(1 - dy^2) over the heights is -pi/4; the right ones at x = 2 (n - 1).
+    let q = std::f64::consts::FRAC_PI_4;
+    let right = 2.0 * (n - 1) as f64 + q;
+    assert!(
+        (cpu[0] + q).abs() < 0.05 && (cpu[1] - right).abs() < 0.05,
+        "{cpu:?}"
+    );
+    for side in 0..2 {
+        // f32 positions and outline: a few 1e-6 m here.
+        assert!(
+            (red.strip_edges[side] - cpu[side]).abs() < 1e-4,
+            "side {side}: GPU {:?}, CPU {cpu:?}",
+            red.strip_edges
+        );
+    }
+}

@@ -124,7 +124,9 @@ fn records() -> Vec<(&'static str, &'static str, usize, Vec<Field>)> {
                 o_disp,
                 max_iter,
                 tol,
-                velocity_tol
+                velocity_tol,
+                r_min,
+                o_outline
             }),
         ),
         (

@@ -229,6 +229,7 @@ impl GpuBackend {
         sim.relax = p.solver.relax as f32;
         sim.jacobi = (p.solver.method == Method::Jacobi) as u32;
         sim.r_max = d.radius.iter().cloned().fold(0.0, f64::max) as f32;
+        sim.r_min = d.radius.iter().cloned().fold(f64::INFINITY, f64::min) as f32;
         sim.gx = s.gravity.x as f32;
         sim.gy = s.gravity.y as f32;
         sim.mu_disk = s.material.mu_disk as f32;

@@ -162,7 +162,16 @@ pub struct SimParams {
     pub tol: f32,
     /// Velocity test (m/s; 0: off), as `SolverParams::velocity_tol`.
     pub velocity_tol: f32,
+    /// Smallest disk radius (m): the strips' outline is sampled every `r_min / 2`.
+    pub r_min: f32,
+    /// Offset of the strips' outline: [`OUTLINE_BINS`] words of the left outline, then as
+    /// many of the right one (order-preserving bits of f32, reduce.wgsl `strip_outline`).
+    pub o_outline: u32,
 }
+
+/// Heights at which the strips' outline is sampled, at most (the CPU's
+/// `backend::reduce::strip_outer_edges` clamps its count to the same).
+pub const OUTLINE_BINS: u32 = 65_536;
 
 /// The per-dispatch arguments (WGSL `Args`, 16 bytes), one per [`ARGS_STRIDE`] slot of the
 /// argument table: the region a scan works on, the color a sweep updates.
@@ -282,8 +291,15 @@ pub mod float_slot {
     pub const RED_MICRO_SUMS: usize = RED_MICRO + MICRO_COUNTS;
     /// Values of the micromechanical sums.
     pub const MICRO_SUMS: usize = 19;
+    /// Sum of the left strip's outline over the heights where both outlines are set
+    /// (centred frame; reduce.wgsl `outline_sum`).
+    pub const RED_EDGE_LEFT: usize = 56;
+    /// Sum of the right strip's outline, as `RED_EDGE_LEFT`.
+    pub const RED_EDGE_RIGHT: usize = 57;
+    /// Heights where both outlines are set (u32 bits).
+    pub const RED_EDGE_COUNT: usize = 58;
     /// Words of the `f_red` region.
-    pub const RED_WORDS: usize = 56;
+    pub const RED_WORDS: usize = 60;
     /// The grid's origin x (m, centred frame).
     pub const GRID_ORIGIN_X: usize = 0;
     /// The grid's origin y.
@@ -386,6 +402,7 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
     p.o_order = take(&mut o, cap.contacts);
     p.o_color = take(&mut o, cap.contacts);
     p.o_per_disk = take(&mut o, nd);
+    p.o_outline = take(&mut o, 2 * OUTLINE_BINS);
     let ints_len = o.max(1);
     let mut f = 0u32;
     p.f_wall = take(&mut f, 2 * p.n_walls);

@@ -79,7 +79,13 @@ kernels! {
         DeepUpdates = "deep_updates",
     ],
     "integrate.wgsl" => [Integrate = "integrate"],
-    "reduce.wgsl" => [WallImpulse = "wall_impulse", ReduceFinal = "reduce_final"],
+    "reduce.wgsl" => [
+        WallImpulse = "wall_impulse",
+        ReduceFinal = "reduce_final",
+        OutlineClear = "outline_clear",
+        StripOutline = "strip_outline",
+        OutlineSum = "outline_sum",
+    ],
 }
 
 /// One buffer binding of the shared layout, as the shaders declare it in

@@ -28,10 +28,10 @@
 use super::WG;
 use super::backend::GpuBackend;
 use super::buffers::float_slot::{
-    MICRO_COUNTS, MICRO_SUMS, RED_CONNECTED, RED_CONNECTED_ENERGY, RED_FREE, RED_KINETIC, RED_MICRO,
-    RED_MICRO_SUMS, RED_OVERLAP_COUNT, RED_OVERLAP_MAX, RED_OVERLAP_SUM, RED_ROLLING, RED_SLIDING,
-    RED_STRIP_N_LEFT, RED_STRIP_N_RIGHT, RED_STRIP_X_LEFT, RED_STRIP_X_RIGHT, RED_TRANSLATIONAL,
-    RED_ZERO_FORCE,
+    MICRO_COUNTS, MICRO_SUMS, RED_CONNECTED, RED_CONNECTED_ENERGY, RED_EDGE_COUNT, RED_EDGE_LEFT,
+    RED_EDGE_RIGHT, RED_FREE, RED_KINETIC, RED_MICRO, RED_MICRO_SUMS, RED_OVERLAP_COUNT, RED_OVERLAP_MAX,
+    RED_OVERLAP_SUM, RED_ROLLING, RED_SLIDING, RED_STRIP_N_LEFT, RED_STRIP_N_RIGHT, RED_STRIP_X_LEFT,
+    RED_STRIP_X_RIGHT, RED_TRANSLATIONAL, RED_ZERO_FORCE,
 };
 use super::buffers::{ARGS_STRIDE, GpuWall, color_slot, conv_slot, disp, round_slot, status};
 use super::pipeline::Kernel;
@@ -397,6 +397,12 @@ impl GpuBackend {
             if s + 1 == steps {
                 r.block = None;
                 r.go(Kernel::ReduceFinal, 0, 1, self.sim.n_disks);
+                if !loading.strip.is_empty() {
+                    let (bins, nd) = (super::buffers::OUTLINE_BINS, self.sim.n_disks);
+                    r.go(Kernel::OutlineClear, 0, groups(bins), bins);
+                    r.go(Kernel::StripOutline, 0, groups(nd), nd);
+                    r.go(Kernel::OutlineSum, 0, 1, bins);
+                }
                 r.copy(&self.bufs.floats, 0, &history, final_at, keep);
                 if walls_bytes > 0 {
                     r.copy(&self.bufs.walls, 0, &history, final_at + keep, walls_bytes);
@@ -681,13 +687,14 @@ impl GpuBackend {
         red.connected_energy = f[r + RED_CONNECTED_ENERGY] as f64;
         red.micro = micro_sums(&f[r + RED_MICRO..r + RED_MICRO_SUMS + MICRO_SUMS], dt);
         let has = |s: i8| loading.strip.contains(&s);
-        // The outer edges need the positions: one download at the output interval.
-        if !loading.strip.is_empty() {
-            let scene = crate::backend::Backend::scene(self)?;
-            red.strip_edges = crate::backend::reduce::strip_outer_edges(&scene, loading);
+        // The outer edges from the outline the device sampled (reduce.wgsl, outline_sum).
+        let m = u(RED_EDGE_COUNT) as f64;
+        red.strip_edges = if !loading.strip.is_empty() && m > 0.0 {
+            [RED_EDGE_LEFT, RED_EDGE_RIGHT].map(|k| f[r + k] as f64 / m + self.centre.x)
         } else {
-            red.strip_edges = [f64::NAN; 2];
-        }
+            [f64::NAN; 2]
+        };
+
         red.strip_mean_x = [
             (-1i8, RED_STRIP_X_LEFT, RED_STRIP_N_LEFT),
             (1, RED_STRIP_X_RIGHT, RED_STRIP_N_RIGHT),

@@ -431,6 +431,29 @@ pub const TABLE: &[(Kernel, &[Access])] = &[
             w(Floats, Once, 56 * WORD),
         ],
     ),
+    // Over the outline's heights (items): both outlines' words.
+    (Kernel::OutlineClear, &[w(Ints, Item, 2 * WORD)]),
+    // Over disks: the record, the two walls' heights; the heights a strip disk crosses
+    // (an atomic each, a few per disk of a strip) are not counted.
+    (
+        Kernel::StripOutline,
+        &[
+            r(Disks, Item, DISK),
+            r(Walls, Once, 2 * WORD),
+            r(Ints, Item, 0),
+            w(Ints, Item, 0),
+        ],
+    ),
+    // One workgroup over the heights (items): the walls' heights, both outlines; the two
+    // sums and the count.
+    (
+        Kernel::OutlineSum,
+        &[
+            r(Walls, Once, 2 * WORD),
+            r(Ints, Item, 2 * WORD),
+            w(Floats, Once, 3 * WORD),
+        ],
+    ),
 ];
 
 /// The accesses of `kernel` (its [`TABLE`] entry; empty if it has none, which
