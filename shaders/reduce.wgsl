@@ -123,8 +123,8 @@ fn reduce_final(@builtin(local_invocation_index) t: u32) {
             ket += 0.5 * d.mass * dot(v.xy, v.xy);
             ke += 0.5 * d.mass * dot(v.xy, v.xy) + 0.25 * d.mass * d.radius * d.radius * v.z * v.z;
         }
-        if d.strip < 0 { sx.x += d.x; sc.x += 1.0; }
-        if d.strip > 0 { sx.y += d.x; sc.y += 1.0; }
+        if d.strip < 0 { sx.x += d.x + d.x_lo; sc.x += 1.0; }
+        if d.strip > 0 { sx.y += d.x + d.x_lo; sc.y += 1.0; }
     }
     let kes = wg_sum2(t, vec2<f32>(ke, ket));
     let kcs = wg_sum2(t, vec2<f32>(kec, 0.0));
