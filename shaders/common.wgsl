@@ -95,23 +95,27 @@ struct Sim {
     o_color: u32, o_left: u32, max_rounds: u32, o_inc_tmp: u32,
     f_deep: u32, deep_gap: f32, deep_sweeps: u32, deep_budget: u32,
     o_disp: u32, max_iter: u32, tol: f32, velocity_tol: f32,
-    r_min: f32, o_outline: u32,
+    r_min: f32, o_outline: u32, one: f32, _p0: f32,
 }
 
 // Per-dispatch arguments (a region to scan, a color to sweep), bound at a dynamic offset.
 struct Args { a: u32, b: u32, c: u32, d: u32 }
 
+// Positions relative to the sample centre are two floats (x + x_lo, y + y_lo; walls
+// px + px_lo, py + py_lo): one f32 far from the centre rounds away a step of a few
+// micrometres. Read relative positions through disk_delta and wall_offset, move with ds_add.
 struct Disk {
     x: f32, y: f32, theta: f32, radius: f32,
     inv_mass: f32, inv_inertia: f32, mass: f32, kind: u32,
     glued: u32, strip: i32, fx: f32, fy: f32,
-    torque: f32, _p0: f32, _p1: f32, _p2: f32,
+    torque: f32, x_lo: f32, y_lo: f32, _p0: f32,
 }
 
 // A plane wall; its velocity is vel[n_disks + w] (generalized body numbering).
 struct Wall {
     nx: f32, ny: f32, px: f32, py: f32,
     inv_mass: f32, force: f32, is_active: u32, forced: u32,
+    px_lo: f32, py_lo: f32, _p0: f32, _p1: f32,
 }
 
 // Same fields and meaning as crate::contact::Contact (f32).
@@ -143,6 +147,46 @@ struct Contact {
 // records (disk_j, rn bits, rt bits, color) in key order.
 @group(0) @binding(7) var<storage, read_write> prev: array<u32>;
 @group(1) @binding(0) var<storage, read> args: Args;
+
+// a + b as an unevaluated sum (s, e) with s = fl(a + b) and e its exact rounding error
+// (Knuth's TwoSum, with no condition on the magnitudes). Written plainly, a compiler that
+// treats f32 addition as associative (Mesa's NIR does, for every operation SPIR-V does not
+// mark exact, and WGSL cannot mark one) folds (a + b) - a to b and e to 0: the low word is
+// then lost at the first step. Multiplying by sim.one, 1.0 read from memory, leaves every
+// value unchanged and gives it no expression to fold.
+fn two_sum(a: f32, b: f32) -> vec2<f32> {
+    let s = a + b;
+    let bb = s * sim.one - a;
+    let e = (a - (s - bb) * sim.one) + (b - bb);
+    return vec2<f32>(s, e);
+}
+
+// The two-float (hi, lo) moved by d, renormalized so that lo stays within half an ulp of
+// hi: d is kept to the last bit of lo, not to the last bit of hi.
+fn ds_add(hi: f32, lo: f32, d: f32) -> vec2<f32> {
+    let s = two_sum(hi, d);
+    return two_sum(s.x, s.y + lo);
+}
+
+// Position of disk a relative to disk b. The high words' difference is exact for bodies
+// closer than their distance from the centre (Sterbenz), so the low words decide the
+// last bits, as in f64. The factor sim.one keeps a compiler from regrouping the sum as
+// (a.x + a.x_lo) - (b.x + b.x_lo), which would round at the f32 spacing of the positions.
+fn disk_delta(a: Disk, b: Disk) -> vec2<f32> {
+    let hi = vec2<f32>(a.x, a.y) - vec2<f32>(b.x, b.y);
+    return hi * sim.one + (vec2<f32>(a.x_lo, a.y_lo) - vec2<f32>(b.x_lo, b.y_lo));
+}
+
+// Position of disk a relative to wall w's point (as disk_delta).
+fn wall_offset(a: Disk, w: Wall) -> vec2<f32> {
+    let hi = vec2<f32>(a.x, a.y) - vec2<f32>(w.px, w.py);
+    return hi * sim.one + (vec2<f32>(a.x_lo, a.y_lo) - vec2<f32>(w.px_lo, w.py_lo));
+}
+
+// Signed distance of disk a's surface from wall w (its gap), positive inside.
+fn wall_gap(a: Disk, w: Wall) -> f32 {
+    return dot(wall_offset(a, w), vec2<f32>(w.nx, w.ny)) - a.radius;
+}
 
 fn ld(k: u32) -> u32 { return atomicLoad(&ints[k]); }
 fn st(k: u32, v: u32) { atomicStore(&ints[k], v); }

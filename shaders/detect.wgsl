@@ -45,7 +45,7 @@ fn detect(@builtin(global_invocation_id) gid: vec3<u32>) {
                     if q == i { continue; }
                     let dq = disks[q];
                     if dq.kind == KIND_FREE && q < i { continue; }
-                    let delta = vec2<f32>(di.x - dq.x, di.y - dq.y);
+                    let delta = disk_delta(di, dq);
                     let reach = di.radius + dq.radius + sim.alert;
                     let dist2 = dot(delta, delta);
                     if dist2 >= reach * reach || dist2 == 0.0 { continue; }
@@ -57,7 +57,7 @@ fn detect(@builtin(global_invocation_id) gid: vec3<u32>) {
         for (var w = 0u; w < sim.n_walls; w++) {
             let wall = walls[w];
             if wall.is_active == 0u { continue; }
-            let gap = (di.x - wall.px) * wall.nx + (di.y - wall.py) * wall.ny - di.radius;
+            let gap = wall_gap(di, wall);
             if gap < sim.alert {
                 insert_partner(base, n, nd + w);
                 n += 1u;
@@ -129,7 +129,7 @@ fn build_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
         if q < nd {
             let dq = disks[q];
             let sj = disk_side(q);
-            let delta = vec2<f32>(di.x - dq.x, di.y - dq.y);
+            let delta = disk_delta(di, dq);
             let dist = length(delta);
             c.j = sj.body;
             c.nx = delta.x / dist;
@@ -147,7 +147,7 @@ fn build_contacts(@builtin(global_invocation_id) gid: vec3<u32>) {
             c.j = q;
             c.nx = w.nx;
             c.ny = w.ny;
-            c.gap = (di.x - w.px) * w.nx + (di.y - w.py) * w.ny - di.radius;
+            c.gap = wall_gap(di, w);
             c.rj = 0.0;
             c.mj = 0.0;
             c.kj = 0.0;

@@ -63,6 +63,10 @@ fn grid_dims() -> vec2<u32> {
     return vec2<u32>(bitcast<u32>(floats[sim.f_grid + FG_NX]), bitcast<u32>(floats[sim.f_grid + FG_NY]));
 }
 
+// The high words of the position alone (common.wgsl): cells are at least the reach wide
+// and a high word is within half an f32 spacing of the position (3.8e-6 m at 107 m), so
+// only a pair at the very edge of the alert distance can land in cells that are not
+// neighbours, as with a single f32.
 fn cell_coords(k: u32) -> vec2<u32> {
     let o = vec2<f32>(floats[sim.f_grid + FG_ORIGIN_X], floats[sim.f_grid + FG_ORIGIN_Y]);
     let cell = floats[sim.f_grid + FG_CELL];

@@ -6,7 +6,9 @@
 fn strip_force(k: u32) -> vec2<f32> {
     let s = disks[k].strip;
     if s == 0 { return vec2<f32>(0.0, 0.0); }
-    let h = walls[sim.top].py - walls[sim.bottom].py;
+    let t = sim.top;
+    let b = sim.bottom;
+    let h = (walls[t].py - walls[b].py) + (walls[t].py_lo - walls[b].py_lo);
     let total = sim.sigma3 * h;
     var sum_r = sim.strip_sum_r0;
     if s > 0 { sum_r = sim.strip_sum_r1; }

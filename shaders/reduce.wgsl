@@ -123,8 +123,8 @@ fn reduce_final(@builtin(local_invocation_index) t: u32) {
             ket += 0.5 * d.mass * dot(v.xy, v.xy);
             ke += 0.5 * d.mass * dot(v.xy, v.xy) + 0.25 * d.mass * d.radius * d.radius * v.z * v.z;
         }
-        if d.strip < 0 { sx.x += d.x; sc.x += 1.0; }
-        if d.strip > 0 { sx.y += d.x; sc.y += 1.0; }
+        if d.strip < 0 { sx.x += d.x + d.x_lo; sc.x += 1.0; }
+        if d.strip > 0 { sx.y += d.x + d.x_lo; sc.y += 1.0; }
     }
     let kes = wg_sum2(t, vec2<f32>(ke, ket));
     let kcs = wg_sum2(t, vec2<f32>(kec, 0.0));
@@ -237,8 +237,8 @@ fn micro_sums(t: u32, threshold: f32) {
 
 // The heights: bottom y0, spacing h, count n (at least 16, at most OUTLINE_BINS).
 fn outline_heights() -> vec3<f32> {
-    let y0 = walls[sim.bottom].py;
-    let y1 = walls[sim.top].py;
+    let y0 = walls[sim.bottom].py + walls[sim.bottom].py_lo;
+    let y1 = walls[sim.top].py + walls[sim.top].py_lo;
     let n = clamp(ceil((y1 - y0) / (0.5 * sim.r_min)), 16.0, f32(OUTLINE_BINS));
     return vec3<f32>(y0, (y1 - y0) / n, n);
 }
@@ -270,16 +270,18 @@ fn strip_outline(@builtin(global_invocation_id) gid: vec3<u32>) {
     let d = disks[k];
     if d.strip == 0 { return; }
     let hs = outline_heights();
-    let first = max(ceil((d.y - d.radius - hs.x) / hs.y - 0.5), 0.0);
-    let last = min(floor((d.y + d.radius - hs.x) / hs.y - 0.5), hs.z - 1.0);
+    let x = d.x + d.x_lo;
+    let y = d.y + d.y_lo;
+    let first = max(ceil((y - d.radius - hs.x) / hs.y - 0.5), 0.0);
+    let last = min(floor((y + d.radius - hs.x) / hs.y - 0.5), hs.z - 1.0);
     if last < first { return; }
     for (var i = u32(first); i <= u32(last); i++) {
-        let dy = hs.x + (f32(i) + 0.5) * hs.y - d.y;
+        let dy = hs.x + (f32(i) + 0.5) * hs.y - y;
         let half = sqrt(max(d.radius * d.radius - dy * dy, 0.0));
         if d.strip < 0 {
-            atomicMin(&ints[sim.o_outline + i], sortable(d.x - half));
+            atomicMin(&ints[sim.o_outline + i], sortable(x - half));
         } else {
-            atomicMax(&ints[sim.o_outline + OUTLINE_BINS + i], sortable(d.x + half));
+            atomicMax(&ints[sim.o_outline + OUTLINE_BINS + i], sortable(x + half));
         }
     }
 }

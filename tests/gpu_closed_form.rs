@@ -440,3 +440,131 @@ fn gpu_cloud_conserves_momentum_and_never_gains_energy() {
     }
     assert!(ke < 0.9 * ke0, "collisions must dissipate: {ke0} -> {ke} J/m");
 }
+
+/// Two free disks and a kinematic one, 2000 m apart on both axes, so that each sits about
+/// 1000 m from the sample centre (where an f32 position's spacing is 6.1e-5 m), no gravity,
+/// plus a kinematic floor 2000 m below the centre moving at `wall_vel`. The disks move at
+/// `disk_speed` along (1, -1), (-1, 1) and (1, 1); positions are off the f32 grid so that
+/// the upload's low words are not zero.
+fn far_scene(disk_speed: f64, wall_vel: DVec2) -> cdlab::model::Scene {
+    let mut s = scene(0.0);
+    let at = [
+        DVec2::new(0.123_456_789, 0.987_654_321),
+        DVec2::new(2_000.314_159_265, 2_000.271_828_182),
+        DVec2::new(0.577_215_664, 2_000.141_421_356),
+    ];
+    let dirs = [DVec2::new(1.0, -1.0), DVec2::new(-1.0, 1.0), DVec2::new(1.0, 1.0)];
+    for (p, d) in at.iter().zip(dirs) {
+        let k = s.disks.push(*p, 1.0, RHO).unwrap();
+        s.disks.vel[k] = disk_speed * d;
+    }
+    s.disks.set_kind(2, cdlab::model::BodyKind::Kinematic);
+    s.disks.vel[2] = disk_speed * dirs[2];
+    s.walls.push(cdlab::model::Wall {
+        vel: wall_vel,
+        ..cdlab::model::Wall::fixed(DVec2::new(-999.876_543_21, -1_000.123_456_789), DVec2::Y)
+    });
+    s
+}
+
+#[test]
+fn gpu_disks_far_from_the_centre_keep_steps_of_1e_7_m() {
+    // 1e-7 m per step is 1/600 of the f32 spacing at 1000 m: a single-float position
+    // never moves. Two-float positions must land where f64 says, to 1e-9 m, after 1000
+    // steps (the f32 rounding of dt and v alone is about 1e-11 m of the 1e-4 m travelled).
+    let steps = 1000;
+    let p = gpu_params(Method::ColoredGs);
+    let speed = 1e-7 / p.dt;
+    let s = far_scene(speed, DVec2::ZERO);
+    let Some(mut g) = gpu_or_skip("far disks", &s, p) else {
+        return;
+    };
+    g.run(steps, &Loading::default()).unwrap();
+    let out = g.scene().unwrap();
+    for k in 0..3 {
+        let want = s.disks.pos[k] + steps as f64 * p.dt * s.disks.vel[k];
+        let err = (out.disks.pos[k] - want).abs().max_element();
+        eprintln!("far disk {k}: error {err:.3e} m after {steps} steps");
+        assert!(
+            err < 1e-9,
+            "disk {k}: {} instead of {want} ({err:.3e} m)",
+            out.disks.pos[k]
+        );
+    }
+}
+
+#[test]
+fn gpu_wall_far_from_the_centre_moves_by_its_exact_steps() {
+    // The floor is 2000 m below the centre (f32 spacing 1.2e-4 m) and moves 2.5e-4 m per
+    // step: a single-float point rounds every step to whole spacings. Its point must follow
+    // f64 to 1e-9 m over the 0.25 m travelled. The reference takes dt and the velocity as
+    // the device gets them (f32): their rounding is the same at any distance from the
+    // centre and not what this test is about.
+    let steps = 1000;
+    let p = gpu_params(Method::ColoredGs);
+    let v = DVec2::new(0.3, 0.4);
+    let s = far_scene(0.0, v);
+    let Some(mut g) = gpu_or_skip("far wall", &s, p) else {
+        return;
+    };
+    g.run(steps, &Loading::default()).unwrap();
+    let out = g.scene().unwrap();
+    let dt32 = p.dt as f32;
+    let step = DVec2::new((dt32 * v.x as f32) as f64, (dt32 * v.y as f32) as f64);
+    let want = s.walls[0].point + steps as f64 * step;
+    let err = (out.walls[0].point - want).abs().max_element();
+    eprintln!("far wall: error {err:.3e} m after {steps} steps of {step}");
+    assert!(
+        err < 1e-9,
+        "{} instead of {want} ({err:.3e} m)",
+        out.walls[0].point
+    );
+}
+
+#[test]
+fn gpu_contact_gaps_far_from_the_centre_have_f32_precision_of_the_gap() {
+    // A disk 1000 m from the centre (on both axes) 1.3 mm from a second disk and 1.7 mm
+    // above a floor, both within the alert distance. The gaps the GPU finds must be the f64
+    // ones to the f32 precision of a 2 m distance (about 1e-7 m), not to the f32 spacing of
+    // the positions (6.1e-5 m at 1000 m, which a single-float position gave).
+    let mut s = scene(0.3);
+    let a = DVec2::new(0.123_456_789, 0.987_654_321);
+    let b = a + 2.0013 * DVec2::new(1.0, 1.0).normalize();
+    let floor_y = a.y - 1.0 - 0.0017;
+    for p in [a, b, DVec2::new(2_000.314_159_265, 2_000.271_828_182)] {
+        s.disks.push(p, 1.0, RHO).unwrap();
+    }
+    s.walls.push(cdlab::model::Wall::fixed(
+        DVec2::new(-0.555_555_555, floor_y),
+        DVec2::Y,
+    ));
+    let Some(mut g) = gpu_or_skip("far gaps", &s, gpu_params(Method::ColoredGs)) else {
+        return;
+    };
+    g.run(1, &Loading::default()).unwrap();
+    let contacts = g.raw_contacts().unwrap();
+    let want = |j: u32| {
+        if j == 1 {
+            (b - a).length() - 2.0
+        } else {
+            a.y - floor_y - 1.0
+        }
+    };
+    let mut seen = 0;
+    for c in contacts.iter().filter(|c| c.disk_j == 1 || c.disk_j == 3) {
+        let err = (c.gap as f64 - want(c.disk_j)).abs();
+        eprintln!(
+            "far gap with partner {}: {} m, error {err:.3e} m",
+            c.disk_j, c.gap
+        );
+        assert!(
+            err < 1e-6,
+            "partner {}: gap {} instead of {}",
+            c.disk_j,
+            c.gap,
+            want(c.disk_j)
+        );
+        seen += 1;
+    }
+    assert_eq!(seen, 2, "both contacts found: {contacts:?}");
+}

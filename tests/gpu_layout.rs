@@ -126,7 +126,9 @@ fn records() -> Vec<(&'static str, &'static str, usize, Vec<Field>)> {
                 tol,
                 velocity_tol,
                 r_min,
-                o_outline
+                o_outline,
+                one,
+                pad
             }),
         ),
         (
@@ -147,6 +149,8 @@ fn records() -> Vec<(&'static str, &'static str, usize, Vec<Field>)> {
                 fx,
                 fy,
                 torque,
+                x_lo,
+                y_lo,
                 pad
             }),
         ),
@@ -162,7 +166,10 @@ fn records() -> Vec<(&'static str, &'static str, usize, Vec<Field>)> {
                 inv_mass,
                 force,
                 is_active,
-                forced
+                forced,
+                px_lo,
+                py_lo,
+                pad
             }),
         ),
         (
@@ -351,7 +358,7 @@ fn the_comparison_catches_a_moved_field_and_a_wrong_size() {
     let bad = compare(&module, walls.0, walls.1, walls.2, &walls.3);
     let text = bad.join("\n");
     assert!(
-        text.contains("GpuWall is 32 bytes but WGSL `Wall` is 28 bytes"),
+        text.contains("GpuWall is 48 bytes but WGSL `Wall` is 44 bytes"),
         "{text}"
     );
     assert!(

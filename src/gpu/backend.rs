@@ -250,6 +250,7 @@ impl GpuBackend {
         } else {
             p.solver.velocity_tol as f32
         };
+        sim.one = 1.0;
         let strips = !l.strip.is_empty() && l.sigma3 != 0.0;
         sim.strips = strips as u32;
         sim.sigma3 = l.sigma3 as f32;
@@ -494,21 +495,27 @@ impl GpuBackend {
         let d = &s.disks;
         let c = self.centre;
         let disks: Vec<GpuDisk> = (0..d.len())
-            .map(|k| GpuDisk {
-                x: (d.pos[k].x - c.x) as f32,
-                y: (d.pos[k].y - c.y) as f32,
-                theta: d.theta[k] as f32,
-                radius: d.radius[k] as f32,
-                inv_mass: d.inv_mass[k] as f32,
-                inv_inertia: d.inv_inertia[k] as f32,
-                mass: d.mass[k] as f32,
-                kind: d.kind[k] as u32,
-                glued: d.glued_to[k],
-                strip: self.loading.strip.get(k).copied().unwrap_or(0) as i32,
-                fx: d.force[k].x as f32,
-                fy: d.force[k].y as f32,
-                torque: d.torque[k] as f32,
-                pad: [0.0; 3],
+            .map(|k| {
+                let (x, x_lo) = split(d.pos[k].x - c.x);
+                let (y, y_lo) = split(d.pos[k].y - c.y);
+                GpuDisk {
+                    x,
+                    y,
+                    theta: d.theta[k] as f32,
+                    radius: d.radius[k] as f32,
+                    inv_mass: d.inv_mass[k] as f32,
+                    inv_inertia: d.inv_inertia[k] as f32,
+                    mass: d.mass[k] as f32,
+                    kind: d.kind[k] as u32,
+                    glued: d.glued_to[k],
+                    strip: self.loading.strip.get(k).copied().unwrap_or(0) as i32,
+                    fx: d.force[k].x as f32,
+                    fy: d.force[k].y as f32,
+                    torque: d.torque[k] as f32,
+                    x_lo,
+                    y_lo,
+                    pad: 0.0,
+                }
             })
             .collect();
         let walls: Vec<GpuWall> = s.walls.iter().map(|w| gpu_wall(w, c)).collect();
@@ -538,7 +545,34 @@ impl GpuBackend {
     }
 }
 
+/// `v` as two floats `(hi, lo)`, hi the nearest f32 and lo the nearest f32 to the rest:
+/// `hi + lo` keeps about 48 bits of `v`, a few 1e-12 m at 1000 m from the sample centre
+/// (the shaders' two-float positions, common.wgsl).
+fn split(v: f64) -> (f32, f32) {
+    let hi = v as f32;
+    (hi, (v - hi as f64) as f32)
+}
+
+/// The f64 value of the two floats `(hi, lo)`.
+fn join(hi: f32, lo: f32) -> f64 {
+    hi as f64 + lo as f64
+}
+
+/// The absolute position of a downloaded disk, its two-float position relative to `centre`
+/// plus the centre.
+pub(crate) fn disk_point(g: &GpuDisk, centre: DVec2) -> DVec2 {
+    DVec2::new(join(g.x, g.x_lo), join(g.y, g.y_lo)) + centre
+}
+
+/// The absolute point of a downloaded wall, its two-float point relative to `centre` plus
+/// the centre (the twin of [`gpu_wall`]'s split).
+pub(crate) fn wall_point(g: &GpuWall, centre: DVec2) -> DVec2 {
+    DVec2::new(join(g.px, g.px_lo), join(g.py, g.py_lo)) + centre
+}
+
 fn gpu_wall(w: &crate::model::Wall, c: DVec2) -> GpuWall {
+    let (px, px_lo) = split(w.point.x - c.x);
+    let (py, py_lo) = split(w.point.y - c.y);
     let (inv_mass, force, forced) = match w.drive {
         WallDrive::Kinematic => (0.0, 0.0, 0),
         WallDrive::Force { mass, force } => (1.0 / mass, force, 1),
@@ -546,12 +580,15 @@ fn gpu_wall(w: &crate::model::Wall, c: DVec2) -> GpuWall {
     GpuWall {
         nx: w.normal.x as f32,
         ny: w.normal.y as f32,
-        px: (w.point.x - c.x) as f32,
-        py: (w.point.y - c.y) as f32,
+        px,
+        py,
         inv_mass: inv_mass as f32,
         force: force as f32,
         is_active: w.active as u32,
         forced,
+        px_lo,
+        py_lo,
+        pad: [0.0; 2],
     }
 }
 
@@ -648,12 +685,12 @@ impl Backend for GpuBackend {
             self.bufs.vel.clone(),
         );
         let disks: Vec<GpuDisk> = if nd > 0 {
-            bytemuck::cast_slice(&self.download(&disks_buf, 0, (nd * 64) as u64)?).to_vec()
+            bytemuck::cast_slice(&self.download(&disks_buf, 0, (nd * size_of::<GpuDisk>()) as u64)?).to_vec()
         } else {
             Vec::new()
         };
         let walls: Vec<GpuWall> = if nw > 0 {
-            bytemuck::cast_slice(&self.download(&walls_buf, 0, (nw * 32) as u64)?).to_vec()
+            bytemuck::cast_slice(&self.download(&walls_buf, 0, (nw * size_of::<GpuWall>()) as u64)?).to_vec()
         } else {
             Vec::new()
         };
@@ -662,7 +699,7 @@ impl Backend for GpuBackend {
         let c = self.centre;
         let s = &mut self.scene;
         for (k, g) in disks.iter().enumerate() {
-            s.disks.pos[k] = DVec2::new(g.x as f64 + c.x, g.y as f64 + c.y);
+            s.disks.pos[k] = disk_point(g, c);
             s.disks.theta[k] = g.theta as f64;
             s.disks.force[k] = DVec2::new(g.fx as f64, g.fy as f64);
             if s.disks.kind[k] != BodyKind::Fixed {
@@ -671,7 +708,7 @@ impl Backend for GpuBackend {
             }
         }
         for (w, g) in walls.iter().enumerate() {
-            s.walls[w].point = DVec2::new(g.px as f64 + c.x, g.py as f64 + c.y);
+            s.walls[w].point = wall_point(g, c);
             s.walls[w].vel = DVec2::new(vel[nd + w][0] as f64, vel[nd + w][1] as f64);
         }
         Ok(self.scene.clone())

@@ -2,7 +2,8 @@
 //!
 //! The records are `#[repr(C)]` bytemuck `Pod` structs in f32 with the exact field order of
 //! the WGSL structs in `shaders/common.wgsl`, so upload and readback are plain copies.
-//! Positions are relative to the sample centre (see [`crate::model`]). Integer and float
+//! Positions are relative to the sample centre (see [`crate::model`]) and stored as two
+//! floats, `hi + lo` (see [`GpuDisk`]). Integer and float
 //! scratch live in two buffers cut into regions ([`Layout`]); capacities that can overflow
 //! (contact slots per disk, contacts, colors) are checked by the kernels, reported in the
 //! status words, and grown by the host, which then redoes the step.
@@ -13,6 +14,11 @@ use super::device::GpuDevice;
 use crate::error::{Error, Result};
 
 /// A disk (64 bytes).
+///
+/// Its position relative to the sample centre is `x + x_lo`, `y + y_lo`: two floats
+/// (double-single), because a single f32 far from the centre rounds away the few
+/// micrometres a disk moves per step (about 7.6e-6 m of spacing at 107 m, where the paper's
+/// 5000-disk sample has its walls). `x`, `y` alone are the position to f32 precision.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 #[allow(missing_docs)]
@@ -30,10 +36,13 @@ pub struct GpuDisk {
     pub fx: f32,
     pub fy: f32,
     pub torque: f32,
-    pub pad: [f32; 3],
+    pub x_lo: f32,
+    pub y_lo: f32,
+    pub pad: f32,
 }
 
-/// A plane wall (32 bytes); its velocity is in the velocity buffer.
+/// A plane wall (48 bytes); its velocity is in the velocity buffer. Its point relative to
+/// the sample centre is `px + px_lo`, `py + py_lo`, two floats as for [`GpuDisk`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 #[allow(missing_docs)]
@@ -46,6 +55,9 @@ pub struct GpuWall {
     pub force: f32,
     pub is_active: u32,
     pub forced: u32,
+    pub px_lo: f32,
+    pub py_lo: f32,
+    pub pad: [f32; 2],
 }
 
 /// A contact (112 bytes), the f32 twin of [`crate::contact::Contact`].
@@ -167,6 +179,11 @@ pub struct SimParams {
     /// Offset of the strips' outline: [`OUTLINE_BINS`] words of the left outline, then as
     /// many of the right one (order-preserving bits of f32, reduce.wgsl `strip_outline`).
     pub o_outline: u32,
+    /// 1.0, read from memory: a factor the shader compilers cannot see through, which keeps
+    /// them from simplifying the rounding errors of the two-float positions to zero
+    /// (common.wgsl, `two_sum`).
+    pub one: f32,
+    pub pad: [f32; 1],
 }
 
 /// Heights at which the strips' outline is sampled, at most (the CPU's
@@ -577,7 +594,12 @@ impl Buffers {
                 mapped_at_creation: false,
             }),
             disks: storage(device, "disks", sizes[0].1, none),
-            walls: storage(device, "walls", 32 * p.n_walls as u64, none),
+            walls: storage(
+                device,
+                "walls",
+                (size_of::<GpuWall>() as u64) * p.n_walls as u64,
+                none,
+            ),
             vel: storage(device, "vel", sizes[1].1, none),
             ints: storage(device, "ints", sizes[2].1, none),
             contacts: storage(device, "contacts", sizes[3].1, none),

@@ -636,8 +636,7 @@ impl GpuBackend {
             let walls: Vec<GpuWall> =
                 bytemuck::pod_collect_to_vec(&tail[4 * keep..4 * keep + nw * size_of::<GpuWall>()]);
             for (w, g) in walls.iter().enumerate() {
-                self.scene.walls[w].point =
-                    glam::DVec2::new(g.px as f64 + self.centre.x, g.py as f64 + self.centre.y);
+                self.scene.walls[w].point = super::backend::wall_point(g, self.centre);
             }
         }
         let dt = self.params.dt;

@@ -139,14 +139,15 @@ pub const TABLE: &[(Kernel, &[Access])] = &[
         Kernel::Scan,
         &[r(Ints, Item, WORD), w(Ints, Item, WORD), w(Ints, Once, WORD)],
     ),
-    // Over bodies: state velocity, the disk, the two walls bounding the strips; the disk's
-    // strip force, three velocity regions; each wall body reads its wall.
+    // Over bodies: state velocity, the disk, the two words of the y of each of the two walls
+    // bounding the strips; the disk's strip force, three velocity regions; each wall body
+    // reads its wall.
     (
         Kernel::FreeVelocity,
         &[
             r(Vel, Item, VEL),
             r(Disks, Item, DISK),
-            r(Walls, Item, 2 * WORD),
+            r(Walls, Item, 4 * WORD),
             r(Walls, Wall, WALL),
             w(Disks, Item, 2 * WORD),
             w(Vel, Item, 3 * VEL),
@@ -389,17 +390,17 @@ pub const TABLE: &[(Kernel, &[Access])] = &[
             w(Vel, Once, 0),
         ],
     ),
-    // Over bodies: both velocity regions, the disk; its x, y, theta, its velocity. Each
-    // wall body reads and writes its point.
+    // Over bodies: both velocity regions, the disk; its x, y (two words each), theta, its
+    // velocity. Each wall body reads and writes its point (two words a coordinate).
     (
         Kernel::Integrate,
         &[
             r(Vel, Item, 2 * VEL),
             r(Disks, Item, DISK),
-            w(Disks, Item, 3 * WORD),
+            w(Disks, Item, 5 * WORD),
             w(Vel, Item, VEL),
-            r(Walls, Wall, 2 * WORD),
-            w(Walls, Wall, 2 * WORD),
+            r(Walls, Wall, 4 * WORD),
+            w(Walls, Wall, 4 * WORD),
         ],
     ),
     // One workgroup per wall: the count, every contact's record; the wall's accumulator
