@@ -11,6 +11,13 @@
 # its own time limit and a failed part does not stop the others; the report lists every
 # part with its exit status and wall time. Limits (seconds) and sizes can be set:
 #   CDLAB_HW_BENCH_DISKS  sample sizes of the bench (5000,20000,50000)
+#   CDLAB_HW_CHECK_EVERY  convergence-test intervals the bench compares (0,1,4,16; 0 is the
+#                         default: 8 on the GPU, 1 on the CPU)
+#   CDLAB_HW_METHODS      solver methods the bench compares (colored-gs,jacobi)
+#   CDLAB_HW_BASELINE     another cdlab binary (an earlier version) benched on the GPU at
+#                         CDLAB_HW_BASELINE_DISKS (5000,50000) in the same run, for a ratio
+#   CDLAB_HW_CPU_THREADS  threads of the 5000-disk CPU test, which runs beside the GPU one
+#                         (the cores less 4: the GPU test's host thread needs one)
 #   CDLAB_HW_STRAIN       end strain of the 5000-disk tests (0.02)
 #   CDLAB_HW_TEST_S       limit of each 5000-disk test (150)
 #   CDLAB_HW_CPU_TEST     0 leaves out the 5000-disk test on the CPU (1)
@@ -38,6 +45,9 @@ STRAIN="${CDLAB_HW_STRAIN:-0.02}"
 TEST_S="${CDLAB_HW_TEST_S:-150}"
 LARGE_S="${CDLAB_HW_LARGE_S:-90}"
 LARGE_DISKS="${CDLAB_HW_LARGE_DISKS:-50000}"
+EVERY="${CDLAB_HW_CHECK_EVERY:-0,1,4,16}"
+CORES="$(nproc)"
+CPU_THREADS="${CDLAB_HW_CPU_THREADS:-$(( CORES > 5 ? CORES - 4 : 1 ))}"
 printf 'part\trc\tseconds\tlimit_s\n' >"$OUT/parts.tsv"
 
 # part NAME LIMIT_S COMMAND...: runs COMMAND with its output in OUT/NAME.log; at the limit
@@ -64,17 +74,26 @@ if command -v nvidia-smi >/dev/null; then
 fi
 nproc >"$OUT/cores.txt"
 
-part bench_gpu 240 "$BIN" bench --disks "$DISKS" --backend gpu --out "$OUT/bench_gpu"
-part bench_cpu 240 "$BIN" bench --disks "$DISKS" --backend cpu --out "$OUT/bench_cpu"
+# One bench for both backends: each sample is deposited once for all its cases.
+part bench 300 "$BIN" bench --disks "$DISKS" --backend gpu,cpu --check-every "$EVERY" \
+    --method "${CDLAB_HW_METHODS:-colored-gs,jacobi}" --out "$OUT/bench"
+if [ -n "${CDLAB_HW_BASELINE:-}" ]; then
+    part bench_baseline 180 "$(realpath "$CDLAB_HW_BASELINE")" bench \
+        --disks "${CDLAB_HW_BASELINE_DISKS:-5000,50000}" --backend gpu --out "$OUT/bench_baseline"
+fi
 
 from=()
 if [ -n "$SAMPLE" ]; then from=(--sample "$SAMPLE"); else from=(--disks 5000); fi
+# The two 5000-disk tests run side by side: the GPU test's host thread and the CPU test's
+# team share the cores (CPU_THREADS for the CPU test).
+"$BIN" config --print-default | sed "s/^threads = 0/threads = $CPU_THREADS/" >"$OUT/cpu_test.toml"
+if [ "${CDLAB_HW_CPU_TEST:-1}" != 0 ]; then
+    part test5000_cpu "$TEST_S" "$BIN" biaxial --config "$OUT/cpu_test.toml" "${from[@]}" \
+        --strain "$STRAIN" --backend cpu --out "$OUT/test5000_cpu" --force --no-figures &
+fi
 part test5000_gpu "$TEST_S" "$BIN" biaxial "${from[@]}" --strain "$STRAIN" --backend gpu \
     --out "$OUT/test5000_gpu" --force --no-figures
-if [ "${CDLAB_HW_CPU_TEST:-1}" != 0 ]; then
-    part test5000_cpu "$TEST_S" "$BIN" biaxial "${from[@]}" --strain "$STRAIN" --backend cpu \
-        --out "$OUT/test5000_cpu" --force --no-figures
-fi
+wait
 part test_large_gpu "$LARGE_S" "$BIN" biaxial --disks "$LARGE_DISKS" --backend gpu \
     --out "$OUT/test_large_gpu" --force --no-figures
 

@@ -86,10 +86,12 @@ def main(out):
         report["info"] = info
     report["nvidia_smi"] = read(os.path.join(out, "nvidia-smi.csv"))
     report["cores"] = (read(os.path.join(out, "cores.txt")) or "").strip()
-    for b in ("bench_gpu", "bench_cpu"):
+    for b in ("bench", "bench_gpu", "bench_cpu", "bench_baseline"):
         text = read(os.path.join(out, b, "bench.json"))
         if text:
-            report["bench"].extend(json.loads(text))
+            for c in json.loads(text):
+                c["binary"] = "baseline" if b == "bench_baseline" else "checked"
+                report["bench"].append(c)
     for name in sorted(os.listdir(out)):
         d = os.path.join(out, name)
         if name.startswith("test") and os.path.isdir(d):
@@ -111,14 +113,21 @@ def main(out):
         "",
         "## cdlab bench (tolerance 1e-4, 5 warm-up and 10 measured steps)",
         "",
-        "| backend | disks | contacts | iterations/step | ms/step | ns/update | colors | dispatches/step | submissions/step | readbacks/step |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| binary | backend | method | disks | contacts | check every | iterations/step | ms/step | host recording ms/step | ns/update | colors | dispatches/step | empty dispatches/step | submissions/step | waits/window |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for c in report["bench"]:
+        # Older binaries' bench.json lacks the newer fields.
+        every = c.get("check_every", "-")
+        empty = c.get("empty_dispatches_per_step")
+        waits = c.get("readbacks_per_window")
+        if waits is None:
+            waits = c.get("readbacks_per_step", 0.0) * 10
         md.append(
-            f"| {c['backend']} | {c['disks']} | {c['contacts']} | {c['iterations_per_step']:.1f} "
-            f"| {c['ms_per_step']:.2f} | {c['ns_per_contact_update']:.2f} | {c['colors_per_step']:.1f} "
-            f"| {c['dispatches_per_step']:.0f} | {c['submissions_per_step']:.1f} | {c['readbacks_per_step']:.1f} |"
+            f"| {c['binary']} | {c['backend']} | {c.get('method', 'colored-gs')} | {c['disks']} | {c['contacts']} | {every} | {c['iterations_per_step']:.1f} "
+            f"| {c['ms_per_step']:.2f} | {c.get('host_record_ms_per_step', float('nan')):.2f} | {c['ns_per_contact_update']:.2f} | {c['colors_per_step']:.1f} "
+            f"| {c['dispatches_per_step']:.0f} | {'-' if empty is None else format(empty, '.0f')} "
+            f"| {c['submissions_per_step']:.2f} | {waits:.2f} |"
         )
     md += [
         "",

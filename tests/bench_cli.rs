@@ -43,7 +43,7 @@ fn bench_writes_its_report_and_rejects_bad_sizes() {
     let md = std::fs::read_to_string(out.join("bench.md")).unwrap();
     // The table's header names every column with its unit.
     for head in [
-        "| backend | disks | contacts | check every (it) | iterations/step | ms/step | ns/contact update |",
+        "| backend | method | disks | contacts | check every (it) | iterations/step | ms/step | ns/contact update |",
         "dispatches/step",
         "empty dispatches/step",
         "waits/window",
@@ -78,7 +78,7 @@ fn bench_writes_its_report_and_rejects_bad_sizes() {
         assert_eq!(f(c, "window"), 3.0, "{c}");
         let every = f(c, "check_every");
         let row = format!(
-            "| {backend} | {disks} | {contacts} | {every} | {it:.1} | {ms:.2} | {ns:.2} | {:.1} |",
+            "| {backend} | colored-gs | {disks} | {contacts} | {every} | {it:.1} | {ms:.2} | {ns:.2} | {:.1} |",
             f(c, "colors_per_step")
         );
         assert!(md.contains(&row), "no row {row:?} in {md}");

@@ -36,6 +36,10 @@ pub struct Args {
     /// (solver.check_every; 0: the backend's default).
     #[arg(long, value_delimiter = ',', default_value = "0")]
     pub check_every: Vec<u32>,
+    /// Solver methods, comma separated (solver.method: colored-gs, jacobi, ...; the GPU
+    /// runs colored-gs, gs and jacobi).
+    #[arg(long, value_delimiter = ',', default_value = "colored-gs")]
+    pub method: Vec<String>,
     /// Output directory.
     #[arg(long, default_value = "out/bench")]
     pub out: PathBuf,
@@ -74,13 +78,15 @@ pub fn run(args: &Args) -> Result<()> {
     let mut failures = Vec::new();
     for &n in &args.disks {
         let scene = sheared_sample(n)?;
-        for (b, &every) in args
-            .backend
-            .iter()
-            .flat_map(|b| args.check_every.iter().map(move |e| (b, e)))
-        {
+        let combos = args.backend.iter().flat_map(|b| {
+            args.method
+                .iter()
+                .flat_map(move |m| args.check_every.iter().map(move |e| (b, m, *e)))
+        });
+        for (b, method, every) in combos {
             let mut params = params;
             params.solver.check_every = every;
+            params.solver.method = method.parse()?;
             let case = match b.as_str() {
                 "cpu" => measure_cpu(scene.clone(), params, n, run)?,
                 "gpu" => match measure_gpu(scene.clone(), params, n, run) {
@@ -97,6 +103,10 @@ pub fn run(args: &Args) -> Result<()> {
                     }
                 },
                 other => return Err(Error::invalid("--backend", other, "cpu or gpu")),
+            };
+            let case = crate::run::bench::Case {
+                method: params.solver.method.name().to_string(),
+                ..case
             };
             eprintln!("{}", line(&case));
             cases.push(case);

@@ -50,6 +50,9 @@ pub struct GpuCounters {
     pub bytes_written: u64,
     /// Bytes copied to the host by the readbacks.
     pub readback_bytes: u64,
+    /// Host time spent recording and submitting the steps' command buffers (ns): with the
+    /// wall time per step, whether the host or the device sets the pace.
+    pub record_ns: u64,
     /// Sweeps of the local updates of deep contacts left out, summed over the steps, to
     /// keep the software adapter's loop limit (see [`DEEP_LOOP_BUDGET`]); 0 on a hardware
     /// GPU.
@@ -78,6 +81,7 @@ impl std::ops::Sub for GpuCounters {
             bytes_read: self.bytes_read - earlier.bytes_read,
             bytes_written: self.bytes_written - earlier.bytes_written,
             readback_bytes: self.readback_bytes - earlier.readback_bytes,
+            record_ns: self.record_ns - earlier.record_ns,
             deep_sweeps_cut: self.deep_sweeps_cut - earlier.deep_sweeps_cut,
         }
     }

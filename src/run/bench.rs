@@ -53,6 +53,10 @@ pub struct Case {
     pub readbacks_per_step: f64,
     /// GPU: blocking waits for the device per window (0 on the CPU).
     pub readbacks_per_window: f64,
+    /// GPU: host time recording and submitting the steps, per step (ms; 0 on the CPU).
+    pub host_record_ms_per_step: f64,
+    /// Solver method.
+    pub method: String,
     /// GPU: dispatches per step beyond one per color per solver iteration and one
     /// convergence reduction per check (the fixed phases of a step); constant across sizes
     /// and iteration counts when each iteration costs one dispatch per color.
@@ -124,28 +128,30 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, run: Run) ->
     let steps = done.max(1) as f64;
     let n_windows = windows(run.steps, run.window).count().max(1) as f64;
     let iterations = iterations_sum as f64 / steps;
-    let (rounds, redone, traffic, dispatches, empty, submissions, readbacks, fixed) = match (before, after) {
-        (Some(a), Some(b)) => {
-            let k = b - a;
-            let d = k.dispatches as f64 / steps;
-            // If every solver iteration costs one dispatch per color (and every `every`
-            // iterations one convergence test), what remains per step is a constant set of
-            // fixed dispatches, whatever the sample size.
-            let it = k.iterations as f64 / steps;
-            let solver = colors_mean * it + it / every.max(1) as f64;
-            (
-                k.color_rounds as f64 / steps,
-                k.redone,
-                (k.bytes_read + k.bytes_written) as f64 / steps / 1e6,
-                d,
-                k.empty_dispatches as f64 / steps,
-                k.submissions as f64 / steps,
-                k.readbacks as f64,
-                d - solver,
-            )
-        }
-        _ => (0.0, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
-    };
+    let (rounds, redone, traffic, dispatches, empty, submissions, readbacks, fixed, record) =
+        match (before, after) {
+            (Some(a), Some(b)) => {
+                let k = b - a;
+                let d = k.dispatches as f64 / steps;
+                // If every solver iteration costs one dispatch per color (and every `every`
+                // iterations one convergence test), what remains per step is a constant set of
+                // fixed dispatches, whatever the sample size.
+                let it = k.iterations as f64 / steps;
+                let solver = colors_mean * it + it / every.max(1) as f64;
+                (
+                    k.color_rounds as f64 / steps,
+                    k.redone,
+                    (k.bytes_read + k.bytes_written) as f64 / steps / 1e6,
+                    d,
+                    k.empty_dispatches as f64 / steps,
+                    k.submissions as f64 / steps,
+                    k.readbacks as f64,
+                    d - solver,
+                    k.record_ns as f64 / 1e6 / steps,
+                )
+            }
+            _ => (0.0, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+        };
     Ok(Case {
         backend: backend.name(),
         disks: n,
@@ -163,6 +169,8 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, run: Run) ->
         submissions_per_step: submissions,
         readbacks_per_step: readbacks / steps,
         readbacks_per_window: readbacks / n_windows,
+        host_record_ms_per_step: record,
+        method: String::new(),
         fixed_dispatches_per_step: fixed,
         traffic_mb_per_step: traffic,
         host_peak_mib: host_peak_mib(),
