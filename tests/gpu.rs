@@ -671,3 +671,34 @@ fn gpu_strip_edges_equal_the_cpu_outline_of_the_same_positions() {
         );
     }
 }
+
+/// A window run again after its steps outgrew what was recorded equals the same steps
+/// recorded with room to spare, bit for bit: a fresh backend starts with small margins
+/// (64 iterations) and runs its first window again on a loaded column of 60 disks, whose
+/// steps need hundreds of iterations; one told to reserve enough (`GpuBackend::reserve`)
+/// does not; the states after 10 steps agree.
+#[test]
+fn gpu_window_run_again_equals_one_with_room_to_spare() {
+    let s = column(60, 0.5, G, Some(-2.0e4));
+    let mut p = tight(Method::ColoredGs);
+    p.solver.tol = 1e-6;
+    p.solver.max_iter = 2000;
+    let Some(mut tight_margins) = gpu_or_skip("window run again", &s, p) else {
+        return;
+    };
+    let mut roomy = gpu_or_skip("window run again", &s, p).unwrap();
+    roomy.reserve(2000, 64, 32);
+    tight_margins.run(10, &Loading::default()).unwrap();
+    roomy.run(10, &Loading::default()).unwrap();
+    let (kt, kr) = (tight_margins.counters(), roomy.counters());
+    assert!(
+        kt.redone >= 1,
+        "the small margins were enough: nothing was run again ({kt:?})"
+    );
+    assert_eq!(kr.redone, 0, "room to spare, yet run again ({kr:?})");
+    assert_eq!(kt.iterations, kr.iterations);
+    let (a, b) = (tight_margins.scene().unwrap(), roomy.scene().unwrap());
+    assert_eq!(a.disks.pos, b.disks.pos);
+    assert_eq!(a.disks.vel, b.disks.vel);
+    assert_eq!(a.disks.spin, b.disks.spin);
+}

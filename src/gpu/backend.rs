@@ -198,6 +198,16 @@ impl GpuBackend {
         Ok(b)
     }
 
+    /// Records at least `iterations` solver iterations, `colors` colors and `rounds`
+    /// coloring rounds per step in the next run of steps (afterwards the margins follow
+    /// what the steps needed). A caller that knows its steps need more spares the window
+    /// being run again; capacities still grow as the steps need.
+    pub fn reserve(&mut self, iterations: u32, colors: u32, rounds: u32) {
+        self.iters_hint = self.iters_hint.max(iterations);
+        self.colors_hint = self.colors_hint.max(colors);
+        self.rounds_hint = self.rounds_hint.max(rounds);
+    }
+
     /// Bytes allocated on the device for this sample.
     pub fn device_bytes(&self) -> u64 {
         self.bufs.device_bytes()
@@ -366,27 +376,7 @@ impl GpuBackend {
 
     /// Maps the first `size` bytes of the history and returns them (the window's one wait).
     pub(super) fn map_history(&mut self, h: &wgpu::Buffer, size: u64) -> Result<Vec<u8>> {
-        let size = size.max(4).next_multiple_of(4);
-        let (tx, rx) = std::sync::mpsc::channel();
-        h.map_async(wgpu::MapMode::Read, ..size, move |r| {
-            let _ = tx.send(r);
-        });
-        let gpu = &self.gpu;
-        gpu.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| gpu.failure("waiting for the device", e))?;
-        gpu.check("running the time steps")?;
-        rx.recv()
-            .map_err(|e| gpu.failure("reading back a result", e))?
-            .map_err(|e| gpu.failure("mapping the history buffer", e))?;
-        let bytes = h
-            .get_mapped_range(..size)
-            .map_err(|e| gpu.failure("reading a mapped buffer", format!("{e:?}")))?
-            .to_vec();
-        h.unmap();
-        self.counters.readbacks += 1;
-        self.counters.readback_bytes += size;
-        Ok(bytes)
+        self.map_read(h, size.max(4).next_multiple_of(4))
     }
 
     /// The buffers that hold the state between steps, with the bytes of each that do: the
@@ -426,19 +416,15 @@ impl GpuBackend {
         );
     }
 
-    /// The (live, backup, bytes) pairs of the state.
-    fn backup_pairs(&self) -> Vec<(wgpu::Buffer, wgpu::Buffer, u64)> {
+    /// The (live, backup, bytes) pairs of the state: copied one way at a window's start,
+    /// the other way to run it again.
+    pub(super) fn backup_pairs(&self) -> Vec<(wgpu::Buffer, wgpu::Buffer, u64)> {
         let backup = self.backup.as_ref().expect("ensure_backup before a window");
         self.state_buffers()
             .iter()
             .zip(backup)
             .map(|((live, n), b)| ((*live).clone(), b.clone(), (*n).min(b.size())))
             .collect()
-    }
-
-    /// Records the copy of the state into the backup (the window's start).
-    pub(super) fn backup_copies(&self) -> Vec<(wgpu::Buffer, wgpu::Buffer, u64)> {
-        self.backup_pairs()
     }
 
     /// Puts the state of the window's start back.
@@ -470,8 +456,14 @@ impl GpuBackend {
 
     /// Maps an already filled staging buffer and returns its bytes.
     pub(super) fn read_staging(&mut self, staging: &wgpu::Buffer) -> Result<Vec<u8>> {
+        self.map_read(staging, staging.size())
+    }
+
+    /// Maps the first `size` bytes of a readable buffer whose copies have been submitted,
+    /// waits for the device, and returns them (one wait).
+    fn map_read(&mut self, buf: &wgpu::Buffer, size: u64) -> Result<Vec<u8>> {
         let (tx, rx) = std::sync::mpsc::channel();
-        staging.map_async(wgpu::MapMode::Read, .., move |r| {
+        buf.map_async(wgpu::MapMode::Read, ..size, move |r| {
             let _ = tx.send(r);
         });
         let gpu = &self.gpu;
@@ -480,17 +472,17 @@ impl GpuBackend {
             .map_err(|e| gpu.failure("waiting for the device", e))?;
         // Errors of the work just waited for (validation, out of memory, device lost) come
         // first: they explain a failed mapping.
-        gpu.check("running the time step")?;
+        gpu.check("running the time steps")?;
         rx.recv()
             .map_err(|e| gpu.failure("reading back a result", e))?
             .map_err(|e| gpu.failure("mapping a readback buffer", e))?;
-        self.counters.readback_bytes += staging.size();
-        let bytes = staging
-            .get_mapped_range(..)
+        let bytes = buf
+            .get_mapped_range(..size)
             .map_err(|e| gpu.failure("reading a mapped buffer", format!("{e:?}")))?
             .to_vec();
-        staging.unmap();
+        buf.unmap();
         self.counters.readbacks += 1;
+        self.counters.readback_bytes += size;
         Ok(bytes)
     }
 

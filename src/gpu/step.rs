@@ -388,7 +388,7 @@ impl GpuBackend {
         for s in 0..steps {
             let mut r = Rec::new(self);
             if s == 0 {
-                for (live, backup, n) in self.backup_copies() {
+                for (live, backup, n) in self.backup_pairs() {
                     r.copy(&live, 0, &backup, 0, n);
                 }
             }
