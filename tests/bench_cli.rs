@@ -118,6 +118,15 @@ fn bench_writes_its_report_and_rejects_bad_sizes() {
                 "submissions per step {sub}: {c}"
             );
             assert!(f(c, "device_mib") > 0.0, "{c}");
+            // Device times, where the adapter writes timestamps (lavapipe does): the solve
+            // is part of the step, and the steps run one after the other on one queue
+            // within the wall time measured around them.
+            if let (Some(dev), Some(solve)) = (
+                c["device_ms_per_step"].as_f64(),
+                c["device_solve_ms_per_step"].as_f64(),
+            ) {
+                assert!(0.0 < solve && solve < dev && dev <= ms, "{c}");
+            }
             // The sweeps alone move 204 bytes per contact and iteration (src/gpu/traffic.rs:
             // the record, two velocities read and written, impulses and convergence terms).
             let mb = f(c, "traffic_mb_per_step");

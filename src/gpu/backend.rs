@@ -53,11 +53,22 @@ pub struct GpuCounters {
     /// Host time spent recording and submitting the steps' command buffers (ns): with the
     /// wall time per step, whether the host or the device sets the pace.
     pub record_ns: u64,
+    /// Steps timed on the device (timestamps at their start and end, where the adapter has
+    /// `TIMESTAMP_QUERY`; the first [`TIMED_STEPS`] of each window).
+    pub timed_steps: u64,
+    /// Device time of the timed steps, from their first dispatch to their last (ns).
+    pub device_step_ns: u64,
+    /// Device time of their solver iterations (ns).
+    pub device_solve_ns: u64,
     /// Sweeps of the local updates of deep contacts left out, summed over the steps, to
     /// keep the software adapter's loop limit (see [`DEEP_LOOP_BUDGET`]); 0 on a hardware
     /// GPU.
     pub deep_sweeps_cut: u64,
 }
+
+/// Steps of a window timed on the device (four timestamps each; a query set holds at most
+/// 4096).
+pub const TIMED_STEPS: u32 = 1000;
 
 /// Loop iterations allowed to one invocation of the deep-contact kernel on a software
 /// adapter (WGSL `deep_updates`): llvmpipe ends an invocation's loops after 65,535
@@ -82,6 +93,9 @@ impl std::ops::Sub for GpuCounters {
             bytes_written: self.bytes_written - earlier.bytes_written,
             readback_bytes: self.readback_bytes - earlier.readback_bytes,
             record_ns: self.record_ns - earlier.record_ns,
+            timed_steps: self.timed_steps - earlier.timed_steps,
+            device_step_ns: self.device_step_ns - earlier.device_step_ns,
+            device_solve_ns: self.device_solve_ns - earlier.device_solve_ns,
             deep_sweeps_cut: self.deep_sweeps_cut - earlier.deep_sweeps_cut,
         }
     }
@@ -148,6 +162,9 @@ pub struct GpuBackend {
     history: Option<wgpu::Buffer>,
     /// The state at the start of the window, to run it again.
     backup: Option<Vec<wgpu::Buffer>>,
+    /// Timestamps of the steps (start, solve start, solve end, end) and the buffer they
+    /// are resolved into, where the device writes them.
+    pub(super) timing: Option<(wgpu::QuerySet, wgpu::Buffer)>,
 }
 
 impl GpuBackend {
@@ -190,7 +207,23 @@ impl GpuBackend {
             schedule_for: None,
             history: None,
             backup: None,
+            timing: None,
         };
+        if b.gpu.timestamps {
+            let q = 4 * TIMED_STEPS;
+            let set = b.gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("step timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: q,
+            });
+            let resolve = b.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("step timestamps"),
+                size: 8 * q as u64,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            b.timing = Some((set, resolve));
+        }
         if b.gpu.info.device_type == wgpu::DeviceType::Cpu {
             b.deep_budget = DEEP_LOOP_BUDGET;
         }

@@ -42,6 +42,9 @@ pub struct GpuDevice {
     pub limits: wgpu::Limits,
     /// Errors reported outside error scopes, and the device's loss.
     pub errors: ErrorLog,
+    /// Whether the device writes timestamps at the start and end of compute passes
+    /// (`TIMESTAMP_QUERY`): the GPU path then times its steps on the device.
+    pub timestamps: bool,
 }
 
 impl GpuDevice {
@@ -217,9 +220,11 @@ pub fn open() -> Result<GpuDevice> {
     // The adapter's own limits: the buffer sizes are checked against them with a message
     // naming the limit, rather than against WebGPU's conservative defaults.
     let limits = adapter.limits();
+    let features = adapter.features() & wgpu::Features::TIMESTAMP_QUERY;
     let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("cdlab"),
         required_limits: limits.clone(),
+        required_features: features,
         ..Default::default()
     }))
     .map_err(|e| Error::Gpu(format!("cannot open {}: {e}", info.name)))?;
@@ -244,5 +249,6 @@ pub fn open() -> Result<GpuDevice> {
         info,
         limits,
         errors,
+        timestamps: !features.is_empty(),
     })
 }

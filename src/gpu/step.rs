@@ -174,6 +174,23 @@ impl<'a> Rec<'a> {
         self.pass = None;
     }
 
+    /// Writes timestamp `index` of the step timestamps, if the device has them (an empty
+    /// pass that writes at its start).
+    fn mark(&mut self, index: Option<u32>) {
+        let (Some(index), Some((set, _))) = (index, &self.b.timing) else {
+            return;
+        };
+        self.end_pass();
+        let _ = self.enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("cdlab timestamp"),
+            timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                query_set: set,
+                beginning_of_pass_write_index: Some(index),
+                end_of_pass_write_index: None,
+            }),
+        });
+    }
+
     /// The command buffer and the log of its dispatches.
     fn finish(mut self) -> (wgpu::CommandBuffer, Vec<Logged>) {
         self.end_pass();
@@ -381,7 +398,14 @@ impl GpuBackend {
         let keep = 4 * self.bufs.layout.floats_keep as u64;
         let walls_bytes = (nw * size_of::<GpuWall>()) as u64;
         let final_at = steps as u64 * ROW_BYTES;
-        let history = self.history(final_at + keep + walls_bytes);
+        let timed = if self.timing.is_some() {
+            steps.min(super::backend::TIMED_STEPS)
+        } else {
+            0
+        };
+        let times_at = (final_at + keep + walls_bytes).next_multiple_of(8);
+        let end = times_at + 8 * 4 * timed as u64;
+        let history = self.history(end);
         self.ensure_backup();
         let mut logs = Vec::with_capacity(steps as usize);
         let recording = std::time::Instant::now();
@@ -392,7 +416,7 @@ impl GpuBackend {
                     r.copy(&live, 0, &backup, 0, n);
                 }
             }
-            self.record_step(&mut r, rec);
+            self.record_step(&mut r, rec, (s < timed).then_some(4 * s));
             let st = 4 * self.sim.o_status as u64;
             r.copy(&self.bufs.ints, st, &history, s as u64 * ROW_BYTES, ROW_BYTES);
             if s + 1 == steps {
@@ -408,6 +432,13 @@ impl GpuBackend {
                 if walls_bytes > 0 {
                     r.copy(&self.bufs.walls, 0, &history, final_at + keep, walls_bytes);
                 }
+                if let Some((set, resolve)) = &self.timing
+                    && timed > 0
+                {
+                    r.end_pass();
+                    r.enc.resolve_query_set(set, 0..4 * timed, resolve, 0);
+                    r.copy(resolve, 0, &history, times_at, 8 * 4 * timed as u64);
+                }
             }
             let (cmd, log) = r.finish();
             logs.push(log);
@@ -416,7 +447,17 @@ impl GpuBackend {
             self.gpu.check("submitting the time step")?;
         }
         self.counters.record_ns += recording.elapsed().as_nanos() as u64;
-        let bytes = self.map_history(&history, final_at + keep + walls_bytes)?;
+        let bytes = self.map_history(&history, end)?;
+        if timed > 0 {
+            let t: &[u64] = bytemuck::cast_slice(&bytes[times_at as usize..end as usize]);
+            let period = self.gpu.queue.get_timestamp_period() as f64;
+            let ns = |a: u64, b: u64| (b.saturating_sub(a) as f64 * period) as u64;
+            for q in t.chunks_exact(4) {
+                self.counters.device_step_ns += ns(q[0], q[3]);
+                self.counters.device_solve_ns += ns(q[1], q[2]);
+            }
+            self.counters.timed_steps += timed as u64;
+        }
         let rows: Vec<Row> = (0..steps as usize)
             .map(|s| {
                 let mut words = [0u32; status::WORDS];
@@ -542,8 +583,11 @@ impl GpuBackend {
         (more != rec).then_some(Redo::Record(more))
     }
 
-    /// Records one step into `r` with the margins `rec`.
-    fn record_step(&self, r: &mut Rec<'_>, rec: Recorded) {
+    /// Records one step into `r` with the margins `rec`, and its four timestamps from
+    /// index `times` on when given (start, solve start, solve end, end).
+    fn record_step(&self, r: &mut Rec<'_>, rec: Recorded, times: Option<u32>) {
+        let at = |k: u32| times.map(|t| t + k);
+        r.mark(at(0));
         let nd = self.sim.n_disks;
         let nb = self.sim.n_bodies;
         let clear = self.bufs.layout.clear_len;
@@ -582,6 +626,7 @@ impl GpuBackend {
         r.go(Kernel::SolveArgs, 0, 1, 1);
         let entries = disp::entries(rec.colors);
         r.publish_args(entries);
+        r.mark(at(1));
         let jacobi = self.params.solver.method == Method::Jacobi;
         for (k, b) in self.schedule[..rec.blocks as usize].iter().enumerate() {
             r.block = Some(k as u32);
@@ -611,6 +656,7 @@ impl GpuBackend {
             r.publish_args(entries);
         }
         r.block = None;
+        r.mark(at(2));
         let p = self.params.solver;
         if p.deep_updates() {
             // Local updates of deep contacts: the selection, then every sweep over the
@@ -624,6 +670,7 @@ impl GpuBackend {
         r.go(Kernel::WallImpulse, 0, nw, nw);
         let save = self.cap.contacts.max(nd + 1);
         r.go(Kernel::SavePrev, 0, groups(save), nd + 1);
+        r.mark(at(3));
     }
 
     /// The end-of-run reductions from the history's tail (the float accumulators, then the

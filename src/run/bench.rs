@@ -55,6 +55,11 @@ pub struct Case {
     pub readbacks_per_window: f64,
     /// GPU: host time recording and submitting the steps, per step (ms; 0 on the CPU).
     pub host_record_ms_per_step: f64,
+    /// GPU: device time per step from its first dispatch to its last (ms), where the
+    /// adapter has timestamps; none on the CPU or without them.
+    pub device_ms_per_step: Option<f64>,
+    /// GPU: device time of the solver iterations per step (ms), as `device_ms_per_step`.
+    pub device_solve_ms_per_step: Option<f64>,
     /// Solver method.
     pub method: String,
     /// GPU: dispatches per step beyond one per color per solver iteration and one
@@ -128,10 +133,15 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, run: Run) ->
     let steps = done.max(1) as f64;
     let n_windows = windows(run.steps, run.window).count().max(1) as f64;
     let iterations = iterations_sum as f64 / steps;
+    let mut device = (None, None);
     let (rounds, redone, traffic, dispatches, empty, submissions, readbacks, fixed, record) =
         match (before, after) {
             (Some(a), Some(b)) => {
                 let k = b - a;
+                if k.timed_steps > 0 {
+                    let per = |ns: u64| ns as f64 / 1e6 / k.timed_steps as f64;
+                    device = (Some(per(k.device_step_ns)), Some(per(k.device_solve_ns)));
+                }
                 let d = k.dispatches as f64 / steps;
                 // If every solver iteration costs one dispatch per color (and every `every`
                 // iterations one convergence test), what remains per step is a constant set of
@@ -170,6 +180,8 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, run: Run) ->
         readbacks_per_step: readbacks / steps,
         readbacks_per_window: readbacks / n_windows,
         host_record_ms_per_step: record,
+        device_ms_per_step: device.0,
+        device_solve_ms_per_step: device.1,
         method: String::new(),
         fixed_dispatches_per_step: fixed,
         traffic_mb_per_step: traffic,
