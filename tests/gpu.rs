@@ -702,3 +702,28 @@ fn gpu_window_run_again_equals_one_with_room_to_spare() {
     assert_eq!(a.disks.vel, b.disks.vel);
     assert_eq!(a.disks.spin, b.disks.spin);
 }
+
+/// `solver.backend = "auto"` takes the GPU path only on a hardware adapter, and only for a
+/// method the GPU runs: on a machine whose only adapter is a software one (CI's lavapipe)
+/// it runs on the CPU, on one with a GPU on the GPU; `apgd` runs on the CPU everywhere.
+#[test]
+fn auto_backend_takes_the_gpu_only_on_hardware() {
+    let hardware = cdlab::gpu::device::list_adapters()
+        .iter()
+        .any(|a| a.device_type != "Cpu");
+    let s = lattice(4, 3);
+    for (method, gpu_method) in [("colored-gs", true), ("apgd", false)] {
+        let text = format!("[solver]\nbackend = \"auto\"\nmethod = \"{method}\"\n");
+        let config = cdlab::config::Config::from_toml_str(&text).unwrap();
+        let mut p = gpu_params(Method::ColoredGs);
+        p.solver.method = method.parse().unwrap();
+        let b = cdlab::run::open_backend(&config, s.clone(), p).unwrap();
+        let on_gpu = b.name().starts_with("gpu");
+        assert_eq!(
+            on_gpu,
+            hardware && gpu_method,
+            "{method}: auto chose {} with hardware adapter: {hardware}",
+            b.name()
+        );
+    }
+}
