@@ -27,12 +27,14 @@ const ST_LEFT: u32 = 7u;          // contacts left uncolored after the recorded 
 const ST_ARGS: u32 = 8u;          // indirect dispatch size of per-contact kernels (3 words)
 const ST_DEEP: u32 = 11u;         // contacts marked for local updates (solve.wgsl, deep_mark)
 const ST_NONEMPTY: u32 = 2u;      // colors holding contacts (solve.wgsl, solve_args)
+const ST_BIG: u32 = 16u;          // colors of more than WG contacts, a dispatch each
+const ST_TAIL: u32 = 17u;         // smaller colors, swept together (sweep_tail)
 const ST_BAD: u32 = 6u;           // non-finite convergence sums met (conv_check)
 const ST_ITERS: u32 = 12u;        // solver iterations run this step (conv_check)
 const ST_CONVERGED: u32 = 13u;    // 1 when the solve met its tolerance or velocity test
 const ST_RESIDUAL: u32 = 14u;     // relative change of the last test, f32 bits
 const ST_LIVE: u32 = 15u;         // 1 while the solve goes on
-const ST_WORDS: u32 = 16u;        // status words; color offsets follow them
+const ST_WORDS: u32 = 20u;        // status words (a step's row in the history)
 
 // Entries (3 words) of the solve's dispatch arguments at ints[o_disp] (buffers::disp).
 const DISP_CONTACTS: u32 = 0u;       // per-contact kernels of the step
@@ -95,7 +97,7 @@ struct Sim {
     o_color: u32, o_left: u32, max_rounds: u32, o_inc_tmp: u32,
     f_deep: u32, deep_gap: f32, deep_sweeps: u32, deep_budget: u32,
     o_disp: u32, max_iter: u32, tol: f32, velocity_tol: f32,
-    r_min: f32, o_outline: u32, one: f32, _p0: f32,
+    r_min: f32, o_outline: u32, one: f32, o_color_map: u32,
 }
 
 // Per-dispatch arguments (a region to scan, a color to sweep), bound at a dynamic offset.

@@ -45,23 +45,50 @@ fn gs_update(k: u32, relax: f32) -> vec4<f32> {
     return vec4<f32>(drn, drt, r.x, r.y);
 }
 
-// The contact at position gid of color args.a in the sweep order, or UNSET past its end.
-fn color_member(gid: u32) -> u32 {
-    let start = ld(sim.o_color_count + args.a);
-    let end = ld(sim.o_color_count + args.a + 1u);
-    if start + gid >= end { return UNSET; }
-    return ld(sim.o_order + start + gid);
+// The contact at position i of color col in the sweep order, or UNSET past its end.
+fn color_member(col: u32, i: u32) -> u32 {
+    let start = ld(sim.o_color_count + col);
+    let end = ld(sim.o_color_count + col + 1u);
+    if start + i >= end { return UNSET; }
+    return ld(sim.o_order + start + i);
 }
 
-// One color of a Gauss-Seidel sweep: the color index is args.a; args.b is 1 for the
-// relaxed iterations, which move by sim.gs_relax (CPU twin: SolverParams::relax_at).
-@compute @workgroup_size(WG)
-fn sweep_color(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let k = color_member(gid.x);
-    if k == UNSET { return; }
+// Gauss-Seidel update of contact k at the iteration's relaxation, with its convergence
+// terms (args.b is 1 for the relaxed iterations, which move by sim.gs_relax; CPU twin:
+// SolverParams::relax_at).
+fn sweep_one(k: u32) {
     let u = gs_update(k, select(1.0, sim.gs_relax, args.b == 1u));
     floats[sim.f_d2 + k] = u.x * u.x + u.y * u.y;
     floats[sim.f_r2 + k] = dot(u.zw, u.zw);
+}
+
+// One large color of a Gauss-Seidel sweep: entry args.a of the sweep order of colors
+// (solve_args, big colors first).
+@compute @workgroup_size(WG)
+fn sweep_color(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = color_member(ld(sim.o_color_map + args.a), gid.x);
+    if k == UNSET { return; }
+    sweep_one(k);
+}
+
+var<workgroup> tail_colors: u32;
+
+// The small colors of a Gauss-Seidel sweep (at most WG contacts each), one after the other
+// in one workgroup with a barrier between two: the same sweep as one dispatch per color,
+// at the cost of one dispatch. Force-driven walls make many such colors (every contact on
+// such a wall shares its body, so each takes a color of its own), and a dispatch costs the
+// host about as much to record whatever it does (docs/gpu.md, "Measured on hardware").
+// The count reaches every thread through workgroupUniformLoad, as barriers need.
+@compute @workgroup_size(WG)
+fn sweep_tail(@builtin(local_invocation_index) t: u32) {
+    if t == 0u { tail_colors = ld(sim.o_status + ST_TAIL); }
+    let n = workgroupUniformLoad(&tail_colors);
+    let big = ld(sim.o_status + ST_BIG);
+    for (var c = 0u; c < n; c++) {
+        let k = color_member(ld(sim.o_color_map + big + c), t);
+        if k != UNSET { sweep_one(k); }
+        storageBarrier();
+    }
 }
 
 // Local updates of deep contacts (CPU twin: the end of solver::sweep::solve), part 1: after
@@ -216,12 +243,40 @@ fn solve_args(@builtin(local_invocation_index) t: u32) {
     let n = n_contacts();
     let live = n > 0u;
     let n_colors = min(ld(sim.o_status + ST_COLORS), sim.max_colors);
+    if t == 0u {
+        // The sweep order of the colors: those of more than WG contacts in color order,
+        // each a dispatch, then the others in color order for sweep_tail. Empty colors
+        // are left out.
+        var big = 0u;
+        var nonempty = 0u;
+        for (var c = 0u; c < n_colors; c++) {
+            let size = ld(sim.o_color_count + c + 1u) - ld(sim.o_color_count + c);
+            if size > WG {
+                st(sim.o_color_map + big, c);
+                big++;
+            }
+            nonempty += u32(size > 0u);
+        }
+        var tail = 0u;
+        for (var c = 0u; c < n_colors; c++) {
+            let size = ld(sim.o_color_count + c + 1u) - ld(sim.o_color_count + c);
+            if size > 0u && size <= WG {
+                st(sim.o_color_map + big + tail, c);
+                tail++;
+            }
+        }
+        st(sim.o_status + ST_BIG, select(0u, big, live));
+        st(sim.o_status + ST_TAIL, select(0u, tail, live));
+        st(sim.o_status + ST_NONEMPTY, nonempty);
+    }
+    storageBarrier();
+    let big = ld(sim.o_status + ST_BIG);
     for (var c = t; c < sim.max_colors; c += WG) {
         var x = 0u;
-        if live && c < n_colors {
-            let size = ld(sim.o_color_count + c + 1u) - ld(sim.o_color_count + c);
+        if c < big {
+            let col = ld(sim.o_color_map + c);
+            let size = ld(sim.o_color_count + col + 1u) - ld(sim.o_color_count + col);
             x = (size + WG - 1u) / WG;
-            if size > 0u { atomicAdd(&ints[sim.o_status + ST_NONEMPTY], 1u); }
         }
         set_disp(DISP_COLOR0 + c, x);
     }

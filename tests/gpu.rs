@@ -398,9 +398,10 @@ fn gpu_overlap_limit_holds_beside_an_exactly_touching_pair() {
 
 /// The work of a step follows the structure documented in src/gpu/step.rs: one submission
 /// per step and one wait per run of steps, whatever the iterations; dispatches with work:
-/// 20 fixed ones and one per recorded coloring round before the solve, one per non-empty
-/// color per iteration plus one convergence test per block of `conv_every` iterations that
-/// ran, 3 after it and 1 for the reductions. The blocks recorded past the solve's end launch
+/// 20 fixed ones and one per recorded coloring round before the solve, per iteration one
+/// per color of more than 64 contacts and one for the smaller colors together (at most one
+/// per color), plus one convergence test per block of `conv_every` iterations that ran, 3
+/// after it and 1 for the reductions. The blocks recorded past the solve's end launch
 /// no workgroup and are counted apart. A step that waits on the host inside the solve, or
 /// sweeps a color that is not there, fails here. Wall time is printed, not asserted.
 #[test]
@@ -450,7 +451,12 @@ fn gpu_work_per_step_follows_the_step_structure() {
         assert_eq!(red.colors_mean, colors as f64);
         assert!(colors >= 2, "step {step}: {colors} colors for a lattice");
         let rounds = d(k.color_rounds, k0.color_rounds);
-        let recorded = d(k.dispatches, k0.dispatches) - (20 + it * colors + blocks + 3 + 1);
+        let sweeps = d(k.sweep_dispatches, k0.sweep_dispatches);
+        assert!(
+            sweeps % it == 0 && sweeps >= it && sweeps <= it * colors,
+            "step {step}: {sweeps} sweep dispatches for {it} iterations over {colors} colors"
+        );
+        let recorded = d(k.dispatches, k0.dispatches) - (20 + sweeps + blocks + 3 + 1);
         // Rounds recorded: those the coloring needed and a margin (the hint), never fewer.
         assert!(
             recorded >= rounds.max(1) && recorded <= g.capacity().rounds as u64,

@@ -174,13 +174,22 @@ fn gpu_solver_iteration_costs_one_dispatch_per_color() {
         g.conv_every = 1;
         let red = g.run(1, &Loading::default()).unwrap();
         assert_eq!(red.iterations_sum, cap as u64, "the run stops at its cap");
-        per_run.push((g.counters().dispatches, red.colors_mean));
+        let k = g.counters();
+        per_run.push((k.dispatches, k.sweep_dispatches, red.colors_mean));
     }
-    let ((d10, colors), (d20, colors20)) = (per_run[0], per_run[1]);
+    let ((d10, s10, colors), (d20, s20, colors20)) = (per_run[0], per_run[1]);
     assert_eq!(colors, colors20, "same state, same coloring");
-    // Expected: the 10 extra iterations cost one dispatch per color each plus one
-    // convergence reduction each (conv_every = 1), and nothing else.
-    assert_eq!(d20 - d10, 10 * (colors as u64 + 1), "{colors} colors");
+    // Expected: the 10 extra iterations cost the same sweep dispatches each, one per color
+    // of more than 64 contacts and one for the smaller ones together (so at least one and
+    // at most one per color), plus one convergence test each (conv_every = 1), and nothing
+    // else.
+    let per_iteration = (s20 - s10) / 10;
+    assert_eq!(s20 - s10, 10 * per_iteration, "sweeps {s10} and {s20}");
+    assert!(
+        (1..=colors as u64).contains(&per_iteration),
+        "{per_iteration} sweep dispatches per iteration over {colors} colors"
+    );
+    assert_eq!(d20 - d10, 10 * (per_iteration + 1), "{colors} colors");
 }
 
 #[test]

@@ -128,7 +128,7 @@ fn records() -> Vec<(&'static str, &'static str, usize, Vec<Field>)> {
                 r_min,
                 o_outline,
                 one,
-                pad
+                o_color_map
             }),
         ),
         (

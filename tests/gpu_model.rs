@@ -262,9 +262,9 @@ fn each_solver_iteration_adds_the_closed_form_bytes_of_its_kernels() {
         let (conv_r, conv_w) = (3 * w + 2 * w * n, 4 * w);
         let (read, written) = match method {
             // One sweep over every contact (the colors tile them): per contact the color's
-            // two offsets and its index, the record, two velocities; two velocities, R_n,
-            // R_t and two convergence terms.
-            Method::ColoredGs => (n * (3 * w + c + 2 * v), n * (2 * v + 4 * w)),
+            // place in the sweep order, its two offsets and the contact's index, the
+            // record, two velocities; two velocities, R_n, R_t and two convergence terms.
+            Method::ColoredGs => (n * (4 * w + c + 2 * v), n * (2 * v + 4 * w)),
             // Solve (count, record, two velocities; four words), commit (count, two words;
             // two words), gather (per body its velocity and list bounds, per contact two
             // list entries and two records; per body its velocity).

@@ -41,6 +41,10 @@ pub struct GpuCounters {
     pub readbacks: u64,
     /// Solver iterations.
     pub iterations: u64,
+    /// Dispatches of Gauss-Seidel sweeps with work (counted in `dispatches` too): per
+    /// iteration one per color of more than 64 contacts, and one for all the smaller
+    /// colors together.
+    pub sweep_dispatches: u64,
     /// Coloring rounds (Jones-Plassmann-Luby) of the steps taken.
     pub color_rounds: u64,
     /// Bytes the dispatches recorded load from device buffers, by the per-kernel table of
@@ -88,6 +92,7 @@ impl std::ops::Sub for GpuCounters {
             submissions: self.submissions - earlier.submissions,
             readbacks: self.readbacks - earlier.readbacks,
             iterations: self.iterations - earlier.iterations,
+            sweep_dispatches: self.sweep_dispatches - earlier.sweep_dispatches,
             color_rounds: self.color_rounds - earlier.color_rounds,
             bytes_read: self.bytes_read - earlier.bytes_read,
             bytes_written: self.bytes_written - earlier.bytes_written,

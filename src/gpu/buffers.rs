@@ -183,7 +183,11 @@ pub struct SimParams {
     /// them from simplifying the rounding errors of the two-float positions to zero
     /// (common.wgsl, `two_sum`).
     pub one: f32,
-    pub pad: [f32; 1],
+    /// Offset of the colors in the order the solver sweeps them (`cap.colors` words): the
+    /// colors with more than [`super::WG`] contacts first, each swept by a dispatch of its
+    /// own, then the smaller ones, swept together by one workgroup (solve.wgsl,
+    /// `solve_args`, `sweep_tail`).
+    pub o_color_map: u32,
 }
 
 /// Heights at which the strips' outline is sampled, at most (the CPU's
@@ -227,6 +231,11 @@ pub mod status {
     pub const ARGS: usize = 8;
     /// Colors holding contacts (`solve_args`).
     pub const NONEMPTY: usize = 2;
+    /// Colors with more than `WG` contacts, each swept by a dispatch of its own
+    /// (`solve_args`); the others are swept together by `sweep_tail`.
+    pub const BIG: usize = 16;
+    /// Colors swept by `sweep_tail`.
+    pub const TAIL: usize = 17;
     /// Non-finite convergence sums met (solve.wgsl `conv_check`; 1 ends the step's solve).
     pub const BAD: usize = 6;
     /// Solver iterations run this step (`conv_check`).
@@ -238,8 +247,8 @@ pub mod status {
     /// 1 while the solve goes on: still 1 at the end of a step whose recorded iterations
     /// ran out before a test or the cap ended it (the host redoes the window).
     pub const LIVE: usize = 15;
-    /// Words before the color offsets; also the words of a step's row in the history.
-    pub const WORDS: usize = 16;
+    /// Words of the status region; also the words of a step's row in the history.
+    pub const WORDS: usize = 20;
 }
 
 /// Entries (3 words each: workgroups x, y, z) of the dispatch arguments that `solve_args`
@@ -420,6 +429,7 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
     p.o_color = take(&mut o, cap.contacts);
     p.o_per_disk = take(&mut o, nd);
     p.o_outline = take(&mut o, 2 * OUTLINE_BINS);
+    p.o_color_map = take(&mut o, cap.colors);
     let ints_len = o.max(1);
     let mut f = 0u32;
     p.f_wall = take(&mut f, 2 * p.n_walls);

@@ -62,6 +62,8 @@ pub fn wgsl_constants() -> Vec<(&'static str, u32)> {
         ("ST_ARGS", status::ARGS as u32),
         ("ST_DEEP", status::DEEP as u32),
         ("ST_NONEMPTY", status::NONEMPTY as u32),
+        ("ST_BIG", status::BIG as u32),
+        ("ST_TAIL", status::TAIL as u32),
         ("ST_BAD", status::BAD as u32),
         ("ST_ITERS", status::ITERS as u32),
         ("ST_CONVERGED", status::CONVERGED as u32),

@@ -70,6 +70,7 @@ kernels! {
         SolveArgs = "solve_args",
         Gather = "gather",
         SweepColor = "sweep_color",
+        SweepTail = "sweep_tail",
         JacobiSolve = "jacobi_solve",
         JacobiCommit = "jacobi_commit",
         ConvCheck = "conv_check",

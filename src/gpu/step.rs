@@ -327,12 +327,19 @@ impl GpuBackend {
         let iters = row.get(status::ITERS);
         let ran = |b: Option<u32>| b.is_none_or(|b| self.schedule[b as usize].start < iters);
         let walls = self.sim.n_walls as u64;
+        let tail = row.get(status::TAIL);
         for l in log {
-            if !ran(l.block) {
+            let sweep_tail = l.kernel == Kernel::SweepTail;
+            if !ran(l.block) || (sweep_tail && tail == 0) {
                 self.counters.empty_dispatches += 1;
                 continue;
             }
             self.counters.dispatches += 1;
+            if sweep_tail {
+                // Its traffic is in the sweeps' below.
+                self.counters.sweep_dispatches += 1;
+                continue;
+            }
             let items = match l.items {
                 Items::N(k) => k,
                 Items::Contacts => n,
@@ -348,16 +355,18 @@ impl GpuBackend {
             self.counters.bytes_read += b.read;
             self.counters.bytes_written += b.written;
         }
-        // The sweeps: one dispatch per recorded color per iteration run, of which those of
-        // the colors holding contacts do work; together one pass over the contacts.
+        // The sweeps: one dispatch per recorded large color per iteration run, of which
+        // those of the step's large colors do work, and the small colors' one (logged);
+        // together one pass over the contacts.
         if self.params.solver.method != Method::Jacobi && n > 0 {
-            let nonempty = row.get(status::NONEMPTY).min(rec.colors) as u64;
+            let nonempty = row.get(status::BIG).min(rec.colors) as u64;
             let recorded: u64 = self.schedule[..rec.blocks as usize]
                 .iter()
                 .map(|b| b.len as u64)
                 .sum();
             let run = iters as u64;
             self.counters.dispatches += nonempty * run;
+            self.counters.sweep_dispatches += nonempty * run;
             self.counters.empty_dispatches += rec.colors as u64 * recorded - nonempty * run;
             let b = traffic::bytes(
                 Kernel::SweepColor,
@@ -392,7 +401,7 @@ impl GpuBackend {
             .write_buffer(&self.bufs.floats, 4 * self.sim.f_deep as u64, &[0u8; 8]);
         let rec = Recorded {
             rounds: self.rounds_hint.clamp(1, self.cap.rounds),
-            colors: self.colors_hint.clamp(1, self.cap.colors),
+            colors: self.colors_hint.min(self.cap.colors),
             blocks: self.blocks_for(self.iters_hint),
         };
         let keep = 4 * self.bufs.layout.floats_keep as u64;
@@ -532,7 +541,7 @@ impl GpuBackend {
         // A dispatch costs about as much recorded empty as with work on a hardware GPU
         // (docs/gpu.md, "Measured on hardware"): margins are kept small, a window that
         // needs more is run again.
-        let c = max(status::COLORS);
+        let c = max(status::BIG);
         self.colors_hint = c + 1;
         let it = max(status::ITERS);
         self.iters_hint = it + it / 4 + self.conv_every;
@@ -564,14 +573,15 @@ impl GpuBackend {
         if colors > cap.colors {
             cap.colors = 2 * colors;
         }
+        let big = row.get(status::BIG);
         let left = n <= cap.contacts && row.get(status::LEFT) > 0;
         let mut more = rec;
         if left {
             more.rounds = 2 * rec.rounds;
             cap.rounds = cap.rounds.max(more.rounds);
         }
-        if colors > rec.colors {
-            more.colors = colors + colors / 4 + 2;
+        if big > rec.colors {
+            more.colors = big + big / 4 + 2;
         }
         // Iterations ran out before a test or the cap ended the solve.
         if row.get(status::LIVE) != 0 {
@@ -646,6 +656,9 @@ impl GpuBackend {
                         r.pass()
                             .dispatch_workgroups_indirect(ind, 12 * (disp::COLOR0 + c) as u64);
                     }
+                    // The small colors, in one workgroup (its slot's b: the relaxation).
+                    let slot = color_slot(self.cap, 0, b.relaxed);
+                    r.go_indirect(Kernel::SweepTail, slot, disp::LIVE_ONE, all);
                 }
             }
             if b.velocity_test {

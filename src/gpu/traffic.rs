@@ -316,7 +316,20 @@ pub const TABLE: &[(Kernel, &[Access])] = &[
     (
         Kernel::SweepColor,
         &[
-            r(Ints, Item, 3 * WORD),
+            r(Ints, Item, 4 * WORD),
+            r(Contacts, Item, CONTACT),
+            r(Vel, Item, 2 * VEL),
+            w(Vel, Item, 2 * VEL),
+            w(Contacts, Item, 2 * WORD),
+            w(Floats, Item, 2 * WORD),
+        ],
+    ),
+    // The small colors in one workgroup, over their members: as SweepColor (the host
+    // charges every sweep of an iteration as SweepColor over all contacts).
+    (
+        Kernel::SweepTail,
+        &[
+            r(Ints, Item, 4 * WORD),
             r(Contacts, Item, CONTACT),
             r(Vel, Item, 2 * VEL),
             w(Vel, Item, 2 * VEL),

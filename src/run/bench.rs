@@ -143,11 +143,17 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, run: Run) ->
                     device = (Some(per(k.device_step_ns)), Some(per(k.device_solve_ns)));
                 }
                 let d = k.dispatches as f64 / steps;
-                // If every solver iteration costs one dispatch per color (and every `every`
-                // iterations one convergence test), what remains per step is a constant set of
-                // fixed dispatches, whatever the sample size.
+                // Less the sweeps (counted by the backend: one per large color and one for
+                // the small ones per iteration, or Jacobi's three) and one convergence test
+                // every `every` iterations, what remains per step is a constant set of fixed
+                // dispatches, whatever the sample size.
                 let it = k.iterations as f64 / steps;
-                let solver = colors_mean * it + it / every.max(1) as f64;
+                let sweeps = if k.sweep_dispatches > 0 {
+                    k.sweep_dispatches as f64 / steps
+                } else {
+                    colors_mean * it
+                };
+                let solver = sweeps + it / every.max(1) as f64;
                 (
                     k.color_rounds as f64 / steps,
                     k.redone,
