@@ -68,6 +68,13 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
     rename(&tmp, path)
 }
 
+/// Reads the whole file `path`, through the read hook of [`fault`] (a test can make the
+/// read of a record fail at a chosen point).
+pub fn read(path: &Path) -> std::io::Result<Vec<u8>> {
+    fault::read_point()?;
+    std::fs::read(path)
+}
+
 /// Renames `from` to `to` (replacing it) and syncs the directory of `to`. A `to` that
 /// exists and is not a regular file is refused ([`check_replaceable`]).
 pub fn rename(from: &Path, to: &Path) -> Result<()> {
@@ -226,6 +233,7 @@ pub mod fault {
     const NONE: u64 = 0;
     const ENOSPC: u64 = 1;
     const ABORT: u64 = 2;
+    const READ: u64 = 3;
 
     static MODE: AtomicU64 = AtomicU64::new(NONE);
     static AT: AtomicU64 = AtomicU64::new(0);
@@ -243,6 +251,9 @@ pub mod fault {
         /// The `n`-th point writes half its bytes (a rename: nothing) and aborts the
         /// process.
         Abort(u64),
+        /// The `n`-th whole read of a record ([`super::read`]) fails with an I/O error;
+        /// the reads before and after it, and every write, pass. Only reads are counted.
+        ReadFails(u64),
     }
 
     /// Installs `plan` and restarts the count.
@@ -251,6 +262,7 @@ pub mod fault {
             Plan::None => (NONE, 0),
             Plan::DiskFull(n) => (ENOSPC, n),
             Plan::Abort(n) => (ABORT, n),
+            Plan::ReadFails(n) => (READ, n),
         };
         COUNT.store(0, Ordering::SeqCst);
         AT.store(at, Ordering::SeqCst);
@@ -270,7 +282,7 @@ pub mod fault {
     /// or report a short write); a rename at its abort point aborts here.
     pub(crate) fn point(write: bool) -> std::io::Result<()> {
         let mode = MODE.load(Ordering::Relaxed);
-        if mode == NONE {
+        if mode == NONE || mode == READ {
             return Ok(());
         }
         let k = COUNT.fetch_add(1, Ordering::SeqCst) + 1;
@@ -285,6 +297,25 @@ pub mod fault {
             (ABORT, true, false) => std::process::abort(),
             (ENOSPC, false, true) => Err(disk_full()),
             _ => Ok(()),
+        }
+    }
+
+    /// Passes one read point: under [`Plan::ReadFails`], the planned read fails (EIO).
+    pub(crate) fn read_point() -> std::io::Result<()> {
+        if MODE.load(Ordering::Relaxed) != READ {
+            return Ok(());
+        }
+        let k = COUNT.fetch_add(1, Ordering::SeqCst) + 1;
+        if k != AT.load(Ordering::SeqCst) {
+            return Ok(());
+        }
+        #[cfg(unix)]
+        {
+            Err(std::io::Error::from_raw_os_error(libc::EIO))
+        }
+        #[cfg(not(unix))]
+        {
+            Err(std::io::Error::other("injected read fault"))
         }
     }
 

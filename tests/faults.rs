@@ -352,3 +352,38 @@ fn temporary_files_are_created_new_never_through_a_link() {
     assert!(left.is_empty(), "{left:?}");
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// The record read back at the end of a run for its summary cannot be read (an I/O error
+/// at that read, the last one of the run; issue 36, item 6): the run fails naming the
+/// record, writes no summary (one made without the record lacked its `record_id` and
+/// shear bands and blamed missing snapshots), the test does not count as finished, and
+/// `--resume` writes the summary the uninterrupted run writes instead of saying the run is
+/// complete.
+#[test]
+fn a_failed_read_of_the_record_at_the_end_fails_the_run_and_the_resume_ends_it() {
+    let _turn = turn();
+    let base = scratch("reopen");
+    let cfg = config(10);
+    let (want, _) = reference(&base.join("reference"), &cfg);
+    fault::set(Plan::ReadFails(u64::MAX));
+    fresh(&cfg, &base.join("count"), sample()).unwrap();
+    let reads = fault::count();
+    assert!(reads >= 1, "the run reads its record back {reads} times");
+    let run = base.join("run");
+    fault::set(Plan::ReadFails(reads));
+    let err = fresh(&cfg, &run, sample()).expect_err("the run ignored the failed read");
+    fault::set(Plan::None);
+    let file = run.join(MCAP_FILE);
+    let text = err.to_string();
+    assert!(text.contains(file.to_str().unwrap()), "{text}");
+    assert!(text.contains("--resume"), "{text}");
+    for name in ["summary.json", "summary.txt"] {
+        assert!(!run.join(name).exists(), "{name} written without the record");
+    }
+    let (points, missing) = cdlab::campaign::collect(std::slice::from_ref(&run));
+    assert!(points.is_empty() && missing.len() == 1, "{missing:?}");
+    let (ok, text) = resume_cli(&run);
+    assert!(ok && text.contains("written again"), "{text}");
+    assert_eq!(outcome(&run), want);
+    let _ = std::fs::remove_dir_all(&base);
+}

@@ -311,17 +311,35 @@ fn finish(
     outcome?;
     let wall_s = obs.wall_s();
     obs.recorder.finish()?;
-    // From the record just closed: the snapshots are not kept in memory during the run.
-    let record = read_run(dir);
+    // From the record just closed: the snapshots are not kept in memory during the run. A
+    // summary made without it would lack its record_id and shear bands yet mark the test
+    // finished, so a failed read fails the run, leaving the summary to the resume.
+    let record = read_run(dir).map_err(|e| unreadable_at_end(dir, &e))?;
     let summary = summary_of(
         config,
         &obs.rows,
         &obs.ends,
         backend,
         wall_s,
-        &record,
+        &Ok(record),
         &mut *obs.progress,
     );
     write_summary(dir, &summary)?;
     Ok(summary)
+}
+
+/// The error of a run whose steps are all recorded but whose record cannot be read back
+/// for its summary: it names the record and says how to write the summary.
+fn unreadable_at_end(dir: &Path, e: &Error) -> Error {
+    let file = dir.join(MCAP_FILE);
+    Error::Run {
+        message: format!(
+            "{}: the run is complete but its record could not be read back for the summary \
+             ({e}); no summary was written: `cdlab biaxial --resume {}` writes it",
+            file.display(),
+            dir.display()
+        ),
+        path: file,
+        fault: RunFault::Unfinished,
+    }
 }
