@@ -387,3 +387,75 @@ fn a_failed_read_of_the_record_at_the_end_fails_the_run_and_the_resume_ends_it()
     assert_eq!(outcome(&run), want);
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// The temporary files a kill leaves behind (`NAME.PID.tmp` of a whole-file write whose
+/// process has ended) are removed where the next writer works (issue 36, item 12: they
+/// stayed forever and went into archives): by a forced run in its run directory, and by
+/// `cdlab archive` in the archive and each archived test, even one already there, where
+/// nothing is written. A live process's temporary file is kept.
+#[cfg(unix)]
+#[test]
+fn stale_temporaries_of_killed_writes_are_cleaned_and_never_archived() {
+    let base = scratch("stale-tmps");
+    let cfg = config(10);
+    let run = base.join("run");
+    {
+        let _turn = turn();
+        fresh(&cfg, &run, sample()).unwrap();
+    }
+    let dead = {
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let pid = child.id();
+        child.wait().unwrap();
+        pid
+    };
+    let plant = |dir: &Path, names: &[&str]| {
+        for n in names {
+            std::fs::write(dir.join(format!("{n}.{dead}.tmp")), b"torn").unwrap();
+        }
+    };
+    let tmps = |dir: &Path| -> Vec<String> {
+        let mut found = Vec::new();
+        let mut stack = vec![dir.to_path_buf()];
+        while let Some(d) = stack.pop() {
+            for e in std::fs::read_dir(&d).unwrap().flatten() {
+                if e.file_type().unwrap().is_dir() {
+                    stack.push(e.path());
+                } else if e.file_name().to_string_lossy().ends_with(".tmp") {
+                    found.push(e.path().display().to_string());
+                }
+            }
+        }
+        found
+    };
+    plant(&run, &["summary.json", "stress_strain.png"]);
+    let live = run.join("summary.txt.1.tmp");
+    std::fs::write(&live, b"another process's write").unwrap();
+    let arch = base.join("arch");
+    let archive = || {
+        let (ok, text) = common::cdlab(&["archive", run.to_str().unwrap(), "--to", arch.to_str().unwrap()]);
+        assert!(ok, "{text}");
+    };
+    archive();
+    assert_eq!(tmps(&arch), Vec::<String>::new());
+    // A killed archive's leftovers, then the same test archived again: nothing to write.
+    plant(&arch, &["grid.txt"]);
+    plant(&arch.join("run"), &["summary.json", "series_thinned.csv"]);
+    archive();
+    assert_eq!(tmps(&arch), Vec::<String>::new());
+    // A forced run over the test.
+    let toml = base.join("run.toml");
+    std::fs::write(&toml, cfg.to_toml_string().unwrap()).unwrap();
+    let (ok, text) = common::cdlab(&[
+        "biaxial",
+        "--config",
+        toml.to_str().unwrap(),
+        "--out",
+        run.to_str().unwrap(),
+        "--force",
+        "--quiet",
+    ]);
+    assert!(ok, "{text}");
+    assert_eq!(tmps(&run), vec![live.display().to_string()]);
+    let _ = std::fs::remove_dir_all(&base);
+}

@@ -103,8 +103,11 @@ pub fn check_out_dir(dir: &Path, replace: bool) -> Result<()> {
 /// finished to `cdlab report` and `cdlab sweep`), then `summary.txt` and the figures drawn
 /// there (`*.png`, `*.svg`), each removal synced. Called before a new record replaces an
 /// old one, and before a resume continues an unfinished record (results beside it cannot
-/// be its own).
+/// be its own). The temporary files of killed writes whose process has ended go too
+/// ([`atomic::remove_stale_tmps`]).
 pub fn clear_results(dir: &Path) -> Result<()> {
+    // Left by writes killed before their rename, by any process; never results.
+    atomic::remove_stale_tmps(dir, None);
     for name in RESULT_FILES {
         atomic::remove_file(&dir.join(name))?;
     }
