@@ -55,6 +55,16 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
     // Before any byte is written: the rename checks again, but a refusal there would
     // have written the temporary file for nothing.
     check_replaceable(path)?;
+    // The next write of a file replaces the temporary files earlier writes were killed
+    // with, whichever process made them.
+    if let (Some(dir), Some(name)) = (path.parent(), path.file_name()) {
+        let dir = if dir.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            dir
+        };
+        remove_stale_tmps(dir, Some(name));
+    }
     let tmp = process_tmp_path(path);
     let written = (|| -> std::io::Result<()> {
         let mut f = FaultFile::create_tmp(&tmp)?;
@@ -66,6 +76,13 @@ pub fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
         return Err(Error::io(&tmp, e));
     }
     rename(&tmp, path)
+}
+
+/// Reads the whole file `path`, through the read hook of [`fault`] (a test can make the
+/// read of a record fail at a chosen point).
+pub fn read(path: &Path) -> std::io::Result<Vec<u8>> {
+    fault::read_point()?;
+    std::fs::read(path)
 }
 
 /// Renames `from` to `to` (replacing it) and syncs the directory of `to`. A `to` that
@@ -160,6 +177,72 @@ pub fn create_tmp(path: &Path) -> std::io::Result<File> {
         .open(path)
 }
 
+/// Removes the temporary files of whole-file writes ([`process_tmp_path`]: `NAME.PID.tmp`)
+/// in `dir` whose process has ended, only those of the file `only` when given. A kill
+/// between the creation of such a file and its rename leaves it behind, and the next write
+/// of `NAME`, by another process, takes another name: without this it stayed forever and
+/// was carried into archives. A temporary file of a live process (this one included) is
+/// kept: it is that process's write in progress. Best effort: a name that cannot be
+/// removed is left, and nothing is removed where a process's liveness cannot be checked
+/// (not Unix). Returns the names removed.
+pub fn remove_stale_tmps(dir: &Path, only: Option<&std::ffi::OsStr>) -> Vec<PathBuf> {
+    let mut removed = Vec::new();
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return removed;
+    };
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let Some((file, pid)) = name.to_str().and_then(split_process_tmp) else {
+            continue;
+        };
+        if only.is_some_and(|o| o != std::ffi::OsStr::new(file)) || process_alive(pid) {
+            continue;
+        }
+        // A directory under such a name is not one of ours.
+        if e.file_type().is_ok_and(|t| t.is_dir()) {
+            continue;
+        }
+        let path = e.path();
+        if std::fs::remove_file(&path).is_ok() {
+            removed.push(path);
+        }
+    }
+    removed
+}
+
+/// `NAME` and `PID` of a temporary name `NAME.PID.tmp`; `None` for any other name.
+fn split_process_tmp(name: &str) -> Option<(&str, u32)> {
+    let stem = name.strip_suffix(TMP_SUFFIX)?;
+    let (file, pid) = stem.rsplit_once('.')?;
+    let digits = !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit());
+    if file.is_empty() || !digits {
+        return None;
+    }
+    Some((file, pid.parse().ok()?))
+}
+
+/// Whether the process `pid` exists (on this machine). Where that cannot be told, and for
+/// a PID the system cannot have, it counts as alive, so that its file is kept.
+fn process_alive(pid: u32) -> bool {
+    if pid == std::process::id() {
+        return true;
+    }
+    #[cfg(unix)]
+    {
+        let Ok(p) = libc::pid_t::try_from(pid) else {
+            return true;
+        };
+        if p <= 0 {
+            return true;
+        }
+        // SAFETY: signal 0 sends nothing; kill only checks that the process exists.
+        let r = unsafe { libc::kill(p, 0) };
+        r == 0 || std::io::Error::last_os_error().raw_os_error() != Some(libc::ESRCH)
+    }
+    #[cfg(not(unix))]
+    true
+}
+
 /// Syncs the directory holding `path` (its entries: creations, renames, removals). Where
 /// directories cannot be opened for syncing (not Unix), does nothing.
 pub fn sync_dir(path: &Path) -> Result<()> {
@@ -226,6 +309,7 @@ pub mod fault {
     const NONE: u64 = 0;
     const ENOSPC: u64 = 1;
     const ABORT: u64 = 2;
+    const READ: u64 = 3;
 
     static MODE: AtomicU64 = AtomicU64::new(NONE);
     static AT: AtomicU64 = AtomicU64::new(0);
@@ -243,6 +327,9 @@ pub mod fault {
         /// The `n`-th point writes half its bytes (a rename: nothing) and aborts the
         /// process.
         Abort(u64),
+        /// The `n`-th whole read of a record ([`super::read`]) fails with an I/O error;
+        /// the reads before and after it, and every write, pass. Only reads are counted.
+        ReadFails(u64),
     }
 
     /// Installs `plan` and restarts the count.
@@ -251,6 +338,7 @@ pub mod fault {
             Plan::None => (NONE, 0),
             Plan::DiskFull(n) => (ENOSPC, n),
             Plan::Abort(n) => (ABORT, n),
+            Plan::ReadFails(n) => (READ, n),
         };
         COUNT.store(0, Ordering::SeqCst);
         AT.store(at, Ordering::SeqCst);
@@ -270,7 +358,7 @@ pub mod fault {
     /// or report a short write); a rename at its abort point aborts here.
     pub(crate) fn point(write: bool) -> std::io::Result<()> {
         let mode = MODE.load(Ordering::Relaxed);
-        if mode == NONE {
+        if mode == NONE || mode == READ {
             return Ok(());
         }
         let k = COUNT.fetch_add(1, Ordering::SeqCst) + 1;
@@ -285,6 +373,25 @@ pub mod fault {
             (ABORT, true, false) => std::process::abort(),
             (ENOSPC, false, true) => Err(disk_full()),
             _ => Ok(()),
+        }
+    }
+
+    /// Passes one read point: under [`Plan::ReadFails`], the planned read fails (EIO).
+    pub(crate) fn read_point() -> std::io::Result<()> {
+        if MODE.load(Ordering::Relaxed) != READ {
+            return Ok(());
+        }
+        let k = COUNT.fetch_add(1, Ordering::SeqCst) + 1;
+        if k != AT.load(Ordering::SeqCst) {
+            return Ok(());
+        }
+        #[cfg(unix)]
+        {
+            Err(std::io::Error::from_raw_os_error(libc::EIO))
+        }
+        #[cfg(not(unix))]
+        {
+            Err(std::io::Error::other("injected read fault"))
         }
     }
 
@@ -303,6 +410,45 @@ pub mod fault {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The PID of a process that has ended (a child waited for).
+    fn dead_pid() -> u32 {
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let pid = child.id();
+        child.wait().unwrap();
+        pid
+    }
+
+    /// Stale temporary files of whole-file writes are removed by the next write of their
+    /// file (issue 36, item 12: they stayed forever and went into archives), those of live
+    /// processes and of other files are kept, and other names are never touched.
+    #[cfg(unix)]
+    #[test]
+    fn the_next_write_removes_the_stale_temporaries_of_dead_processes() {
+        let d = TempDir::new("stale-tmps");
+        let dead = dead_pid();
+        let names = [
+            format!("summary.json.{dead}.tmp"),
+            "summary.json.1.tmp".to_string(),
+            format!("summary.txt.{dead}.tmp"),
+            format!("summary.json.{}.x", dead),
+            "summary.json.tmp".to_string(),
+            "notes.1x.tmp".to_string(),
+        ];
+        for n in &names {
+            std::fs::write(d.0.join(n), b"stale").unwrap();
+        }
+        write_file(&d.0.join("summary.json"), b"{}").unwrap();
+        let mut want: Vec<String> = names[1..].to_vec();
+        want.push("summary.json".into());
+        want.sort();
+        assert_eq!(d.names(), want);
+        let gone = remove_stale_tmps(&d.0, None);
+        assert_eq!(gone, vec![d.0.join(&names[2])]);
+        assert_eq!(split_process_tmp("a.b.12.tmp"), Some(("a.b", 12)));
+        assert_eq!(split_process_tmp(".12.tmp"), None);
+        assert!(process_alive(std::process::id()) && process_alive(1) && !process_alive(dead));
+    }
 
     /// A fresh directory under the system temp dir, removed when dropped.
     struct TempDir(PathBuf);

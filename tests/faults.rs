@@ -352,3 +352,110 @@ fn temporary_files_are_created_new_never_through_a_link() {
     assert!(left.is_empty(), "{left:?}");
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// The record read back at the end of a run for its summary cannot be read (an I/O error
+/// at that read, the last one of the run; issue 36, item 6): the run fails naming the
+/// record, writes no summary (one made without the record lacked its `record_id` and
+/// shear bands and blamed missing snapshots), the test does not count as finished, and
+/// `--resume` writes the summary the uninterrupted run writes instead of saying the run is
+/// complete.
+#[test]
+fn a_failed_read_of_the_record_at_the_end_fails_the_run_and_the_resume_ends_it() {
+    let _turn = turn();
+    let base = scratch("reopen");
+    let cfg = config(10);
+    let (want, _) = reference(&base.join("reference"), &cfg);
+    fault::set(Plan::ReadFails(u64::MAX));
+    fresh(&cfg, &base.join("count"), sample()).unwrap();
+    let reads = fault::count();
+    assert!(reads >= 1, "the run reads its record back {reads} times");
+    let run = base.join("run");
+    fault::set(Plan::ReadFails(reads));
+    let err = fresh(&cfg, &run, sample()).expect_err("the run ignored the failed read");
+    fault::set(Plan::None);
+    let file = run.join(MCAP_FILE);
+    let text = err.to_string();
+    assert!(text.contains(file.to_str().unwrap()), "{text}");
+    assert!(text.contains("--resume"), "{text}");
+    for name in ["summary.json", "summary.txt"] {
+        assert!(!run.join(name).exists(), "{name} written without the record");
+    }
+    let (points, missing) = cdlab::campaign::collect(std::slice::from_ref(&run));
+    assert!(points.is_empty() && missing.len() == 1, "{missing:?}");
+    let (ok, text) = resume_cli(&run);
+    assert!(ok && text.contains("written again"), "{text}");
+    assert_eq!(outcome(&run), want);
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// The temporary files a kill leaves behind (`NAME.PID.tmp` of a whole-file write whose
+/// process has ended) are removed where the next writer works (issue 36, item 12: they
+/// stayed forever and went into archives): by a forced run in its run directory, and by
+/// `cdlab archive` in the archive and each archived test, even one already there, where
+/// nothing is written. A live process's temporary file is kept.
+#[cfg(unix)]
+#[test]
+fn stale_temporaries_of_killed_writes_are_cleaned_and_never_archived() {
+    let base = scratch("stale-tmps");
+    let cfg = config(10);
+    let run = base.join("run");
+    {
+        let _turn = turn();
+        fresh(&cfg, &run, sample()).unwrap();
+    }
+    let dead = {
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let pid = child.id();
+        child.wait().unwrap();
+        pid
+    };
+    let plant = |dir: &Path, names: &[&str]| {
+        for n in names {
+            std::fs::write(dir.join(format!("{n}.{dead}.tmp")), b"torn").unwrap();
+        }
+    };
+    let tmps = |dir: &Path| -> Vec<String> {
+        let mut found = Vec::new();
+        let mut stack = vec![dir.to_path_buf()];
+        while let Some(d) = stack.pop() {
+            for e in std::fs::read_dir(&d).unwrap().flatten() {
+                if e.file_type().unwrap().is_dir() {
+                    stack.push(e.path());
+                } else if e.file_name().to_string_lossy().ends_with(".tmp") {
+                    found.push(e.path().display().to_string());
+                }
+            }
+        }
+        found
+    };
+    plant(&run, &["summary.json", "stress_strain.png"]);
+    let live = run.join("summary.txt.1.tmp");
+    std::fs::write(&live, b"another process's write").unwrap();
+    let arch = base.join("arch");
+    let archive = || {
+        let (ok, text) = common::cdlab(&["archive", run.to_str().unwrap(), "--to", arch.to_str().unwrap()]);
+        assert!(ok, "{text}");
+    };
+    archive();
+    assert_eq!(tmps(&arch), Vec::<String>::new());
+    // A killed archive's leftovers, then the same test archived again: nothing to write.
+    plant(&arch, &["grid.txt"]);
+    plant(&arch.join("run"), &["summary.json", "series_thinned.csv"]);
+    archive();
+    assert_eq!(tmps(&arch), Vec::<String>::new());
+    // A forced run over the test.
+    let toml = base.join("run.toml");
+    std::fs::write(&toml, cfg.to_toml_string().unwrap()).unwrap();
+    let (ok, text) = common::cdlab(&[
+        "biaxial",
+        "--config",
+        toml.to_str().unwrap(),
+        "--out",
+        run.to_str().unwrap(),
+        "--force",
+        "--quiet",
+    ]);
+    assert!(ok, "{text}");
+    assert_eq!(tmps(&run), vec![live.display().to_string()]);
+    let _ = std::fs::remove_dir_all(&base);
+}

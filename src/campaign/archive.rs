@@ -94,6 +94,7 @@ pub fn keep_last_snapshot(src: &Path, dest: &Path) -> Result<()> {
 /// an error.
 pub fn archive_unfinished(src: &Path, dest: &Path) -> Result<u64> {
     check_apart(src, dest)?;
+    crate::record::atomic::remove_stale_tmps(dest, None);
     if dest.join("summary.json").exists() {
         return Err(occupied(
             dest,
@@ -190,6 +191,9 @@ pub fn archive_finished(
     keep_snapshot: bool,
 ) -> Result<Archived> {
     check_apart(src, dest)?;
+    // An archive is kept and copied whole: a killed archive's temporary files must not
+    // stay in it, even when this test is already there and nothing is written.
+    crate::record::atomic::remove_stale_tmps(dest, None);
     let read = |p: &Path| std::fs::read(p).map_err(|e| Error::io(p, e));
     let summary = read(&src.join("summary.json"))?;
     let kept = dest.join("summary.json");

@@ -57,6 +57,8 @@ pub fn run(args: &Args) -> Result<()> {
     // Unfinished tests alone are worth keeping when asked for.
     let (points, missing) = super::report::collect_dirs(&args.dirs, !args.with_unfinished)?;
     std::fs::create_dir_all(&args.to).map_err(|e| Error::io(&args.to, e))?;
+    // The campaign list's, left by a killed archive (each test's go in archive_finished).
+    crate::record::atomic::remove_stale_tmps(&args.to, None);
     let (mut written, mut updated, mut same) = (0, 0, 0);
     for p in &points {
         let name = p

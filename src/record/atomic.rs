@@ -4,6 +4,6 @@
 //! under the names the record's callers use.
 
 pub use crate::fsio::{
-    TMP_SUFFIX, check_replaceable, create_tmp, fault, process_tmp_path, remove_file, rename, sync_dir,
-    tmp_path, write_file,
+    TMP_SUFFIX, check_replaceable, create_tmp, fault, process_tmp_path, remove_file, remove_stale_tmps,
+    rename, sync_dir, tmp_path, write_file,
 };

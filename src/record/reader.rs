@@ -409,7 +409,7 @@ pub fn read_run(path: impl AsRef<Path>) -> Result<RunRecord> {
         });
     }
     let path = mcap_path(path);
-    let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+    let bytes = crate::fsio::read(&path).map_err(|e| Error::io(&path, e))?;
     parse_run(&bytes).map_err(|e| match e {
         Error::BadRecord { path: None, message } => Error::BadRecord {
             path: Some(path),

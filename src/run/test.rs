@@ -103,8 +103,11 @@ pub fn check_out_dir(dir: &Path, replace: bool) -> Result<()> {
 /// finished to `cdlab report` and `cdlab sweep`), then `summary.txt` and the figures drawn
 /// there (`*.png`, `*.svg`), each removal synced. Called before a new record replaces an
 /// old one, and before a resume continues an unfinished record (results beside it cannot
-/// be its own).
+/// be its own). The temporary files of killed writes whose process has ended go too
+/// ([`atomic::remove_stale_tmps`]).
 pub fn clear_results(dir: &Path) -> Result<()> {
+    // Left by writes killed before their rename, by any process; never results.
+    atomic::remove_stale_tmps(dir, None);
     for name in RESULT_FILES {
         atomic::remove_file(&dir.join(name))?;
     }
@@ -311,17 +314,35 @@ fn finish(
     outcome?;
     let wall_s = obs.wall_s();
     obs.recorder.finish()?;
-    // From the record just closed: the snapshots are not kept in memory during the run.
-    let record = read_run(dir);
+    // From the record just closed: the snapshots are not kept in memory during the run. A
+    // summary made without it would lack its record_id and shear bands yet mark the test
+    // finished, so a failed read fails the run, leaving the summary to the resume.
+    let record = read_run(dir).map_err(|e| unreadable_at_end(dir, &e))?;
     let summary = summary_of(
         config,
         &obs.rows,
         &obs.ends,
         backend,
         wall_s,
-        &record,
+        &Ok(record),
         &mut *obs.progress,
     );
     write_summary(dir, &summary)?;
     Ok(summary)
+}
+
+/// The error of a run whose steps are all recorded but whose record cannot be read back
+/// for its summary: it names the record and says how to write the summary.
+fn unreadable_at_end(dir: &Path, e: &Error) -> Error {
+    let file = dir.join(MCAP_FILE);
+    Error::Run {
+        message: format!(
+            "{}: the run is complete but its record could not be read back for the summary \
+             ({e}); no summary was written: `cdlab biaxial --resume {}` writes it",
+            file.display(),
+            dir.display()
+        ),
+        path: file,
+        fault: RunFault::Unfinished,
+    }
 }

@@ -40,26 +40,57 @@ pub fn skip_only_without_adapter<T>(test: &str, opened: cdlab::Result<T>) -> Opt
 
 /// [`skip_only_without_adapter`] with the requirement given.
 pub fn decide<T>(test: &str, opened: cdlab::Result<T>, require: bool) -> Option<T> {
+    // To the process's stderr directly, past the test harness's capture, so that a real
+    // skip shows in a plain `cargo test`.
+    decide_to(test, opened, require, &mut std::io::stderr())
+}
+
+/// [`decide`] with the SKIPPED line written to `out`: the tests of the rule itself keep
+/// their made-up skips off the terminal, where they read as GPU tests not run.
+pub fn decide_to<T>(
+    test: &str,
+    opened: cdlab::Result<T>,
+    require: bool,
+    out: &mut dyn std::io::Write,
+) -> Option<T> {
     match opened {
         Ok(b) => Some(b),
         Err(cdlab::Error::NoAdapter(msg)) if !require => {
-            // Written to the process's stderr directly, past the test harness's capture, so
-            // the skip shows in a plain `cargo test`.
             let line = format!("SKIPPED (no GPU adapter): {test}: {msg}\n");
-            let _ = std::io::Write::write_all(&mut std::io::stderr(), line.as_bytes());
+            let _ = out.write_all(line.as_bytes());
             None
         }
         Err(e) => panic!("{test}: {e}"),
     }
 }
 
+/// Gives the process an `XDG_RUNTIME_DIR` when it has none, once, before the first wgpu
+/// instance. Mesa's Vulkan device-selection layer probes for a Wayland display when an
+/// instance is created, and libwayland prints "error: XDG_RUNTIME_DIR is invalid or not
+/// set" to the terminal without one: two lines per GPU test. The `cdlab` binary does the
+/// same at its start (`src/main.rs`); the test binaries call the library directly. The
+/// temporary directory holds no display socket, so the probe fails quietly.
+pub fn quiet_display_probe() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
+            // SAFETY: std's own environment reads take the lock set_var takes, and every
+            // GPU test reaches wgpu and Mesa (which read the environment from C) through
+            // this Once, so none of them reads it while it is written.
+            unsafe { std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir()) };
+        }
+    });
+}
+
 /// A GPU backend on `scene` (see [`skip_only_without_adapter`] for when it skips).
 pub fn gpu_or_skip(test: &str, scene: &Scene, params: StepParams) -> Option<GpuBackend> {
+    quiet_display_probe();
     skip_only_without_adapter(test, GpuBackend::new(scene.clone(), params))
 }
 
 /// An opened device (same rule as [`gpu_or_skip`]).
 pub fn device_or_skip(test: &str) -> Option<cdlab::gpu::device::GpuDevice> {
+    quiet_display_probe();
     skip_only_without_adapter(test, cdlab::gpu::device::open())
 }
 
