@@ -538,16 +538,20 @@ mod tests {
 
     #[test]
     fn a_sweep_moves_its_record_both_velocities_twice_and_four_words() {
-        // 10 members of a color: read 3 words + a contact + 2 velocities, write 2
-        // velocities + 4 words, per member; no term per contact or per wall.
+        // 10 members of a color: read 4 words (the color's place in the sweep order, its
+        // two offsets, the member's index) + a contact + 2 velocities, write 2 velocities +
+        // 4 words, per member; no term per contact or per wall. The small colors' sweep
+        // moves the same per member.
         let c = Counts {
             items: 10,
             contacts: 1000,
             walls: 4,
         };
-        let b = bytes(Kernel::SweepColor, c);
-        assert_eq!(b.read, 10 * (12 + 112 + 32));
-        assert_eq!(b.written, 10 * (32 + 16));
+        for k in [Kernel::SweepColor, Kernel::SweepTail] {
+            let b = bytes(k, c);
+            assert_eq!(b.read, 10 * (16 + 112 + 32), "{k:?}");
+            assert_eq!(b.written, 10 * (32 + 16), "{k:?}");
+        }
         // A workgroup per wall walks every contact: 4 x 1000 records.
         let b = bytes(Kernel::WallImpulse, Counts { items: 4, ..c });
         assert_eq!(b.read, 4 * 4 + 4 * 1000 * 112 + 4 * 8);
