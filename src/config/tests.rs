@@ -68,6 +68,13 @@ fn each_bad_value_is_rejected_naming_its_field() {
         ("[sample]\ndensity = 0", "sample.density"),
         ("[sample]\naspect_ratio = 0", "sample.aspect_ratio"),
         ("[sample]\naspect_ratio = nan", "sample.aspect_ratio"),
+        // Values config --check accepted and a run then failed on without naming the key
+        // (issue 36, item 12).
+        ("[sample]\naspect_ratio = 1e-320", "sample.aspect_ratio"),
+        ("[sample]\ndensity = \"1e308 kg/m3\"", "sample.density"),
+        ("[sample]\ndensity = \"1e-320 kg/m3\"", "sample.density"),
+        ("[test]\naxial_velocity = \"1e308 m/s\"", "test.axial_velocity"),
+        ("[test]\naxial_velocity = \"1e-320 m/s\"", "test.axial_velocity"),
         ("[solver]\ndt = 0", "solver.dt"),
         ("[solver]\ndt = inf", "solver.dt"),
         // Absurd for a time step; 1e-320 s used to be blamed on solver.velocity_tol (which

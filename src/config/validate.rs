@@ -148,6 +148,16 @@ impl Config {
             ));
         }
         check_positive("sample.density", s.density.0)?;
+        // Masses, inverse masses and kinetic energies stay finite and normal far beyond
+        // any material (aerogels to osmium, 1 to 22,600 kg/m3) and the density scaling of
+        // quasi-static studies; 1e308 overflowed the masses and 1e-320 their inverses.
+        if !(1e-6..=1e12).contains(&s.density.0) {
+            return Err(Error::invalid(
+                "sample.density",
+                s.density,
+                "must lie in [1e-6, 1e12] kg/m3 (the masses and their inverses must stay finite)",
+            ));
+        }
         // TOML integers are signed 64-bit: a larger seed could not be written back.
         if s.seed > i64::MAX as u64 {
             return Err(Error::invalid(
@@ -157,6 +167,14 @@ impl Config {
             ));
         }
         check_positive("sample.aspect_ratio", s.aspect_ratio)?;
+        // The deposit box's width comes from it: 1e-320 made the width infinite.
+        if !(0.01..=100.0).contains(&s.aspect_ratio) {
+            return Err(Error::invalid(
+                "sample.aspect_ratio",
+                s.aspect_ratio,
+                "must lie in [0.01, 100] (sample height over width)",
+            ));
+        }
 
         let v = &self.solver;
         check_positive("solver.dt", v.dt.0)?;
@@ -231,6 +249,22 @@ impl Config {
             ));
         }
         check_positive("test.axial_velocity", t.axial_velocity.0)?;
+        // The top wall's travel per step, against the smallest disk: more than a tenth of
+        // r_min per step is an impact, not a quasi-static test (1e308 m/s gave an infinite
+        // travel); below 1e-9 r_min the test never ends (1e-320 m/s wrote 118 MB of rows
+        // without moving).
+        let travel = t.axial_velocity.0 * self.solver.dt.0 / s.r_min.0;
+        if !(1e-9..=0.1).contains(&travel) {
+            return Err(Error::invalid(
+                "test.axial_velocity",
+                t.axial_velocity,
+                &format!(
+                    "moves the top wall by {travel:.3e} r_min per step (solver.dt = {}, \
+                     sample.r_min = {}): keep it between 1e-9 and 0.1",
+                    self.solver.dt, s.r_min
+                ),
+            ));
+        }
         check_open("test.strain_end", t.strain_end, 0.0, 1.0)?;
         check_range("test.e_n", t.e_n, 0.0, 1.0)?;
         check_range("test.e_t", t.e_t, -1.0, 1.0)?;
