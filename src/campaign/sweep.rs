@@ -177,8 +177,26 @@ impl Sweep {
         for &seed in &sweep.seeds {
             for &mu in &sweep.mu {
                 for &s3 in &sigma3 {
-                    let dir = sweep.out.join(format!("seed{seed}_mu{mu}_s{}MPa", s3 / 1e6));
-                    if grid.iter().any(|p: &Point| p.dir == dir) {
+                    let name = format!("seed{seed}_mu{mu}_s{}MPa", s3 / 1e6);
+                    // Filesystems name a file in at most 255 bytes: a friction or pressure
+                    // written out in hundreds of digits (mu = 1e300) passed the dry run and
+                    // failed when its test started.
+                    if name.len() > 255 {
+                        return Err(campaign_error(
+                            file,
+                            format!(
+                                "mu {mu}, sigma3 {s3} Pa: the test's directory name would be {} \
+                                 bytes, beyond the 255 a file name may have",
+                                name.len()
+                            ),
+                        ));
+                    }
+                    let dir = sweep.out.join(name);
+                    // By value too: -0.0 equals 0.0 but is written "-0".
+                    if grid
+                        .iter()
+                        .any(|p: &Point| p.dir == dir || (p.mu == mu && p.sigma3 == s3 && p.seed == seed))
+                    {
                         return Err(Error::Campaign {
                             path: file.to_path_buf(),
                             tests: Vec::new(),
@@ -362,6 +380,35 @@ mod tests {
             toml::from_str::<SweepFile>("out = \"x\"\n[[dt_by_friction]]\nmu_from = 3\ndt = \"0.25 MPa\"\n")
                 .is_err()
         );
+    }
+
+    /// A point given twice is refused, also when its two spellings differ (-0.0 and 0.0), and
+    /// so is a friction whose test directory could not be named (issue 36, item 12).
+    #[test]
+    fn a_point_given_twice_or_unnameable_is_refused() {
+        let dir = std::env::temp_dir().join(format!("cdlab-sweep-points-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for (text, expect) in [
+            ("mu = [0.0, -0.0]\nsigma3 = [\"8 MPa\"]\n", "duplicate point"),
+            ("mu = [1e300]\nsigma3 = [\"8 MPa\"]\n", "255"),
+        ] {
+            let file = dir.join("sweep.toml");
+            std::fs::write(&file, format!("out = \"{}\"\n{text}", dir.join("out").display())).unwrap();
+            let e = Sweep::load(&file).map(|_| ()).unwrap_err().to_string();
+            assert!(e.contains(expect), "{text}: {e}");
+        }
+        // One spelling each is a grid of two points.
+        let file = dir.join("sweep.toml");
+        std::fs::write(
+            &file,
+            format!(
+                "out = \"{}\"\nmu = [0.0, 0.3]\nsigma3 = [\"8 MPa\"]\n",
+                dir.join("out").display()
+            ),
+        )
+        .unwrap();
+        assert_eq!(Sweep::load(&file).unwrap().grid.len(), 2);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     /// The campaign files shipped in `assets/` parse, cover the paper's 13 x 5 grid, and
