@@ -772,3 +772,26 @@ fn gpu_sample_far_from_the_origin_moves_as_at_the_origin() {
         assert!(dv < 1e-6, "disk {k}: velocities {dv} m/s apart");
     }
 }
+
+/// A run of no steps reduces the state as it stands: the same counts and overlaps as the
+/// run before it left, and no step taken.
+#[test]
+fn gpu_run_of_no_steps_reduces_the_state_as_it_stands() {
+    let s = column(20, 0.5, G, None);
+    let Some(mut g) = gpu_or_skip("no steps", &s, gpu_params(Method::ColoredGs)) else {
+        return;
+    };
+    let last = g.run(5, &Loading::default()).unwrap();
+    let none = g.run(0, &Loading::default()).unwrap();
+    assert_eq!((none.steps, none.step), (0, last.step));
+    assert!(
+        last.force_carrying > 0,
+        "nothing carries force: nothing is compared"
+    );
+    assert_eq!(
+        (none.force_carrying, none.rolling, none.sliding, none.candidates),
+        (last.force_carrying, last.rolling, last.sliding, last.candidates)
+    );
+    assert_eq!(none.overlap_max, last.overlap_max);
+    assert_eq!(none.wall_point, last.wall_point);
+}

@@ -104,10 +104,6 @@ pub fn run(args: &Args) -> Result<()> {
                 },
                 other => return Err(Error::invalid("--backend", other, "cpu or gpu")),
             };
-            let case = crate::run::bench::Case {
-                method: params.solver.method.name().to_string(),
-                ..case
-            };
             eprintln!("{}", line(&case));
             cases.push(case);
         }

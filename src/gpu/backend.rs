@@ -412,11 +412,6 @@ impl GpuBackend {
         h
     }
 
-    /// Maps the first `size` bytes of the history and returns them (the window's one wait).
-    pub(super) fn map_history(&mut self, h: &wgpu::Buffer, size: u64) -> Result<Vec<u8>> {
-        self.map_read(h, size.max(4).next_multiple_of(4))
-    }
-
     /// The buffers that hold the state between steps, with the bytes of each that do: the
     /// disks, walls, velocities, warm start and the float accumulators.
     fn state_buffers(&self) -> [(&wgpu::Buffer, u64); 5] {
@@ -489,17 +484,12 @@ impl GpuBackend {
         enc.copy_buffer_to_buffer(src, offset, &staging, 0, size);
         self.gpu.queue.submit([enc.finish()]);
         self.counters.submissions += 1;
-        self.read_staging(&staging)
-    }
-
-    /// Maps an already filled staging buffer and returns its bytes.
-    pub(super) fn read_staging(&mut self, staging: &wgpu::Buffer) -> Result<Vec<u8>> {
-        self.map_read(staging, staging.size())
+        self.map_read(&staging, size)
     }
 
     /// Maps the first `size` bytes of a readable buffer whose copies have been submitted,
     /// waits for the device, and returns them (one wait).
-    fn map_read(&mut self, buf: &wgpu::Buffer, size: u64) -> Result<Vec<u8>> {
+    pub(super) fn map_read(&mut self, buf: &wgpu::Buffer, size: u64) -> Result<Vec<u8>> {
         let (tx, rx) = std::sync::mpsc::channel();
         buf.map_async(wgpu::MapMode::Read, ..size, move |r| {
             let _ = tx.send(r);

@@ -280,13 +280,12 @@ impl GpuBackend {
             self.sim.deep_budget = self.deep_budget;
             self.write_params();
         }
-        let (time, step) = (self.scene.time, self.scene.step);
+        // A window run again has put its state back; the host's clock moves only when one
+        // is taken.
         loop {
             if let Some(red) = self.window(steps, loading)? {
                 return Ok(red);
             }
-            self.scene.time = time;
-            self.scene.step = step;
         }
     }
 
@@ -418,17 +417,21 @@ impl GpuBackend {
         self.ensure_backup();
         let mut logs = Vec::with_capacity(steps as usize);
         let recording = std::time::Instant::now();
-        for s in 0..steps {
+        // A run of no steps still reduces the state as it stands: one command buffer holding
+        // the reductions alone.
+        for s in 0..steps.max(1) {
             let mut r = Rec::new(self);
             if s == 0 {
                 for (live, backup, n) in self.backup_pairs() {
                     r.copy(&live, 0, &backup, 0, n);
                 }
             }
-            self.record_step(&mut r, rec, (s < timed).then_some(4 * s));
-            let st = 4 * self.sim.o_status as u64;
-            r.copy(&self.bufs.ints, st, &history, s as u64 * ROW_BYTES, ROW_BYTES);
-            if s + 1 == steps {
+            if s < steps {
+                self.record_step(&mut r, rec, (s < timed).then_some(4 * s));
+                let st = 4 * self.sim.o_status as u64;
+                r.copy(&self.bufs.ints, st, &history, s as u64 * ROW_BYTES, ROW_BYTES);
+            }
+            if s + 1 >= steps {
                 r.block = None;
                 r.go(Kernel::ReduceFinal, 0, 1, self.sim.n_disks);
                 if !loading.strip.is_empty() {
@@ -456,7 +459,9 @@ impl GpuBackend {
             self.gpu.check("submitting the time step")?;
         }
         self.counters.record_ns += recording.elapsed().as_nanos() as u64;
-        let bytes = self.map_history(&history, end)?;
+        // `end` is a multiple of 8 (the timestamps' offset is aligned, the rows and records
+        // are whole words).
+        let bytes = self.map_read(&history, end)?;
         if timed > 0 {
             let t: &[u64] = bytemuck::cast_slice(&bytes[times_at as usize..end as usize]);
             let period = self.gpu.queue.get_timestamp_period() as f64;
@@ -548,9 +553,9 @@ impl GpuBackend {
         self.counters.steps += steps as u64;
         self.counters.iterations += red.iterations_sum;
         self.counters.color_rounds += rows.iter().map(|r| r.get(status::ROUNDS) as u64).sum::<u64>();
-        self.n_contacts = rows
-            .last()
-            .map_or(0, |r| r.get(status::CONTACTS).min(self.cap.contacts));
+        if let Some(r) = rows.last() {
+            self.n_contacts = r.get(status::CONTACTS).min(self.cap.contacts);
+        }
         self.scene.time += steps as f64 * self.params.dt;
         self.scene.step += steps as u64;
         red.colors_mean = colors as f64 / red.steps.max(1) as f64;

@@ -129,6 +129,18 @@ const fn w(buf: Buf, per: Per, bytes: u32) -> Access {
 use Buf::{Contacts, Disks, Floats, Ints, Prev, Vel, Walls};
 use Per::{Contact, Item, ItemContact, ItemWall, Once, Wall};
 
+/// A Gauss-Seidel update per member of a color, for both sweep kernels: the color's place in
+/// the sweep order, its two offsets and the member's index, the record, both velocities;
+/// both velocities, R_n and R_t, the two convergence terms.
+const SWEEP: &[Access] = &[
+    r(Ints, Item, 4 * WORD),
+    r(Contacts, Item, CONTACT),
+    r(Vel, Item, 2 * VEL),
+    w(Vel, Item, 2 * VEL),
+    w(Contacts, Item, 2 * WORD),
+    w(Floats, Item, 2 * WORD),
+];
+
 /// The accesses of every kernel, in the order of [`Kernel::ALL`]. Comments name what the
 /// bytes are; `W` is [`WORD`].
 pub const TABLE: &[(Kernel, &[Access])] = &[
@@ -311,32 +323,11 @@ pub const TABLE: &[(Kernel, &[Access])] = &[
             w(Vel, Item, VEL),
         ],
     ),
-    // Over a color's members: the color's two offsets, its index, the record, both
-    // velocities; both velocities, R_n and R_t, the two convergence terms.
-    (
-        Kernel::SweepColor,
-        &[
-            r(Ints, Item, 4 * WORD),
-            r(Contacts, Item, CONTACT),
-            r(Vel, Item, 2 * VEL),
-            w(Vel, Item, 2 * VEL),
-            w(Contacts, Item, 2 * WORD),
-            w(Floats, Item, 2 * WORD),
-        ],
-    ),
-    // The small colors in one workgroup, over their members: as SweepColor (the host
-    // charges every sweep of an iteration as SweepColor over all contacts).
-    (
-        Kernel::SweepTail,
-        &[
-            r(Ints, Item, 4 * WORD),
-            r(Contacts, Item, CONTACT),
-            r(Vel, Item, 2 * VEL),
-            w(Vel, Item, 2 * VEL),
-            w(Contacts, Item, 2 * WORD),
-            w(Floats, Item, 2 * WORD),
-        ],
-    ),
+    // Over a color's members (SWEEP).
+    (Kernel::SweepColor, SWEEP),
+    // The small colors in one workgroup, over their members: the same per member (the
+    // host charges every sweep of an iteration as SweepColor over all contacts).
+    (Kernel::SweepTail, SWEEP),
     // Over contacts: the count, the record, both velocities; the relaxed impulses (2) and
     // the two convergence terms.
     (

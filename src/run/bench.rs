@@ -188,7 +188,7 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, run: Run) ->
         host_record_ms_per_step: record,
         device_ms_per_step: device.0,
         device_solve_ms_per_step: device.1,
-        method: String::new(),
+        method: backend.params().solver.method.name().to_string(),
         fixed_dispatches_per_step: fixed,
         traffic_mb_per_step: traffic,
         host_peak_mib: host_peak_mib(),
@@ -213,12 +213,9 @@ pub fn measure_cpu(scene: Scene, params: StepParams, n: usize, run: Run) -> Resu
     let probe = Probe {
         counters: |_: &CpuBackend| None,
         device_mib: |_: &CpuBackend| 0.0,
-        check_every: |_: &CpuBackend| 0,
+        check_every: |c: &CpuBackend| c.params().solver.check_interval(false),
     };
-    let every = params.solver.check_interval(false);
-    let mut case = measure(&mut CpuBackend::new(scene, params)?, &probe, n, run)?;
-    case.check_every = every;
-    Ok(case)
+    measure(&mut CpuBackend::new(scene, params)?, &probe, n, run)
 }
 
 /// Measures the GPU backend as [`measure_cpu`] does the CPU's. `Err(Error::NoAdapter)`
