@@ -101,6 +101,8 @@ def main(out):
                 "phases": phases(series(d)),
                 "summary": json.loads(summary) if summary else None,
                 "log_tail": log.splitlines()[-6:],
+                # The backend's account of each phase (`PHASE: GPU ...` lines).
+                "activity": [l for l in log.splitlines() if ": GPU " in l],
             }
     with open(os.path.join(out, "report.json"), "w", encoding="utf-8") as f:
         json.dump(report, f, indent=1)
@@ -113,8 +115,8 @@ def main(out):
         "",
         "## cdlab bench (tolerance 1e-4, 5 warm-up and 10 measured steps)",
         "",
-        "| binary | backend | method | disks | contacts | check every | iterations/step | ms/step | host recording ms/step | device ms/step (solve) | ns/update | colors | dispatches/step | empty dispatches/step | submissions/step | waits/window |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| binary | backend | method | disks | contacts | check every | iterations/step | ms/step | host recording ms/step | recording threads | device ms/step (solve) | ns/update | colors | dispatches/step | empty dispatches/step | submissions/step | waits/window |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for c in report["bench"]:
         # Older binaries' bench.json lacks the newer fields.
@@ -125,7 +127,7 @@ def main(out):
             waits = c.get("readbacks_per_step", 0.0) * 10
         md.append(
             f"| {c['binary']} | {c['backend']} | {c.get('method', 'colored-gs')} | {c['disks']} | {c['contacts']} | {every} | {c['iterations_per_step']:.1f} "
-            f"| {c['ms_per_step']:.2f} | {c.get('host_record_ms_per_step', float('nan')):.2f} | {c.get('device_ms_per_step')} ({c.get('device_solve_ms_per_step')}) | {c['ns_per_contact_update']:.2f} | {c['colors_per_step']:.1f} "
+            f"| {c['ms_per_step']:.2f} | {c.get('host_record_ms_per_step', float('nan')):.2f} | {c.get('record_threads', '-')} | {c.get('device_ms_per_step')} ({c.get('device_solve_ms_per_step')}) | {c['ns_per_contact_update']:.2f} | {c['colors_per_step']:.1f} "
             f"| {c['dispatches_per_step']:.0f} | {'-' if empty is None else format(empty, '.0f')} "
             f"| {c['submissions_per_step']:.2f} | {waits:.2f} |"
         )
@@ -148,6 +150,8 @@ def main(out):
                 f"| {fmt(s['last_strain'], '.4f')} | {s['last_sigma1_mpa']:.2f} |"
             )
     for name, t in report["tests"].items():
+        if t.get("activity"):
+            md += ["", f"`{name}`, where the time went, by phase:", "", "```"] + t["activity"] + ["```"]
         md += ["", f"`{name}` log, last lines:", "", "```"] + t["log_tail"] + ["```"]
     with open(os.path.join(out, "report.md"), "w", encoding="utf-8") as f:
         f.write("\n".join(md) + "\n")

@@ -709,6 +709,43 @@ fn gpu_window_run_again_equals_one_with_room_to_spare() {
     assert_eq!(a.disks.spin, b.disks.spin);
 }
 
+/// Steps recorded by several host threads (`GpuBackend::record_threads`) are the same
+/// commands submitted in the same order: three threads, with margins small enough that a
+/// window is run again, end in the state of one thread, bit for bit, after windows of 7
+/// and 5 steps (more steps than threads, and fewer than two per thread). The backend's
+/// account of its activity counts the windows run, run again included.
+#[test]
+fn gpu_steps_recorded_on_several_threads_equal_one_thread() {
+    let s = column(60, 0.5, G, Some(-2.0e4));
+    let mut p = tight(Method::ColoredGs);
+    p.solver.tol = 1e-6;
+    p.solver.max_iter = 2000;
+    let Some(mut one) = gpu_or_skip("recording threads", &s, p) else {
+        return;
+    };
+    let mut three = gpu_or_skip("recording threads", &s, p).unwrap();
+    one.record_threads = 1;
+    three.record_threads = 3;
+    assert_eq!(three.recording_threads(), 3);
+    for steps in [7, 5] {
+        one.run(steps, &Loading::default()).unwrap();
+        three.run(steps, &Loading::default()).unwrap();
+    }
+    let (k1, k3) = (one.counters(), three.counters());
+    assert!(k3.redone >= 1, "nothing was run again ({k3:?})");
+    assert_eq!(k1.iterations, k3.iterations);
+    assert_eq!(k3.windows, 2 + k3.redone, "{k3:?}");
+    let text = three.activity().unwrap();
+    assert!(
+        text.contains(&format!("{} windows, {} run again", k3.windows, k3.redone)),
+        "{text}"
+    );
+    let (a, b) = (one.scene().unwrap(), three.scene().unwrap());
+    assert_eq!(a.disks.pos, b.disks.pos);
+    assert_eq!(a.disks.vel, b.disks.vel);
+    assert_eq!(a.disks.spin, b.disks.spin);
+}
+
 /// `solver.backend = "auto"` takes the GPU path only on a hardware adapter, and only for a
 /// method the GPU runs: on a machine whose only adapter is a software one (CI's lavapipe)
 /// it runs on the CPU, on one with a GPU on the GPU; `apgd` runs on the CPU everywhere.

@@ -135,6 +135,12 @@ pub trait Backend {
     /// Advances `steps` steps, recomputing the loads each step, and returns the reductions
     /// (wall forces averaged over the steps; counts and energies of the last step).
     fn run(&mut self, steps: u32, loading: &Loading) -> Result<Reductions>;
+    /// Where the time went since the last call, in one line for the user (the GPU: windows
+    /// run and run again, the host's recording and waiting, the device's own time), or
+    /// `None` where there is nothing to say (the CPU path).
+    fn activity(&mut self) -> Option<String> {
+        None
+    }
 }
 
 /// A boxed backend is a backend: the CLI picks CPU or GPU at run time.
@@ -162,5 +168,8 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     }
     fn run(&mut self, steps: u32, loading: &Loading) -> Result<Reductions> {
         (**self).run(steps, loading)
+    }
+    fn activity(&mut self) -> Option<String> {
+        (**self).activity()
     }
 }

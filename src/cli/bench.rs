@@ -40,6 +40,10 @@ pub struct Args {
     /// runs colored-gs, gs and jacobi).
     #[arg(long, value_delimiter = ',', default_value = "colored-gs")]
     pub method: Vec<String>,
+    /// GPU: host threads recording a window's steps, comma separated to compare several
+    /// (0: the backend's choice, `GpuBackend::recording_threads`).
+    #[arg(long, value_delimiter = ',', default_value = "0")]
+    pub record_threads: Vec<u32>,
     /// Output directory.
     #[arg(long, default_value = "out/bench")]
     pub out: PathBuf,
@@ -63,6 +67,9 @@ pub fn run(args: &Args) -> Result<()> {
     if args.window == 0 {
         return Err(Error::invalid("--window", 0, "must be >= 1"));
     }
+    if args.record_threads.is_empty() {
+        return Err(Error::invalid("--record-threads", "", "give at least one count"));
+    }
     if args.check_every.is_empty() {
         return Err(Error::invalid("--check-every", "", "give at least one interval"));
     }
@@ -73,17 +80,30 @@ pub fn run(args: &Args) -> Result<()> {
         warmup: args.warmup,
         steps: args.steps,
         window: args.window,
+        record_threads: 0,
     };
     let mut cases = Vec::new();
     let mut failures = Vec::new();
     for &n in &args.disks {
         let scene = sheared_sample(n)?;
         let combos = args.backend.iter().flat_map(|b| {
-            args.method
-                .iter()
-                .flat_map(move |m| args.check_every.iter().map(move |e| (b, m, *e)))
+            // The recording threads are the GPU's: the CPU runs each case once.
+            let threads = if b == "gpu" {
+                &args.record_threads[..]
+            } else {
+                &args.record_threads[..1]
+            };
+            args.method.iter().flat_map(move |m| {
+                args.check_every
+                    .iter()
+                    .flat_map(move |e| threads.iter().map(move |t| (b, m, *e, *t)))
+            })
         });
-        for (b, method, every) in combos {
+        for (b, method, every, threads) in combos {
+            let run = crate::run::bench::Run {
+                record_threads: threads,
+                ..run
+            };
             let mut params = params;
             params.solver.check_every = every;
             params.solver.method = method.parse()?;

@@ -11,7 +11,7 @@ fn ms(t: Option<f64>) -> String {
 /// One case on one line, every figure with its unit.
 pub fn line(c: &Case) -> String {
     format!(
-        "{:<40} {} {:>6} disks {:>7} contacts check every {} it {:>7.1} it/step {:>9.2} ms/step {:>7.2} ns/update {:>6.1} colors {:>5.1} rounds/step {} redone {:>8.1} dispatches/step ({:.1} fixed, {:.1} empty) {:>5.2} submissions/step {:>5.2} waits/window of {} steps, host recording {:.2} ms/step, device {} ms/step (solve {}) {:>8.1} MB/step device traffic host {:>7.1} MiB device {:>7.1} MiB",
+        "{:<40} {} {:>6} disks {:>7} contacts check every {} it {:>7.1} it/step {:>9.2} ms/step {:>7.2} ns/update {:>6.1} colors {:>5.1} rounds/step {} redone {:>8.1} dispatches/step ({:.1} fixed, {:.1} empty) {:>5.2} submissions/step {:>5.2} waits/window of {} steps, host recording {:.2} ms/step on {} threads, device {} ms/step (solve {}) {:>8.1} MB/step device traffic host {:>7.1} MiB device {:>7.1} MiB",
         c.backend,
         c.method,
         c.disks,
@@ -30,6 +30,7 @@ pub fn line(c: &Case) -> String {
         c.readbacks_per_window,
         c.window,
         c.host_record_ms_per_step,
+        c.record_threads,
         ms(c.device_ms_per_step),
         ms(c.device_solve_ms_per_step),
         c.traffic_mb_per_step,
@@ -45,16 +46,16 @@ pub fn markdown(cases: &[Case], tol: f64, warmup: u32, steps: u32) -> String {
         "# cdlab bench\n\nConfined dense sample under shear (deposit closed by walls, top wall at 0.5 m/s, friction 0.3), tolerance {}, {} warm-up and {} measured steps per case.\n\n",
         tol, warmup, steps
     );
-    s.push_str("| backend | method | disks | contacts | check every (it) | iterations/step | ms/step | ns/contact update | colors | coloring rounds/step | windows redone | dispatches/step | fixed dispatches/step | empty dispatches/step | submissions/step | waits/window | host recording (ms/step) | device (ms/step) | device solve (ms/step) | device traffic (MB/step) | host peak (MiB) | device (MiB) |\n");
+    s.push_str("| backend | method | disks | contacts | check every (it) | iterations/step | ms/step | ns/contact update | colors | coloring rounds/step | windows redone | dispatches/step | fixed dispatches/step | empty dispatches/step | submissions/step | waits/window | host recording (ms/step) | recording threads | device (ms/step) | device solve (ms/step) | device traffic (MB/step) | host peak (MiB) | device (MiB) |\n");
     s.push_str(
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
     );
     for c in cases {
         s.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {} | {} | {:.1} | {:.1} | {:.1} |\n",
+            "| {} | {} | {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {} | {} | {} | {:.1} | {:.1} | {:.1} |\n",
             c.backend, c.method, c.disks, c.contacts, c.check_every, c.iterations_per_step, c.ms_per_step, c.ns_per_contact_update, c.colors_per_step,
             c.color_rounds_per_step, c.redone_steps,
-            c.dispatches_per_step, c.fixed_dispatches_per_step, c.empty_dispatches_per_step, c.submissions_per_step, c.readbacks_per_window, c.host_record_ms_per_step, ms(c.device_ms_per_step), ms(c.device_solve_ms_per_step), c.traffic_mb_per_step, c.host_peak_mib, c.device_mib
+            c.dispatches_per_step, c.fixed_dispatches_per_step, c.empty_dispatches_per_step, c.submissions_per_step, c.readbacks_per_window, c.host_record_ms_per_step, c.record_threads, ms(c.device_ms_per_step), ms(c.device_solve_ms_per_step), c.traffic_mb_per_step, c.host_peak_mib, c.device_mib
         ));
     }
     s.push_str("\nCost per contact update against the smallest size (linear scaling keeps it flat; the cost per step at 50k within 11x of 5k asks for the same):\n\n");

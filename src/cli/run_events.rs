@@ -77,6 +77,7 @@ impl crate::run::Progress for Display {
                 end.kinetic_ratio,
                 end.force_imbalance
             )),
+            Event::Activity { phase, text } if !quiet => self.say(format!("{}: {text}", phase.name())),
             Event::StepsEnded => {
                 if let Some(b) = &self.bar {
                     b.finish_and_clear();

@@ -26,8 +26,13 @@ use crate::solver::Method;
 pub struct GpuCounters {
     /// Steps taken.
     pub steps: u64,
-    /// Steps redone after a capacity grew.
+    /// Windows run again after a capacity grew or a margin was short (each repeats all
+    /// the steps of its window).
     pub redone: u64,
+    /// Windows run, those run again included.
+    pub windows: u64,
+    /// Steps run again (the steps of the windows run again).
+    pub redone_steps: u64,
     /// Compute dispatches that did work: those of the fixed phases, and those of the
     /// solver's blocks that ran.
     pub dispatches: u64,
@@ -57,6 +62,11 @@ pub struct GpuCounters {
     /// Host time spent recording and submitting the steps' command buffers (ns): with the
     /// wall time per step, whether the host or the device sets the pace.
     pub record_ns: u64,
+    /// Host time spent waiting for the device at the end of the windows (ns).
+    pub wait_ns: u64,
+    /// Host time between two windows, outside the backend: the protocol, the records, the
+    /// downloads and uploads it asks for (ns). The device is idle then.
+    pub between_ns: u64,
     /// Steps timed on the device (timestamps at their start and end, where the adapter has
     /// `TIMESTAMP_QUERY`; the first [`TIMED_STEPS`] of each window).
     pub timed_steps: u64,
@@ -69,6 +79,9 @@ pub struct GpuCounters {
     /// GPU.
     pub deep_sweeps_cut: u64,
 }
+
+/// The most host threads [`GpuBackend::recording_threads`] chooses by itself.
+pub const RECORD_THREADS_MAX: u32 = 4;
 
 /// Steps of a window timed on the device (four timestamps each; a query set holds at most
 /// 4096).
@@ -87,6 +100,8 @@ impl std::ops::Sub for GpuCounters {
         GpuCounters {
             steps: self.steps - earlier.steps,
             redone: self.redone - earlier.redone,
+            windows: self.windows - earlier.windows,
+            redone_steps: self.redone_steps - earlier.redone_steps,
             dispatches: self.dispatches - earlier.dispatches,
             empty_dispatches: self.empty_dispatches - earlier.empty_dispatches,
             submissions: self.submissions - earlier.submissions,
@@ -98,6 +113,8 @@ impl std::ops::Sub for GpuCounters {
             bytes_written: self.bytes_written - earlier.bytes_written,
             readback_bytes: self.readback_bytes - earlier.readback_bytes,
             record_ns: self.record_ns - earlier.record_ns,
+            wait_ns: self.wait_ns - earlier.wait_ns,
+            between_ns: self.between_ns - earlier.between_ns,
             timed_steps: self.timed_steps - earlier.timed_steps,
             device_step_ns: self.device_step_ns - earlier.device_step_ns,
             device_solve_ns: self.device_solve_ns - earlier.device_solve_ns,
@@ -149,6 +166,9 @@ pub struct GpuBackend {
     /// start of every run of steps.
     pub deep_budget: u32,
     pub(super) counters: GpuCounters,
+    /// Host threads that record a window's steps, 0 for [`GpuBackend::recording_threads`]'s
+    /// choice. Read at every window; the commands recorded are the same whatever it is.
+    pub record_threads: u32,
     /// Contacts of the last step (from the history).
     pub(super) n_contacts: u32,
     pub(super) loading: Loading,
@@ -170,6 +190,10 @@ pub struct GpuBackend {
     /// Timestamps of the steps (start, solve start, solve end, end) and the buffer they
     /// are resolved into, where the device writes them.
     pub(super) timing: Option<(wgpu::QuerySet, wgpu::Buffer)>,
+    /// When the last window ended (for [`GpuCounters::between_ns`]).
+    pub(super) window_end: Option<std::time::Instant>,
+    /// The counters at the last [`Backend::activity`].
+    activity_mark: GpuCounters,
 }
 
 impl GpuBackend {
@@ -203,6 +227,7 @@ impl GpuBackend {
             conv_every: params.solver.check_interval(true),
             deep_budget: 0,
             counters: GpuCounters::default(),
+            record_threads: 0,
             n_contacts: 0,
             loading: Loading::default(),
             rounds_hint: 16,
@@ -213,6 +238,8 @@ impl GpuBackend {
             history: None,
             backup: None,
             timing: None,
+            window_end: None,
+            activity_mark: GpuCounters::default(),
         };
         if b.gpu.timestamps {
             let q = 4 * TIMED_STEPS;
@@ -244,6 +271,22 @@ impl GpuBackend {
         self.iters_hint = self.iters_hint.max(iterations);
         self.colors_hint = self.colors_hint.max(colors);
         self.rounds_hint = self.rounds_hint.max(rounds);
+    }
+
+    /// Host threads recording a window's steps: `record_threads` when set; else one on a
+    /// software adapter (its device work runs on the same cores) and on a host of at most
+    /// three cores, and otherwise the cores less two, up to [`RECORD_THREADS_MAX`]: on a
+    /// hardware GPU the host's recording of dispatches sets the pace (docs/gpu.md,
+    /// "Measured on hardware").
+    pub fn recording_threads(&self) -> u32 {
+        if self.record_threads > 0 {
+            return self.record_threads;
+        }
+        if self.gpu.info.device_type == wgpu::DeviceType::Cpu {
+            return 1;
+        }
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as u32;
+        cores.saturating_sub(2).clamp(1, RECORD_THREADS_MAX)
     }
 
     /// Bytes allocated on the device for this sample.
@@ -792,5 +835,44 @@ impl Backend for GpuBackend {
 
     fn run(&mut self, steps: u32, loading: &Loading) -> Result<Reductions> {
         self.run_steps(steps, loading)
+    }
+
+    fn activity(&mut self) -> Option<String> {
+        let c = self.counters - self.activity_mark;
+        self.activity_mark = self.counters;
+        Some(c.describe())
+    }
+}
+
+impl GpuCounters {
+    /// One line for the user: per step, the host's recording, its waiting and its time
+    /// outside the backend, the device's time where timed, and the windows run again.
+    pub fn describe(&self) -> String {
+        let steps = self.steps.max(1) as f64;
+        let ms = |ns: u64| ns as f64 / 1e6 / steps;
+        let device = if self.timed_steps > 0 {
+            format!(
+                "{:.3} ms/step (solve {:.3} ms/step)",
+                self.device_step_ns as f64 / 1e6 / self.timed_steps as f64,
+                self.device_solve_ns as f64 / 1e6 / self.timed_steps as f64
+            )
+        } else {
+            "not timed".into()
+        };
+        format!(
+            "GPU {} steps in {} windows, {} run again ({} steps); host recording {:.3} ms/step, \
+             waiting {:.3} ms/step, between windows {:.3} ms/step; device {device}; {:.1} \
+             iterations/step, {:.0} dispatches/step ({:.0} empty)",
+            self.steps,
+            self.windows,
+            self.redone,
+            self.redone_steps,
+            ms(self.record_ns),
+            ms(self.wait_ns),
+            ms(self.between_ns),
+            self.iterations as f64 / steps,
+            (self.dispatches + self.empty_dispatches) as f64 / steps,
+            self.empty_dispatches as f64 / steps,
+        )
     }
 }

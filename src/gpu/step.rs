@@ -142,6 +142,10 @@ struct Rec<'a> {
     b: &'a GpuBackend,
     log: Vec<Logged>,
     block: Option<u32>,
+    /// The pipeline and argument slot bound in the open pass: a dispatch that needs the
+    /// same ones sets neither again (each set costs the host as much as a third of a
+    /// dispatch).
+    bound: (Option<Kernel>, Option<u32>),
 }
 
 impl<'a> Rec<'a> {
@@ -152,6 +156,7 @@ impl<'a> Rec<'a> {
             b,
             log: Vec::new(),
             block: None,
+            bound: (None, None),
         }
     }
 
@@ -172,6 +177,7 @@ impl<'a> Rec<'a> {
 
     fn end_pass(&mut self) {
         self.pass = None;
+        self.bound = (None, None);
     }
 
     /// Writes timestamp `index` of the step timestamps, if the device has them (an empty
@@ -205,9 +211,15 @@ impl<'a> Rec<'a> {
 
     fn bind_args(&mut self, kernel: Kernel, slot: u32) {
         let b = self.b;
+        let (kernel_was, slot_was) = self.bound;
         let pass = self.pass();
-        pass.set_pipeline(b.pipes.get(kernel));
-        pass.set_bind_group(1, &b.bind.1, &[(slot as u64 * ARGS_STRIDE) as u32]);
+        if kernel_was != Some(kernel) {
+            pass.set_pipeline(b.pipes.get(kernel));
+        }
+        if slot_was != Some(slot) {
+            pass.set_bind_group(1, &b.bind.1, &[(slot as u64 * ARGS_STRIDE) as u32]);
+        }
+        self.bound = (Some(kernel), Some(slot));
     }
 
     /// Dispatches `x` workgroups of `kernel` with argument slot `slot`, over `items` items
@@ -413,55 +425,23 @@ impl GpuBackend {
         };
         let times_at = (final_at + keep + walls_bytes).next_multiple_of(8);
         let end = times_at + 8 * 4 * timed as u64;
+        if let Some(t) = self.window_end.take() {
+            self.counters.between_ns += t.elapsed().as_nanos() as u64;
+        }
+        self.counters.windows += 1;
         let history = self.history(end);
         self.ensure_backup();
-        let mut logs = Vec::with_capacity(steps as usize);
         let recording = std::time::Instant::now();
-        // A run of no steps still reduces the state as it stands: one command buffer holding
-        // the reductions alone.
-        for s in 0..steps.max(1) {
-            let mut r = Rec::new(self);
-            if s == 0 {
-                for (live, backup, n) in self.backup_pairs() {
-                    r.copy(&live, 0, &backup, 0, n);
-                }
-            }
-            if s < steps {
-                self.record_step(&mut r, rec, (s < timed).then_some(4 * s));
-                let st = 4 * self.sim.o_status as u64;
-                r.copy(&self.bufs.ints, st, &history, s as u64 * ROW_BYTES, ROW_BYTES);
-            }
-            if s + 1 >= steps {
-                r.block = None;
-                r.go(Kernel::ReduceFinal, 0, 1, self.sim.n_disks);
-                if !loading.strip.is_empty() {
-                    let (bins, nd) = (super::buffers::OUTLINE_BINS, self.sim.n_disks);
-                    r.go(Kernel::OutlineClear, 0, groups(bins), bins);
-                    r.go(Kernel::StripOutline, 0, groups(nd), nd);
-                    r.go(Kernel::OutlineSum, 0, 1, bins);
-                }
-                r.copy(&self.bufs.floats, 0, &history, final_at, keep);
-                if walls_bytes > 0 {
-                    r.copy(&self.bufs.walls, 0, &history, final_at + keep, walls_bytes);
-                }
-                if let Some((set, resolve)) = &self.timing
-                    && timed > 0
-                {
-                    r.end_pass();
-                    r.enc.resolve_query_set(set, 0..4 * timed, resolve, 0);
-                    r.copy(resolve, 0, &history, times_at, 8 * 4 * timed as u64);
-                }
-            }
-            let (cmd, log) = r.finish();
-            logs.push(log);
-            self.gpu.queue.submit([cmd]);
-            self.counters.submissions += 1;
-            self.gpu.check("submitting the time step")?;
-        }
+        let (logs, submitted) =
+            self.record_window(steps, rec, timed, &history, loading, final_at, times_at)?;
+        self.counters.submissions += submitted;
         self.counters.record_ns += recording.elapsed().as_nanos() as u64;
         // `end` is a multiple of 8 (the timestamps' offset is aligned, the rows and records
         // are whole words).
+        let waiting = std::time::Instant::now();
         let bytes = self.map_read(&history, end)?;
+        self.counters.wait_ns += waiting.elapsed().as_nanos() as u64;
+        self.window_end = Some(std::time::Instant::now());
         if timed > 0 {
             let t: &[u64] = bytemuck::cast_slice(&bytes[times_at as usize..end as usize]);
             let period = self.gpu.queue.get_timestamp_period() as f64;
@@ -525,6 +505,7 @@ impl GpuBackend {
         }
         if let Some(redo) = redo {
             self.counters.redone += 1;
+            self.counters.redone_steps += steps as u64;
             self.restore()?;
             let more = match redo {
                 Redo::Grow(cap, more) => {
@@ -561,6 +542,105 @@ impl GpuBackend {
         red.colors_mean = colors as f64 / red.steps.max(1) as f64;
         let tail = &bytes[final_at as usize..];
         self.finish_reductions(red, loading, tail).map(Some)
+    }
+
+    /// Records the window's command buffers, one per step, and submits them in order; with
+    /// several recording threads ([`GpuBackend::recording_threads`]) the steps are recorded
+    /// side by side (each is its own encoder, and none depends on another's recording) and
+    /// submitted as they come in order, so that the device starts on the first step while
+    /// the later ones are still being recorded. Returns the steps' dispatch logs and the
+    /// submissions made.
+    #[allow(clippy::too_many_arguments)]
+    fn record_window(
+        &self,
+        steps: u32,
+        rec: Recorded,
+        timed: u32,
+        history: &wgpu::Buffer,
+        loading: &Loading,
+        final_at: u64,
+        times_at: u64,
+    ) -> Result<(Vec<Vec<Logged>>, u64)> {
+        let n = steps.max(1);
+        let keep = 4 * self.bufs.layout.floats_keep as u64;
+        let walls_bytes = (self.scene.walls.len() * size_of::<GpuWall>()) as u64;
+        // A run of no steps still reduces the state as it stands: one command buffer holding
+        // the reductions alone.
+        let record = |s: u32| -> (wgpu::CommandBuffer, Vec<Logged>) {
+            let mut r = Rec::new(self);
+            if s == 0 {
+                for (live, backup, n) in self.backup_pairs() {
+                    r.copy(&live, 0, &backup, 0, n);
+                }
+            }
+            if s < steps {
+                self.record_step(&mut r, rec, (s < timed).then_some(4 * s));
+                let st = 4 * self.sim.o_status as u64;
+                r.copy(&self.bufs.ints, st, history, s as u64 * ROW_BYTES, ROW_BYTES);
+            }
+            if s + 1 >= steps {
+                r.block = None;
+                r.go(Kernel::ReduceFinal, 0, 1, self.sim.n_disks);
+                if !loading.strip.is_empty() {
+                    let (bins, nd) = (super::buffers::OUTLINE_BINS, self.sim.n_disks);
+                    r.go(Kernel::OutlineClear, 0, groups(bins), bins);
+                    r.go(Kernel::StripOutline, 0, groups(nd), nd);
+                    r.go(Kernel::OutlineSum, 0, 1, bins);
+                }
+                r.copy(&self.bufs.floats, 0, history, final_at, keep);
+                if walls_bytes > 0 {
+                    r.copy(&self.bufs.walls, 0, history, final_at + keep, walls_bytes);
+                }
+                if let Some((set, resolve)) = &self.timing
+                    && timed > 0
+                {
+                    r.end_pass();
+                    r.enc.resolve_query_set(set, 0..4 * timed, resolve, 0);
+                    r.copy(resolve, 0, history, times_at, 8 * 4 * timed as u64);
+                }
+            }
+            r.finish()
+        };
+        let mut logs = Vec::with_capacity(n as usize);
+        let submit = |cmd: wgpu::CommandBuffer| -> Result<()> {
+            self.gpu.queue.submit([cmd]);
+            self.gpu.check("submitting the time step")
+        };
+        let threads = self.recording_threads().min(n);
+        if threads <= 1 {
+            for s in 0..n {
+                let (cmd, log) = record(s);
+                logs.push(log);
+                submit(cmd)?;
+            }
+            return Ok((logs, n as u64));
+        }
+        std::thread::scope(|scope| -> Result<()> {
+            let (tx, rx) = std::sync::mpsc::channel();
+            for t in 0..threads {
+                let tx = tx.clone();
+                let record = &record;
+                scope.spawn(move || {
+                    for s in (t..n).step_by(threads as usize) {
+                        // The receiver is gone only after an error: stop recording.
+                        if tx.send((s, record(s))).is_err() {
+                            break;
+                        }
+                    }
+                });
+            }
+            drop(tx);
+            let mut waiting = std::collections::BTreeMap::new();
+            for (s, out) in rx {
+                waiting.insert(s, out);
+                while let Some((cmd, log)) = waiting.remove(&(logs.len() as u32)) {
+                    logs.push(log);
+                    submit(cmd)?;
+                }
+            }
+            Ok(())
+        })?;
+        Ok((logs, n as u64))
     }
 
     /// What a step's row asks of the window: larger capacities, or more coloring rounds,

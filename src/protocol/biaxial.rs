@@ -169,6 +169,10 @@ impl<B: Backend> Lab<B> {
             if let Some(signal) = cancel.requested()
                 && self.state.phase != Phase::Done
             {
+                // The phase cut short has its account too.
+                if let Some(text) = self.backend.activity() {
+                    obs.activity(self.state.phase, &text)?;
+                }
                 let step = self.checkpoint(obs)?;
                 return Err(Error::Interrupted { signal, step });
             }
@@ -395,6 +399,9 @@ impl<B: Backend> Lab<B> {
             force_imbalance: imbalance,
         };
         obs.phase_end(&end)?;
+        if let Some(text) = self.backend.activity() {
+            obs.activity(end.phase, &text)?;
+        }
         self.state.ends.push(end);
         self.state.phase_start = red.time;
         Ok(())

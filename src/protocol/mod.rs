@@ -271,6 +271,13 @@ pub trait Observer {
     ) -> Result<()>;
     /// A checkpoint: `bytes` restore the run exactly ([`checkpoint::decode`]).
     fn checkpoint(&mut self, step: u64, bytes: &[u8]) -> Result<()>;
+    /// The backend's account of where a phase's time went ([`Backend::activity`]), at the
+    /// phase's end; ignored unless the observer shows it.
+    ///
+    /// [`Backend::activity`]: crate::backend::Backend::activity
+    fn activity(&mut self, _phase: Phase, _text: &str) -> Result<()> {
+        Ok(())
+    }
 }
 
 /// An observer that keeps everything in memory (tests, reports).

@@ -42,6 +42,8 @@ pub struct Case {
     /// Iterations between two convergence tests (`solver.check_every` as the backend
     /// applies it).
     pub check_every: u32,
+    /// GPU: host threads that recorded the windows (0 on the CPU).
+    pub record_threads: u32,
     /// GPU: dispatches with work, submissions and readbacks per step (0 on the CPU).
     pub dispatches_per_step: f64,
     /// GPU: dispatches recorded per step that launched no workgroup (the solver's blocks
@@ -99,6 +101,7 @@ struct Probe<B> {
     counters: fn(&B) -> Option<crate::gpu::backend::GpuCounters>,
     device_mib: fn(&B) -> f64,
     check_every: fn(&B) -> u32,
+    record_threads: fn(&B) -> u32,
 }
 
 /// The steps of a window of `window` steps: `steps` steps in windows of `window`, as a test
@@ -130,6 +133,7 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, run: Run) ->
     let secs = t0.elapsed().as_secs_f64();
     let after = (probe.counters)(backend);
     let every = (probe.check_every)(backend);
+    let record_threads = (probe.record_threads)(backend);
     let steps = done.max(1) as f64;
     let n_windows = windows(run.steps, run.window).count().max(1) as f64;
     let iterations = iterations_sum as f64 / steps;
@@ -186,6 +190,7 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, run: Run) ->
         readbacks_per_step: readbacks / steps,
         readbacks_per_window: readbacks / n_windows,
         host_record_ms_per_step: record,
+        record_threads,
         device_ms_per_step: device.0,
         device_solve_ms_per_step: device.1,
         method: backend.params().solver.method.name().to_string(),
@@ -206,6 +211,9 @@ pub struct Run {
     pub steps: u32,
     /// Steps per window.
     pub window: u32,
+    /// GPU: host threads recording a window (`GpuBackend::record_threads`, 0 for its
+    /// choice).
+    pub record_threads: u32,
 }
 
 /// Measures the CPU backend on `scene` as `run` says; `n` is the sample's size as reported.
@@ -214,6 +222,7 @@ pub fn measure_cpu(scene: Scene, params: StepParams, n: usize, run: Run) -> Resu
         counters: |_: &CpuBackend| None,
         device_mib: |_: &CpuBackend| 0.0,
         check_every: |c: &CpuBackend| c.params().solver.check_interval(false),
+        record_threads: |_: &CpuBackend| 0,
     };
     measure(&mut CpuBackend::new(scene, params)?, &probe, n, run)
 }
@@ -228,6 +237,9 @@ pub fn measure_gpu(scene: Scene, params: StepParams, n: usize, run: Run) -> Resu
         counters: |g: &GpuBackend| Some(g.counters()),
         device_mib: |g: &GpuBackend| g.device_bytes() as f64 / (1024.0 * 1024.0),
         check_every: |g: &GpuBackend| g.conv_every,
+        record_threads: |g: &GpuBackend| g.recording_threads(),
     };
-    measure(&mut GpuBackend::new(scene, params)?, &probe, n, run)
+    let mut g = GpuBackend::new(scene, params)?;
+    g.record_threads = run.record_threads;
+    measure(&mut g, &probe, n, run)
 }

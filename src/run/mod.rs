@@ -108,6 +108,13 @@ pub enum Event<'a> {
         /// What was wrong with the summary ("is missing", "is damaged (...)").
         fault: &'a str,
     },
+    /// Where a phase's time went on the backend ([`crate::backend::Backend::activity`]).
+    Activity {
+        /// The phase that ended.
+        phase: Phase,
+        /// The backend's account, one line.
+        text: &'a str,
+    },
     /// A resumed run goes on from its checkpoint.
     Resuming {
         /// The run directory.

@@ -118,6 +118,11 @@ impl Observer for Recording<'_> {
         Ok(())
     }
 
+    fn activity(&mut self, phase: crate::protocol::Phase, text: &str) -> Result<()> {
+        self.progress.event(&Event::Activity { phase, text });
+        Ok(())
+    }
+
     fn snapshot(
         &mut self,
         strain: f64,
