@@ -16,6 +16,8 @@
 #   CDLAB_HW_METHODS      solver methods the bench compares (colored-gs,jacobi)
 #   CDLAB_HW_RECORD_THREADS  host threads recording the GPU's steps, compared by the bench
 #                         (1,2,4,0; 0 is the backend's choice)
+#   CDLAB_HW_SWEEP_ALL    whether the bench sweeps iterations past the typical count in one
+#                         workgroup, compared (true,false)
 #   CDLAB_HW_BASELINE     another cdlab binary (an earlier version) benched on the GPU at
 #                         CDLAB_HW_BASELINE_DISKS (5000,50000) in the same run, for a ratio
 #   CDLAB_HW_CPU_THREADS  threads of the 5000-disk CPU test, which runs beside the GPU one
@@ -79,7 +81,8 @@ nproc >"$OUT/cores.txt"
 # One bench for both backends: each sample is deposited once for all its cases.
 part bench 300 "$BIN" bench --disks "$DISKS" --backend gpu,cpu --check-every "$EVERY" \
     --method "${CDLAB_HW_METHODS:-colored-gs,jacobi}" \
-    --record-threads "${CDLAB_HW_RECORD_THREADS:-1,2,4,0}" --out "$OUT/bench"
+    --record-threads "${CDLAB_HW_RECORD_THREADS:-1,2,4,0}" --sweep-all "${CDLAB_HW_SWEEP_ALL:-true,false}" \
+    --out "$OUT/bench"
 if [ -n "${CDLAB_HW_BASELINE:-}" ]; then
     part bench_baseline 180 "$(realpath "$CDLAB_HW_BASELINE")" bench \
         --disks "${CDLAB_HW_BASELINE_DISKS:-5000,50000}" --backend gpu --out "$OUT/bench_baseline"

@@ -91,6 +91,37 @@ fn sweep_tail(@builtin(local_invocation_index) t: u32) {
     }
 }
 
+// Threads of sweep_all: more than WG, since one workgroup walks every contact.
+const WG_ALL: u32 = 4u * WG;
+
+var<workgroup> all_colors: u32;
+var<workgroup> all_range: vec2<u32>;
+
+// A whole Gauss-Seidel sweep in one workgroup: every nonempty color in the sweep order of
+// solve_args (large colors, then small ones), a barrier between two, so the same sweep as
+// sweep_color and sweep_tail in one dispatch. It serves the iterations recorded past what
+// the last steps typically needed: a dispatch past the solve's end costs the device about
+// as much as one with work (docs/gpu.md, "Measured on hardware"), so such iterations are
+// recorded as one dispatch each instead of one per color. Counts reach every thread
+// through workgroupUniformLoad, as barriers need; storageBarrier is a control barrier, so
+// every thread has read a color's range before thread 0 writes the next.
+@compute @workgroup_size(WG_ALL)
+fn sweep_all(@builtin(local_invocation_index) t: u32) {
+    if t == 0u { all_colors = ld(sim.o_status + ST_BIG) + ld(sim.o_status + ST_TAIL); }
+    let n = workgroupUniformLoad(&all_colors);
+    for (var c = 0u; c < n; c++) {
+        if t == 0u {
+            let col = ld(sim.o_color_map + c);
+            all_range = vec2<u32>(ld(sim.o_color_count + col), ld(sim.o_color_count + col + 1u));
+        }
+        let r = workgroupUniformLoad(&all_range);
+        for (var i = r.x + t; i < r.y; i += WG_ALL) {
+            sweep_one(ld(sim.o_order + i));
+        }
+        storageBarrier();
+    }
+}
+
 // Local updates of deep contacts (CPU twin: the end of solver::sweep::solve), part 1: after
 // the iterations, mark each loaded contact overlapping by more than sim.deep_gap, and count
 // them. Contacts with a full 2x2 block (glued walls) are left out, as on the CPU. Each deep

@@ -44,6 +44,10 @@ pub struct Args {
     /// (0: the backend's choice, `GpuBackend::recording_threads`).
     #[arg(long, value_delimiter = ',', default_value = "0")]
     pub record_threads: Vec<u32>,
+    /// GPU: whether iterations past the typical count are swept by one workgroup each
+    /// (`GpuBackend::overflow_sweeps`), comma separated to compare (true, false).
+    #[arg(long, value_delimiter = ',', default_value = "true")]
+    pub sweep_all: Vec<bool>,
     /// Output directory.
     #[arg(long, default_value = "out/bench")]
     pub out: PathBuf,
@@ -67,6 +71,9 @@ pub fn run(args: &Args) -> Result<()> {
     if args.window == 0 {
         return Err(Error::invalid("--window", 0, "must be >= 1"));
     }
+    if args.sweep_all.is_empty() {
+        return Err(Error::invalid("--sweep-all", "", "give true, false or both"));
+    }
     if args.record_threads.is_empty() {
         return Err(Error::invalid("--record-threads", "", "give at least one count"));
     }
@@ -81,27 +88,37 @@ pub fn run(args: &Args) -> Result<()> {
         steps: args.steps,
         window: args.window,
         record_threads: 0,
+        sweep_all: true,
     };
     let mut cases = Vec::new();
     let mut failures = Vec::new();
     for &n in &args.disks {
         let scene = sheared_sample(n)?;
         let combos = args.backend.iter().flat_map(|b| {
-            // The recording threads are the GPU's: the CPU runs each case once.
-            let threads = if b == "gpu" {
+            // Recording threads and sweep_all are the GPU's: the CPU runs each case once.
+            let gpu = b == "gpu";
+            let threads = if gpu {
                 &args.record_threads[..]
             } else {
                 &args.record_threads[..1]
             };
+            let all = if gpu {
+                &args.sweep_all[..]
+            } else {
+                &args.sweep_all[..1]
+            };
             args.method.iter().flat_map(move |m| {
-                args.check_every
-                    .iter()
-                    .flat_map(move |e| threads.iter().map(move |t| (b, m, *e, *t)))
+                args.check_every.iter().flat_map(move |e| {
+                    threads
+                        .iter()
+                        .flat_map(move |t| all.iter().map(move |a| (b, m, *e, *t, *a)))
+                })
             })
         });
-        for (b, method, every, threads) in combos {
+        for (b, method, every, threads, sweep_all) in combos {
             let run = crate::run::bench::Run {
                 record_threads: threads,
+                sweep_all,
                 ..run
             };
             let mut params = params;

@@ -11,7 +11,7 @@ fn ms(t: Option<f64>) -> String {
 /// One case on one line, every figure with its unit.
 pub fn line(c: &Case) -> String {
     format!(
-        "{:<40} {} {:>6} disks {:>7} contacts check every {} it {:>7.1} it/step {:>9.2} ms/step {:>7.2} ns/update {:>6.1} colors {:>5.1} rounds/step {} redone {:>8.1} dispatches/step ({:.1} fixed, {:.1} empty) {:>5.2} submissions/step {:>5.2} waits/window of {} steps, host recording {:.2} ms/step on {} threads, device {} ms/step (solve {}) {:>8.1} MB/step device traffic host {:>7.1} MiB device {:>7.1} MiB",
+        "{:<40} {} {:>6} disks {:>7} contacts check every {} it {:>7.1} it/step {:>9.2} ms/step {:>7.2} ns/update {:>6.1} colors {:>5.1} rounds/step {} redone {:>8.1} dispatches/step ({:.1} fixed, {:.1} empty) {:>5.2} submissions/step {:>5.2} waits/window of {} steps, host recording {:.2} ms/step on {} threads, sweep_all {}, device {} ms/step (solve {}) {:>8.1} MB/step device traffic host {:>7.1} MiB device {:>7.1} MiB",
         c.backend,
         c.method,
         c.disks,
@@ -31,6 +31,7 @@ pub fn line(c: &Case) -> String {
         c.window,
         c.host_record_ms_per_step,
         c.record_threads,
+        c.sweep_all,
         ms(c.device_ms_per_step),
         ms(c.device_solve_ms_per_step),
         c.traffic_mb_per_step,

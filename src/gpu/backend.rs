@@ -80,8 +80,10 @@ pub struct GpuCounters {
     pub deep_sweeps_cut: u64,
 }
 
-/// The most host threads [`GpuBackend::recording_threads`] chooses by itself.
-pub const RECORD_THREADS_MAX: u32 = 4;
+/// The most host threads [`GpuBackend::recording_threads`] chooses by itself: on an H200
+/// two threads recorded a 5000-disk step in 4.2 ms against 7.7 ms for one, and four or
+/// eight were no faster (docs/gpu.md, "Measured on hardware").
+pub const RECORD_THREADS_MAX: u32 = 2;
 
 /// Steps of a window timed on the device (four timestamps each; a query set holds at most
 /// 4096).
@@ -179,6 +181,13 @@ pub struct GpuBackend {
     pub(super) colors_hint: u32,
     /// Iterations recorded per step (in whole blocks), as `rounds_hint`.
     pub(super) iters_hint: u32,
+    /// The last window's mean iterations per step, rounded up: the blocks that cover it
+    /// are swept with a dispatch per color, those after with `sweep_all`.
+    pub(super) typical_iters: u32,
+    /// Whether the iterations recorded past `typical_iters` are swept by one workgroup
+    /// each (`sweep_all`, below `step::ONE_WORKGROUP_CONTACTS` contacts); the results are
+    /// the same either way.
+    pub overflow_sweeps: bool,
     /// The blocks of a solve (`step::schedule`) for the parameters and `conv_every` it
     /// was made for.
     pub(super) schedule: Vec<Block>,
@@ -233,6 +242,8 @@ impl GpuBackend {
             rounds_hint: 16,
             colors_hint: 16,
             iters_hint: 64,
+            typical_iters: 64,
+            overflow_sweeps: true,
             schedule: Vec::new(),
             schedule_for: None,
             history: None,

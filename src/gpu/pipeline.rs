@@ -71,6 +71,7 @@ kernels! {
         Gather = "gather",
         SweepColor = "sweep_color",
         SweepTail = "sweep_tail",
+        SweepAll = "sweep_all",
         JacobiSolve = "jacobi_solve",
         JacobiCommit = "jacobi_commit",
         ConvCheck = "conv_check",

@@ -44,6 +44,11 @@ fn groups(n: u32) -> u32 {
     n.div_ceil(WG)
 }
 
+/// The most contacts for which iterations past the typical count are swept by one
+/// workgroup (`sweep_all`): its 256 threads walk every contact, 128 passes here, where a
+/// dispatch per color costs the device a few microseconds each (docs/gpu.md).
+pub const ONE_WORKGROUP_CONTACTS: u32 = 32_768;
+
 /// Bytes of one step's row in the history: the status words.
 const ROW_BYTES: u64 = 4 * status::WORDS as u64;
 
@@ -132,6 +137,9 @@ pub(super) struct Recorded {
     pub colors: u32,
     /// Blocks of the solve.
     pub blocks: u32,
+    /// Of those, the first ones swept with a dispatch per color; the others (past what the
+    /// last steps typically needed) with one `sweep_all` per iteration.
+    pub full: u32,
 }
 
 /// A command encoder with an open compute pass, the shared bind groups set, and the log of
@@ -143,8 +151,8 @@ struct Rec<'a> {
     log: Vec<Logged>,
     block: Option<u32>,
     /// The pipeline and argument slot bound in the open pass: a dispatch that needs the
-    /// same ones sets neither again (each set costs the host as much as a third of a
-    /// dispatch).
+    /// same ones sets neither again (the host's recording sets the pace of small samples,
+    /// docs/gpu.md, "Measured on hardware").
     bound: (Option<Kernel>, Option<u32>),
 }
 
@@ -346,7 +354,7 @@ impl GpuBackend {
                 continue;
             }
             self.counters.dispatches += 1;
-            if sweep_tail {
+            if sweep_tail || l.kernel == Kernel::SweepAll {
                 // Its traffic is in the sweeps' below.
                 self.counters.sweep_dispatches += 1;
                 continue;
@@ -371,14 +379,14 @@ impl GpuBackend {
         // together one pass over the contacts.
         if self.params.solver.method != Method::Jacobi && n > 0 {
             let nonempty = row.get(status::BIG).min(rec.colors) as u64;
-            let recorded: u64 = self.schedule[..rec.blocks as usize]
-                .iter()
-                .map(|b| b.len as u64)
-                .sum();
+            let full = &self.schedule[..rec.full.min(rec.blocks) as usize];
+            let recorded: u64 = full.iter().map(|b| b.len as u64).sum();
             let run = iters as u64;
-            self.counters.dispatches += nonempty * run;
-            self.counters.sweep_dispatches += nonempty * run;
-            self.counters.empty_dispatches += rec.colors as u64 * recorded - nonempty * run;
+            // The iterations run with a dispatch per color (the others' sweep_all is logged).
+            let run_full = run.min(recorded);
+            self.counters.dispatches += nonempty * run_full;
+            self.counters.sweep_dispatches += nonempty * run_full;
+            self.counters.empty_dispatches += rec.colors as u64 * recorded - nonempty * run_full;
             let b = traffic::bytes(
                 Kernel::SweepColor,
                 Counts {
@@ -390,6 +398,16 @@ impl GpuBackend {
             self.counters.bytes_read += b.read * run;
             self.counters.bytes_written += b.written * run;
         }
+    }
+
+    /// Of `blocks` blocks, those swept with a dispatch per color: all of them for a sample
+    /// above [`ONE_WORKGROUP_CONTACTS`] contacts or with `overflow_sweeps` off; else those
+    /// that cover the last window's mean iterations per step, the rest with `sweep_all`.
+    fn full_blocks(&self, blocks: u32) -> u32 {
+        if !self.overflow_sweeps || self.n_contacts > ONE_WORKGROUP_CONTACTS {
+            return blocks;
+        }
+        self.blocks_for(self.typical_iters).min(blocks)
     }
 
     /// The blocks recorded for a solve expected to take `iters` iterations.
@@ -414,6 +432,11 @@ impl GpuBackend {
             rounds: self.rounds_hint.clamp(1, self.cap.rounds),
             colors: self.colors_hint.min(self.cap.colors),
             blocks: self.blocks_for(self.iters_hint),
+            full: 0,
+        };
+        let rec = Recorded {
+            full: self.full_blocks(rec.blocks),
+            ..rec
         };
         let keep = 4 * self.bufs.layout.floats_keep as u64;
         let walls_bytes = (nw * size_of::<GpuWall>()) as u64;
@@ -531,6 +554,7 @@ impl GpuBackend {
         self.colors_hint = c + 1;
         let it = max(status::ITERS);
         self.iters_hint = it + it / 4 + self.conv_every;
+        self.typical_iters = red.iterations_sum.div_ceil(red.steps.max(1) as u64) as u32;
         self.counters.steps += steps as u64;
         self.counters.iterations += red.iterations_sum;
         self.counters.color_rounds += rows.iter().map(|r| r.get(status::ROUNDS) as u64).sum::<u64>();
@@ -733,6 +757,9 @@ impl GpuBackend {
                     r.go_indirect(Kernel::JacobiSolve, 0, disp::LIVE_CONTACTS, all);
                     r.go_indirect(Kernel::JacobiCommit, 0, disp::LIVE_CONTACTS, all);
                     r.go_indirect(Kernel::Gather, 0, disp::LIVE_BODIES, Items::N(nb));
+                } else if k as u32 >= rec.full {
+                    let slot = color_slot(self.cap, 0, b.relaxed);
+                    r.go_indirect(Kernel::SweepAll, slot, disp::LIVE_ONE, all);
                 } else {
                     for c in 0..rec.colors {
                         // Not logged: charge() counts the sweeps from the row.

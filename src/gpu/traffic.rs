@@ -328,6 +328,8 @@ pub const TABLE: &[(Kernel, &[Access])] = &[
     // The small colors in one workgroup, over their members: the same per member (the
     // host charges every sweep of an iteration as SweepColor over all contacts).
     (Kernel::SweepTail, SWEEP),
+    // A whole sweep in one workgroup, over every member: the same.
+    (Kernel::SweepAll, SWEEP),
     // Over contacts: the count, the record, both velocities; the relaxed impulses (2) and
     // the two convergence terms.
     (
@@ -538,7 +540,7 @@ mod tests {
             contacts: 1000,
             walls: 4,
         };
-        for k in [Kernel::SweepColor, Kernel::SweepTail] {
+        for k in [Kernel::SweepColor, Kernel::SweepTail, Kernel::SweepAll] {
             let b = bytes(k, c);
             assert_eq!(b.read, 10 * (16 + 112 + 32), "{k:?}");
             assert_eq!(b.written, 10 * (32 + 16), "{k:?}");

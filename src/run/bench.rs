@@ -44,6 +44,8 @@ pub struct Case {
     pub check_every: u32,
     /// GPU: host threads that recorded the windows (0 on the CPU).
     pub record_threads: u32,
+    /// GPU: whether iterations past the typical count were swept by one workgroup.
+    pub sweep_all: bool,
     /// GPU: dispatches with work, submissions and readbacks per step (0 on the CPU).
     pub dispatches_per_step: f64,
     /// GPU: dispatches recorded per step that launched no workgroup (the solver's blocks
@@ -191,6 +193,7 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, run: Run) ->
         readbacks_per_window: readbacks / n_windows,
         host_record_ms_per_step: record,
         record_threads,
+        sweep_all: run.sweep_all,
         device_ms_per_step: device.0,
         device_solve_ms_per_step: device.1,
         method: backend.params().solver.method.name().to_string(),
@@ -214,6 +217,8 @@ pub struct Run {
     /// GPU: host threads recording a window (`GpuBackend::record_threads`, 0 for its
     /// choice).
     pub record_threads: u32,
+    /// GPU: `GpuBackend::overflow_sweeps`.
+    pub sweep_all: bool,
 }
 
 /// Measures the CPU backend on `scene` as `run` says; `n` is the sample's size as reported.
@@ -241,5 +246,6 @@ pub fn measure_gpu(scene: Scene, params: StepParams, n: usize, run: Run) -> Resu
     };
     let mut g = GpuBackend::new(scene, params)?;
     g.record_threads = run.record_threads;
+    g.overflow_sweeps = run.sweep_all;
     measure(&mut g, &probe, n, run)
 }
