@@ -100,7 +100,13 @@ pub fn outcome(dir: &Path) -> Outcome {
     );
     let obj = summary.as_object_mut().unwrap();
     // The checksum covers the wall clock too.
-    for volatile in ["wall_time_s", "steps_per_second", "record_id", "backend", "checksum"] {
+    for volatile in [
+        "wall_time_s",
+        "steps_per_second",
+        "record_id",
+        "backend",
+        "checksum",
+    ] {
         obj.remove(volatile);
     }
     let rows = rec
