@@ -87,11 +87,62 @@ pub fn read(path: &Path) -> std::io::Result<Vec<u8>> {
 
 /// Renames `from` to `to` (replacing it) and syncs the directory of `to`. A `to` that
 /// exists and is not a regular file is refused ([`check_replaceable`]).
+///
+/// Once the rename is done, the file is complete under its name for every later reader;
+/// only its survival of a power cut waits on the directory's sync. A failed sync is
+/// therefore a warning on stderr naming the directory, not an error: reporting the write
+/// as failed left a finished test's `summary.json` in place while the command exited 1.
 pub fn rename(from: &Path, to: &Path) -> Result<()> {
     check_replaceable(to)?;
     fault::point(false).map_err(|e| Error::io(to, e))?;
+    fault::rename_point().map_err(|e| Error::io(to, e))?;
     std::fs::rename(from, to).map_err(|e| Error::io(to, e))?;
-    sync_dir(to)
+    if let Err(e) = sync_dir(to) {
+        eprintln!(
+            "warning: {} was written, but syncing its directory failed ({e}): it may not survive \
+             a power cut",
+            to.display()
+        );
+    }
+    Ok(())
+}
+
+/// Creates the directory `dir` and its parents, with an error that says what stands in the
+/// way when `dir` exists as something else: a symbolic link that loops or leads nowhere, a
+/// file. The system's own answer there, "File exists", named no cause.
+pub fn create_dir_all(dir: &Path) -> Result<()> {
+    let Err(e) = std::fs::create_dir_all(dir) else {
+        return Ok(());
+    };
+    if e.kind() != std::io::ErrorKind::AlreadyExists {
+        return Err(Error::io(dir, e));
+    }
+    let what = match (std::fs::symlink_metadata(dir), std::fs::metadata(dir)) {
+        (Ok(m), Err(target)) if m.file_type().is_symlink() => {
+            #[cfg(unix)]
+            let looped = target.raw_os_error() == Some(libc::ELOOP);
+            #[cfg(not(unix))]
+            let looped = false;
+            if looped {
+                "a symbolic link that loops (it leads back to itself)".to_string()
+            } else {
+                format!("a symbolic link to nothing usable ({target})")
+            }
+        }
+        (Ok(m), Ok(_)) if m.file_type().is_symlink() => {
+            "a symbolic link to something else than a directory".into()
+        }
+        (Ok(m), _) => file_kind(&m.file_type()).to_string(),
+        (Err(_), _) => return Err(Error::io(dir, e)),
+    };
+    Err(Error::Run {
+        path: dir.to_path_buf(),
+        fault: RunFault::NotRegular,
+        message: format!(
+            "{} is {what}, not a directory: remove it or name another directory",
+            dir.display()
+        ),
+    })
 }
 
 /// Refuses `path` as a file to replace when it exists and is not a regular file: a
@@ -128,6 +179,9 @@ fn file_kind(kind: &std::fs::FileType) -> &'static str {
     }
     if kind.is_dir() {
         return "a directory";
+    }
+    if kind.is_file() {
+        return "a regular file";
     }
     #[cfg(unix)]
     {
@@ -252,7 +306,8 @@ pub fn sync_dir(path: &Path) -> Result<()> {
             Some(d) if !d.as_os_str().is_empty() => d,
             _ => Path::new("."),
         };
-        File::open(dir)
+        fault::dir_sync_point()
+            .and_then(|()| File::open(dir))
             .and_then(|d| d.sync_all())
             .map_err(|e| Error::io(dir, e))?;
     }
@@ -310,6 +365,8 @@ pub mod fault {
     const ENOSPC: u64 = 1;
     const ABORT: u64 = 2;
     const READ: u64 = 3;
+    const RENAME: u64 = 4;
+    const DIR_SYNC: u64 = 5;
 
     static MODE: AtomicU64 = AtomicU64::new(NONE);
     static AT: AtomicU64 = AtomicU64::new(0);
@@ -330,6 +387,12 @@ pub mod fault {
         /// The `n`-th whole read of a record ([`super::read`]) fails with an I/O error;
         /// the reads before and after it, and every write, pass. Only reads are counted.
         ReadFails(u64),
+        /// The `n`-th rename into place fails with an I/O error before anything is
+        /// renamed; only renames are counted, every write passes.
+        RenameFails(u64),
+        /// The `n`-th sync of a directory ([`super::sync_dir`]) fails with an I/O error
+        /// (after whatever it was to make durable happened); only those syncs are counted.
+        DirSyncFails(u64),
     }
 
     /// Installs `plan` and restarts the count.
@@ -339,6 +402,8 @@ pub mod fault {
             Plan::DiskFull(n) => (ENOSPC, n),
             Plan::Abort(n) => (ABORT, n),
             Plan::ReadFails(n) => (READ, n),
+            Plan::RenameFails(n) => (RENAME, n),
+            Plan::DirSyncFails(n) => (DIR_SYNC, n),
         };
         COUNT.store(0, Ordering::SeqCst);
         AT.store(at, Ordering::SeqCst);
@@ -358,7 +423,7 @@ pub mod fault {
     /// or report a short write); a rename at its abort point aborts here.
     pub(crate) fn point(write: bool) -> std::io::Result<()> {
         let mode = MODE.load(Ordering::Relaxed);
-        if mode == NONE || mode == READ {
+        if mode != ENOSPC && mode != ABORT {
             return Ok(());
         }
         let k = COUNT.fetch_add(1, Ordering::SeqCst) + 1;
@@ -378,7 +443,22 @@ pub mod fault {
 
     /// Passes one read point: under [`Plan::ReadFails`], the planned read fails (EIO).
     pub(crate) fn read_point() -> std::io::Result<()> {
-        if MODE.load(Ordering::Relaxed) != READ {
+        counted_point(READ)
+    }
+
+    /// Passes one rename point: under [`Plan::RenameFails`], the planned rename fails.
+    pub(crate) fn rename_point() -> std::io::Result<()> {
+        counted_point(RENAME)
+    }
+
+    /// Passes one directory sync: under [`Plan::DirSyncFails`], the planned sync fails.
+    pub(crate) fn dir_sync_point() -> std::io::Result<()> {
+        counted_point(DIR_SYNC)
+    }
+
+    /// A point counted only under the plan `mode`, failing (EIO) at its planned count.
+    fn counted_point(mode: u64) -> std::io::Result<()> {
+        if MODE.load(Ordering::Relaxed) != mode {
             return Ok(());
         }
         let k = COUNT.fetch_add(1, Ordering::SeqCst) + 1;
@@ -391,7 +471,7 @@ pub mod fault {
         }
         #[cfg(not(unix))]
         {
-            Err(std::io::Error::other("injected read fault"))
+            Err(std::io::Error::other("injected fault"))
         }
     }
 

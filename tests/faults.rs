@@ -459,3 +459,235 @@ fn stale_temporaries_of_killed_writes_are_cleaned_and_never_archived() {
     assert_eq!(tmps(&run), vec![live.display().to_string()]);
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// A summary changed after it was written (one digit of the peak stress, as a flipped bit
+/// would) is refused wherever it is read, naming the file (issue 36, item 7: 2.95 read as
+/// 3.95 MPa moved mu_macro from 0.196 to 0.347, and the archive copied it on): by the
+/// report, by `cdlab archive`, by `run::open` and by every parse of a [`Summary`] (the
+/// Python package's). A summary without a checksum (written before summaries had one) is
+/// read as before, and `cdlab summarize` rebuilds the damaged one.
+///
+/// [`Summary`]: cdlab::measure::summary::Summary
+#[test]
+fn a_summary_changed_after_writing_is_refused_naming_it() {
+    use cdlab::campaign::{archive::archive_finished, collect};
+    let base = scratch("checksum");
+    let cfg = config(10);
+    let run = base.join("run");
+    {
+        let _turn = turn();
+        fresh(&cfg, &run, sample()).unwrap();
+    }
+    let file = run.join("summary.json");
+    let good = std::fs::read_to_string(&file).unwrap();
+    assert!(good.contains("\"checksum\": \"crc32:"), "{good}");
+    let key = "\"sigma1_peak_mpa\": ";
+    let at = good.find(key).unwrap() + key.len();
+    let digit = if &good[at..at + 1] == "1" { "2" } else { "1" };
+    let flipped = format!("{}{digit}{}", &good[..at], &good[at + 1..]);
+    std::fs::write(&file, &flipped).unwrap();
+    let named = |text: String| {
+        assert!(
+            text.contains(file.to_str().unwrap()) && text.contains("checksum"),
+            "{text}"
+        );
+    };
+    let (points, missing) = collect(std::slice::from_ref(&run));
+    assert!(points.is_empty(), "a damaged summary was counted");
+    named(missing[0].1.clone());
+    named(cdlab::run::open(&run).unwrap_err().to_string());
+    let arch = base.join("arch");
+    named(
+        archive_finished(&run, &arch.join("run"), 10, false)
+            .err()
+            .expect("archived a damaged summary")
+            .to_string(),
+    );
+    assert!(!arch.join("run").join("summary.json").exists());
+    let parsed = serde_json::from_str::<cdlab::measure::summary::Summary>(&flipped);
+    assert!(parsed.unwrap_err().to_string().contains("checksum"));
+    assert!(serde_json::from_str::<cdlab::measure::summary::Summary>(&good).is_ok());
+
+    // Without its checksum it reads as a summary of before: counted.
+    let mut old: serde_json::Value = serde_json::from_str(&good).unwrap();
+    old.as_object_mut().unwrap().remove("checksum");
+    std::fs::write(&file, old.to_string()).unwrap();
+    assert_eq!(collect(std::slice::from_ref(&run)).0.len(), 1);
+
+    std::fs::write(&file, &flipped).unwrap();
+    let done = cdlab::cli::summarize::summarize(&run, false).unwrap();
+    assert!(
+        matches!(&done, cdlab::cli::summarize::Outcome::Rewritten(k) if k[0].contains("checksum")),
+        "{done:?}"
+    );
+    assert_eq!(collect(std::slice::from_ref(&run)).0.len(), 1);
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// A summary that names another record than the one beside it (a stale summary: archives
+/// merged after a test was archived unfinished, finished and archived again) is unfinished
+/// to the sweep as it is to the report (issue 36, item 4: the sweep skipped it forever):
+/// the sweep resumes the test, which writes its summary again from the complete record.
+/// And `cdlab summarize` takes the test's lock: while another process holds it (a forced
+/// rerun replacing the record), it refuses rather than write the old record's summary.
+#[test]
+fn a_stale_summary_is_unfinished_to_the_sweep_and_summarize_waits_for_the_lock() {
+    use cdlab::campaign::{Point, State, check_point, collect, point_config};
+    let base = scratch("stale-sweep");
+    let cfg = config(10);
+    let run = base.join("run");
+    {
+        let _turn = turn();
+        fresh(&cfg, &run, sample()).unwrap();
+    }
+    let p = Point {
+        mu: cfg.test.mu,
+        sigma3: cfg.test.sigma3.si(),
+        seed: cfg.sample.seed,
+        dt: cfg.solver.dt.si(),
+        dir: run.clone(),
+    };
+    let ours = point_config(&cfg, &p);
+    assert_eq!(check_point(&ours, &p).unwrap(), State::Finished);
+    // Another record's summary, whole: its checksum is right for its content.
+    let file = run.join("summary.json");
+    let mut stale: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    stale["record_id"] = serde_json::Value::from("0".repeat(32));
+    stale["checksum"] = serde_json::Value::from(cdlab::measure::summary::checksum(&stale));
+    std::fs::write(&file, serde_json::to_string_pretty(&stale).unwrap()).unwrap();
+    let (points, missing) = collect(std::slice::from_ref(&run));
+    assert!(
+        points.is_empty() && missing[0].1.contains("another record"),
+        "{missing:?}"
+    );
+    assert_eq!(check_point(&ours, &p).unwrap(), State::Resumable);
+
+    // Held by another process: summarize refuses and writes nothing.
+    let lock = cdlab::record::RunLock::acquire(&run).unwrap();
+    let before = std::fs::read(&file).unwrap();
+    let e = cdlab::cli::summarize::summarize(&run, false).unwrap_err();
+    assert!(matches!(e, cdlab::Error::InUse { .. }), "{e}");
+    assert_eq!(std::fs::read(&file).unwrap(), before);
+    drop(lock);
+
+    // What the sweep then does with it: the resume writes the record's own summary.
+    {
+        let _turn = turn();
+        resume(&run).unwrap();
+    }
+    assert_eq!(check_point(&ours, &p).unwrap(), State::Finished);
+    assert_eq!(collect(std::slice::from_ref(&run)).0.len(), 1);
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// A forced run over a finished test whose CSV rename fails (issue 36, item 12) leaves no
+/// old `series.csv` beside the new record: the old one is removed before the record is
+/// replaced. The error names the CSV.
+#[test]
+fn a_failed_csv_rename_leaves_no_old_rows_beside_the_new_record() {
+    let _turn = turn();
+    let base = scratch("csv-rename");
+    let cfg = config(10);
+    let run = base.join("run");
+    fresh(&cfg, &run, sample()).unwrap();
+    let csv = run.join("series.csv");
+    std::fs::write(&csv, "the old run's rows\n").unwrap();
+    let old_id = cdlab::record::read_run_id(&run).unwrap();
+    // The run's renames: its record, then its CSV.
+    fault::set(Plan::RenameFails(2));
+    let e = fresh(&cfg, &run, sample()).expect_err("the failed rename was ignored");
+    fault::set(Plan::None);
+    assert!(e.to_string().contains(csv.to_str().unwrap()), "{e}");
+    assert_ne!(
+        cdlab::record::read_run_id(&run).unwrap(),
+        old_id,
+        "the record was not replaced"
+    );
+    let left = std::fs::read_to_string(&csv).unwrap_or_default();
+    assert!(!left.contains("the old run's rows"), "the old series.csv stayed");
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// A directory sync that fails after the summary's rename (issue 36, item 12) does not
+/// fail a test that is complete: the run succeeds (a warning says the file may not survive
+/// a power cut) and the test counts as finished; before, it exited 1 beside a summary that
+/// marked it finished.
+#[test]
+fn a_failed_directory_sync_after_the_summary_does_not_fail_the_run() {
+    let _turn = turn();
+    let base = scratch("dir-sync");
+    let cfg = config(10);
+    fault::set(Plan::DirSyncFails(u64::MAX));
+    fresh(&cfg, &base.join("count"), sample()).unwrap();
+    let syncs = fault::count();
+    let run = base.join("run");
+    // The last one follows the rename of summary.json.
+    fault::set(Plan::DirSyncFails(syncs));
+    let done = fresh(&cfg, &run, sample());
+    fault::set(Plan::None);
+    done.unwrap();
+    assert_eq!(cdlab::campaign::collect(std::slice::from_ref(&run)).0.len(), 1);
+    // A sync that must precede what follows (the removal of an old summary) still fails.
+    fault::set(Plan::DirSyncFails(1));
+    let e = cdlab::run::clear_results(&run).expect_err("the failed sync was ignored");
+    fault::set(Plan::None);
+    assert!(e.to_string().contains(run.to_str().unwrap()), "{e}");
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// `--out` on a symbolic link that loops is refused with what it is (issue 36, item 12:
+/// the message was "File exists").
+#[cfg(unix)]
+#[test]
+fn an_output_directory_that_is_a_looping_link_is_named() {
+    let base = scratch("out-loop");
+    let looped = base.join("loop");
+    std::os::unix::fs::symlink(&looped, &looped).unwrap();
+    let toml = base.join("run.toml");
+    std::fs::write(&toml, config(10).to_toml_string().unwrap()).unwrap();
+    let (ok, text) = common::cdlab(&[
+        "biaxial",
+        "--config",
+        toml.to_str().unwrap(),
+        "--out",
+        looped.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains(looped.to_str().unwrap()) && text.contains("symbolic link that loops"),
+        "{text}"
+    );
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// A run directory says what was run (issue 36, item 15): the configuration as TOML beside
+/// the record, equal to the record's; the seed and the end strain in `summary.json` and
+/// `summary.txt`; and `cdlab config --of DIR` prints the configuration from the record.
+#[test]
+fn a_run_directory_says_what_was_run() {
+    let base = scratch("what-ran");
+    let cfg = config(10);
+    let run = base.join("run");
+    {
+        let _turn = turn();
+        fresh(&cfg, &run, sample()).unwrap();
+    }
+    let recorded = cdlab::record::read_config(&run).unwrap();
+    let beside = Config::load(run.join("config.toml")).unwrap();
+    assert_eq!(beside, recorded);
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["seed"].as_u64(), Some(cfg.sample.seed));
+    assert_eq!(summary["strain_end"].as_f64(), Some(cfg.test.strain_end));
+    let table = std::fs::read_to_string(run.join("summary.txt")).unwrap();
+    assert!(
+        table.contains("sample seed") && table.contains("end axial strain"),
+        "{table}"
+    );
+    let (ok, text) = common::cdlab(&["config", "--of", run.to_str().unwrap()]);
+    assert!(ok, "{text}");
+    assert_eq!(Config::from_toml_str(&text).unwrap(), recorded);
+    let _ = std::fs::remove_dir_all(&base);
+}

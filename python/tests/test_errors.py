@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import shutil
 import struct
 
@@ -89,10 +90,26 @@ def test_a_damaged_summary_raises_naming_it(small_run, tmp_path):
     assert e.value.path == str(run / "summary.json")
 
 
-def test_a_stale_summary_raises_naming_it(small_run, tmp_path):
+def test_a_summary_changed_after_writing_raises_naming_it(small_run, tmp_path):
     run = copy_run(small_run, tmp_path / "run")
     s = (run / "summary.json").read_text()
-    (run / "summary.json").write_text(s.replace(cdlab.open(small_run).run_id, "0" * 32))
+    key = '"sigma1_peak_mpa": '
+    at = s.index(key) + len(key)
+    digit = "1" if s[at] != "1" else "2"
+    (run / "summary.json").write_text(s[:at] + digit + s[at + 1 :])
+    with pytest.raises(cdlab.FileError, match="checksum") as e:
+        cdlab.open(run)
+    assert e.value.path == str(run / "summary.json")
+
+
+def test_a_stale_summary_raises_naming_it(small_run, tmp_path):
+    run = copy_run(small_run, tmp_path / "run")
+    s = json.loads((run / "summary.json").read_text())
+    s["record_id"] = "0" * 32
+    # Another record's summary, whole: its checksum is its own (none, as before summaries
+    # had one), so only its record_id gives it away.
+    del s["checksum"]
+    (run / "summary.json").write_text(json.dumps(s))
     with pytest.raises(cdlab.FileError, match="stale") as e:
         cdlab.open(run)
     assert e.value.path == str(run / "summary.json")

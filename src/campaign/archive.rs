@@ -127,7 +127,7 @@ pub fn archive_unfinished(src: &Path, dest: &Path) -> Result<u64> {
     // The sweep writes the CSV again when it resumes.
     let csv = part.join(CSV_FILE);
     std::fs::remove_file(&csv).map_err(|e| Error::io(&csv, e))?;
-    std::fs::create_dir_all(dest).map_err(|e| Error::io(dest, e))?;
+    crate::fsio::create_dir_all(dest)?;
     // Through the atomic rename: synced, and never over a link or a device.
     crate::record::atomic::rename(&part.join(MCAP_FILE), &dest.join(MCAP_FILE))?;
     let _ = std::fs::remove_dir_all(&part);
@@ -195,6 +195,9 @@ pub fn archive_finished(
     // stay in it, even when this test is already there and nothing is written.
     crate::record::atomic::remove_stale_tmps(dest, None);
     let read = |p: &Path| std::fs::read(p).map_err(|e| Error::io(p, e));
+    // Checked as the report and the sweep check it (its checksum, its record): an archive
+    // never carries a damaged or stale summary on.
+    crate::run::read_checked_summary(src)?;
     let summary = read(&src.join("summary.json"))?;
     let kept = dest.join("summary.json");
     // The configuration first: a run whose record cannot give it is not archived at all.
@@ -224,7 +227,7 @@ pub fn archive_finished(
     }
     check_same_test(dest, &config)?;
     let config = config.to_toml_string()?;
-    std::fs::create_dir_all(dest).map_err(|e| Error::io(dest, e))?;
+    crate::fsio::create_dir_all(dest)?;
     let write = |name: &str, bytes: &[u8]| crate::record::atomic::write_file(&dest.join(name), bytes);
     write(ARCHIVED_CONFIG_FILE, config.as_bytes())?;
     let text = src.join("summary.txt");

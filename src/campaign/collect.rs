@@ -67,46 +67,16 @@ pub fn collect(roots: &[PathBuf]) -> (Vec<TestPoint>, Vec<(PathBuf, String)>) {
     (found, missing)
 }
 
-/// An error when the summary `v` (read from `path`) names another record than the
-/// `run.mcap` beside it: the record was replaced by a later run (one that was stopped
-/// before its summary, say) and the summary is an earlier test's. A summary or record
-/// without an identity (written before they had one) and an archived test (no record)
-/// pass.
-fn check_record_id(dir: &Path, path: &Path, v: &serde_json::Value) -> Result<()> {
-    let Some(theirs) = v.get("record_id").and_then(serde_json::Value::as_str) else {
-        return Ok(());
-    };
-    if !dir.join(crate::record::MCAP_FILE).is_file() {
-        return Ok(());
-    }
-    match crate::record::read_run_id(dir) {
-        Ok(Some(ours)) if ours != theirs => Err(Error::Run {
-            path: path.to_path_buf(),
-            fault: RunFault::Damaged,
-            message: format!(
-                "{} belongs to another record (record_id {theirs}) than the run.mcap beside it \
-                 (run_id {ours}): a stale summary of an earlier run, not counted (`cdlab \
-                 summarize {}` writes it again from the record once that run is complete)",
-                path.display(),
-                dir.display()
-            ),
-        }),
-        _ => Ok(()),
-    }
-}
-
 fn read_point(dir: &Path, path: &Path) -> Result<TestPoint> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     // Only the four figures the analysis needs are read, so a summary with other fields
-    // null (NaN has no JSON form) or from another version still counts.
+    // null (NaN has no JSON form) or from another version still counts. It is checked as
+    // the sweep checks it: its checksum, and that it names the record beside it.
     let damaged = |message: String| Error::Run {
         path: path.to_path_buf(),
         fault: RunFault::Damaged,
         message,
     };
-    let v: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| damaged(format!("{}: {e}", path.display())))?;
-    check_record_id(dir, path, &v)?;
+    let v = crate::run::read_checked_summary(dir)?;
     let num = |k: &str| v.get(k).and_then(serde_json::Value::as_f64);
     // Events counted from row to row follow the time step: not comparable, left out.
     let binned = num("stress_drop_bin_strain").and_then(|_| v.get("stress_drops")?.as_array());

@@ -303,6 +303,9 @@ fn run_point(
         let mut prepare = base.clone();
         prepare.sample.seed = p.seed;
         let scene = sample(&prepare, out, p.seed, samples, watch, cancel)?;
+        // A record without a checkpoint may have a summary beside it that is not its own
+        // (check_point found it did not stand): gone before the new record takes its place.
+        run::clear_results(&p.dir)?;
         run::run_fresh(&config, &p.dir, Some(scene), progress, cancel)?
     };
     Ok(TestOutcome::Finished(Box::new(outcome.summary)))
@@ -325,7 +328,7 @@ fn sample(
     }
     let path = out.join("samples").join(format!("seed{seed}.bin"));
     let dir = path.parent().expect("has a parent");
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    crate::fsio::create_dir_all(dir)?;
     // Held while the sample is looked for and, when absent, prepared and written: the file
     // appears whole (temporary name, fsync, rename) and only once.
     let _lock = crate::protocol::sample_file::SampleLock::acquire(&path, || {

@@ -7,7 +7,6 @@ use serde::Deserialize;
 use crate::config::units::{Dimension, parse_with_unit};
 use crate::config::{Config, Duration, Pressure};
 use crate::error::{Error, Result, RunFault};
-use crate::run::differences;
 
 /// The sweep file.
 #[derive(Debug, Deserialize)]
@@ -281,7 +280,17 @@ pub fn check_point(config: &Config, p: &Point) -> Result<State> {
     // first minutes) has nothing to resume: the test starts again. An unreadable record is
     // an error, never overwritten.
     let started = p.dir.join(crate::record::MCAP_FILE).exists();
-    let finished = p.dir.join("summary.json").exists();
+    // A summary that does not stand (damaged, or another record's: `cdlab report` does not
+    // count it either) does not make the test finished, or the sweep would skip it forever.
+    // With a record the test resumes, which writes the summary again from a complete
+    // record; without one (an archived test) nothing can repair it here: an error naming
+    // the file.
+    let finished = p.dir.join(crate::run::SUMMARY_FILE).exists()
+        && match crate::run::read_checked_summary(&p.dir) {
+            Ok(_) => true,
+            Err(_) if started => false,
+            Err(e) => return Err(e),
+        };
     let (recorded, resume) = if finished {
         (Some(crate::record::read_config(&p.dir)?), false)
     } else if started {
@@ -316,31 +325,85 @@ pub fn check_point(config: &Config, p: &Point) -> Result<State> {
     })
 }
 
-/// The settings the sweep gives each test on which `recorded` (a test found in its
-/// directory) differs from `ours`, one phrase each. A finished test of other settings would
-/// enter the report as one of this campaign's, and a half-finished one would resume with its
-/// own.
+/// Whether the setting `key` makes a test found in its directory another test than the
+/// sweep's when it differs. Not: where it was run (`output.dir`: a campaign may move), how
+/// often it checkpointed (checkpoints change nothing in the run), and the solver's
+/// numerical settings but the time step (tolerances, iteration schemes, thread count,
+/// backend: how closely each step is solved and on what, which versions tune and a sweep
+/// sets per machine; the campaign archived in `assets/results/campaign5000` ran under
+/// older ones).
+fn compared(key: &str) -> bool {
+    let numerics = key.starts_with("solver.") && key != "solver.dt";
+    !(numerics || key == "output.dir" || key == "output.checkpoint_every")
+}
+
+/// The units of the configuration's quantities (held in SI), for the messages.
+const UNITS: [(&str, &str); 9] = [
+    ("sample.r_min", " m"),
+    ("sample.r_max", " m"),
+    ("sample.density", " kg/m3"),
+    ("solver.dt", " s"),
+    ("compaction.sigma_c", " Pa"),
+    ("test.sigma3", " Pa"),
+    ("test.strip_thickness", " m"),
+    ("test.axial_velocity", " m/s"),
+    ("equilibrium.max_time", " s"),
+];
+
+/// The settings on which `recorded` (a test found in its directory) differs from `ours`
+/// (the sweep's for that test), one phrase each naming the key and both values. Every
+/// setting counts ([`compared`]): a finished test of other settings (another disk
+/// count after the base changed) would enter the report as one of this campaign's, mixed
+/// with the others without a word, and a half-finished one would resume with its own.
 fn point_differences(ours: &Config, recorded: &Config) -> Vec<String> {
-    differences(
-        &[("sample.seed", ours.sample.seed, recorded.sample.seed)],
-        &[
-            ("test.mu", ours.test.mu, recorded.test.mu, ""),
-            (
-                "test.sigma3",
-                ours.test.sigma3.si(),
-                recorded.test.sigma3.si(),
-                " Pa",
-            ),
-            (
-                "test.strain_end",
-                ours.test.strain_end,
-                recorded.test.strain_end,
-                "",
-            ),
-            ("solver.dt", ours.solver.dt.si(), recorded.solver.dt.si(), " s"),
-        ],
-        "the test",
-    )
+    let (ours, theirs) = (dotted(ours), dotted(recorded));
+    let keys: std::collections::BTreeSet<&String> = ours.keys().chain(theirs.keys()).collect();
+    let show = |v: Option<&serde_json::Value>, unit: &str| match v {
+        None | Some(serde_json::Value::Null) => "none".to_string(),
+        Some(serde_json::Value::String(s)) => format!("\"{s}\""),
+        Some(serde_json::Value::Number(n)) => match (n.as_u64(), n.as_f64()) {
+            (Some(k), _) => format!("{k}{unit}"),
+            (None, Some(x)) => format!("{x}{unit}"),
+            _ => format!("{n}{unit}"),
+        },
+        Some(other) => other.to_string(),
+    };
+    keys.into_iter()
+        .filter(|k| compared(k))
+        .filter(|k| ours.get(*k) != theirs.get(*k))
+        .map(|k| {
+            let unit = UNITS
+                .iter()
+                .find(|(key, _)| *key == k.as_str())
+                .map_or("", |(_, u)| *u);
+            format!(
+                "{k}: {} here, {} in the test",
+                show(ours.get(k), unit),
+                show(theirs.get(k), unit)
+            )
+        })
+        .collect()
+}
+
+/// The configuration's settings by dotted key (`sample.disks`), as serialized (SI).
+fn dotted(config: &Config) -> std::collections::BTreeMap<String, serde_json::Value> {
+    let mut out = std::collections::BTreeMap::new();
+    let Ok(serde_json::Value::Object(sections)) = serde_json::to_value(config) else {
+        return out;
+    };
+    for (section, keys) in sections {
+        match keys {
+            serde_json::Value::Object(keys) => {
+                for (key, v) in keys {
+                    out.insert(format!("{section}.{key}"), v);
+                }
+            }
+            other => {
+                out.insert(section, other);
+            }
+        }
+    }
+    out
 }
 
 #[cfg(test)]

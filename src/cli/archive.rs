@@ -56,7 +56,7 @@ pub fn run(args: &Args) -> Result<()> {
     }
     // Unfinished tests alone are worth keeping when asked for.
     let (points, missing) = super::report::collect_dirs(&args.dirs, !args.with_unfinished)?;
-    std::fs::create_dir_all(&args.to).map_err(|e| Error::io(&args.to, e))?;
+    crate::fsio::create_dir_all(&args.to)?;
     // The campaign list's, left by a killed archive (each test's go in archive_finished).
     crate::record::atomic::remove_stale_tmps(&args.to, None);
     let (mut written, mut updated, mut same) = (0, 0, 0);

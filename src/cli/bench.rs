@@ -145,7 +145,7 @@ pub fn run(args: &Args) -> Result<()> {
             cases.push(case);
         }
     }
-    std::fs::create_dir_all(&args.out).map_err(|e| Error::io(&args.out, e))?;
+    crate::fsio::create_dir_all(&args.out)?;
     let json = serde_json::to_string_pretty(&cases).map_err(|e| Error::Other(e.to_string()))?;
     let p = args.out.join("bench.json");
     crate::record::atomic::write_file(&p, json.as_bytes())?;

@@ -1,4 +1,5 @@
-//! `cdlab config`: print the commented default configuration, or check a file.
+//! `cdlab config`: print the commented default configuration, check a file, or print the
+//! configuration a run was made with.
 
 use std::path::PathBuf;
 
@@ -13,6 +14,10 @@ pub struct Args {
     /// Validate a configuration file (parse, units, ranges) and report the first problem.
     #[arg(long, value_name = "FILE")]
     pub check: Option<PathBuf>,
+    /// Print the configuration a run was made with (TOML, SI units), from its record (or
+    /// an archived test's `config.toml`).
+    #[arg(long, value_name = "RUN_DIR")]
+    pub of: Option<PathBuf>,
 }
 
 /// Runs `cdlab config`.
@@ -28,9 +33,17 @@ pub fn run(args: &Args) -> crate::Result<()> {
         })?;
         println!("{}: ok", path.display());
     }
-    if !args.print_default && args.check.is_none() {
+    if let Some(dir) = &args.of {
+        let config = crate::record::read_config(dir)?;
+        print!(
+            "# The configuration of the run in {} (SI units)\n{}",
+            dir.display(),
+            config.to_toml_string()?
+        );
+    }
+    if !args.print_default && args.check.is_none() && args.of.is_none() {
         return Err(crate::Error::Other(
-            "cdlab config: give --print-default or --check FILE".into(),
+            "cdlab config: give --print-default, --check FILE or --of RUN_DIR".into(),
         ));
     }
     Ok(())

@@ -43,7 +43,7 @@ pub fn run(args: &Args) -> Result<()> {
         None if args.run.is_dir() => args.run.join("fabric"),
         None => args.run.with_file_name("fabric"),
     };
-    std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+    crate::fsio::create_dir_all(&dir)?;
     let title = format!("contact orientations at axial strain {:.4}", snap.strain);
     let rose = RoseFigure {
         all: &a.rose_all,

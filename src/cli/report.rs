@@ -52,7 +52,7 @@ pub fn run(args: &Args) -> Result<()> {
     let (points, missing) = collect_dirs(&args.dirs, true)?;
     let report = analyse(&points, missing);
     let out = args.out.clone().unwrap_or_else(|| args.dirs[0].clone());
-    std::fs::create_dir_all(&out).map_err(|e| Error::io(&out, e))?;
+    crate::fsio::create_dir_all(&out)?;
     let json = serde_json::to_string_pretty(&report).map_err(|e| Error::Other(e.to_string()))?;
     // Each file whole or not at all (a report killed midway leaves the previous one).
     let write = crate::record::atomic::write_file;

@@ -5,14 +5,34 @@ use super::derived::{Strength, strength};
 use super::phase::PhaseEnd;
 
 /// What a finished biaxial test reports.
+///
+/// `summary.json` ([`Summary::to_json`]) also carries [`CHECKSUM_KEY`], the CRC-32 of the
+/// rest of its content, and reading one ([`serde::Deserialize`], [`verify_checksum`])
+/// refuses a summary whose content no longer matches it: a flipped digit changes the
+/// campaign's figures without any other sign. A summary without the key (written before
+/// summaries had one) is read unchecked.
+// `remote = "Self"` makes the derives generate the field-by-field code as inherent
+// functions, so that the trait impls below can check the checksum before using it.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(remote = "Self")]
 pub struct Summary {
     /// cdlab version.
     pub version: String,
-    /// Backend that ran the test.
+    /// Backend that ran the test (its last part, for a resumed run).
     pub backend: String,
+    /// Every backend that ran a part of the test, in order, when they were not all one
+    /// (a GPU run resumed on the CPU); absent otherwise, and in summaries written before it.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub backends: Vec<String>,
     /// Number of disks.
     pub disks: usize,
+    /// Seed of the sample (`sample.seed`); absent in summaries written before it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    /// Axial strain at which the test ends (`test.strain_end`); absent in summaries written
+    /// before it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub strain_end: Option<f64>,
     /// Disk-disk friction coefficient.
     pub mu: f64,
     /// Confining stress (MPa).
@@ -101,6 +121,108 @@ pub struct Summary {
     /// before it, and in summaries built without a record.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub record_id: Option<String>,
+}
+
+impl serde::Serialize for Summary {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        Summary::serialize(self, s)
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Summary {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        use serde::de::Error;
+        let value = serde_json::Value::deserialize(d)?;
+        verify_checksum(&value).map_err(D::Error::custom)?;
+        Summary::deserialize(value).map_err(D::Error::custom)
+    }
+}
+
+/// The key of `summary.json` that holds the CRC-32 of the rest of the summary.
+pub const CHECKSUM_KEY: &str = "checksum";
+
+/// The checksum of a summary's JSON `value`: `crc32:` and the CRC-32 (IEEE), in 8 hex
+/// digits, of its canonical text ([`canonical`]) without [`CHECKSUM_KEY`]. Computed on the
+/// values, not the bytes, so that it does not depend on the spacing or the order of keys.
+pub fn checksum(value: &serde_json::Value) -> String {
+    let mut text = String::new();
+    match value.as_object() {
+        Some(map) => {
+            let mut rest = map.clone();
+            rest.remove(CHECKSUM_KEY);
+            canonical(&serde_json::Value::Object(rest), &mut text);
+        }
+        None => canonical(value, &mut text),
+    }
+    format!("crc32:{:08x}", crc32fast::hash(text.as_bytes()))
+}
+
+/// Writes `value` as compact JSON with the keys of every object sorted: one text per value,
+/// whatever the map type keeps (the numbers as serde_json writes them, shortest round trip).
+fn canonical(value: &serde_json::Value, out: &mut String) {
+    use serde_json::Value;
+    match value {
+        Value::Object(map) => {
+            let mut keys: Vec<&String> = map.keys().collect();
+            keys.sort();
+            out.push('{');
+            for (k, key) in keys.into_iter().enumerate() {
+                if k > 0 {
+                    out.push(',');
+                }
+                out.push_str(&Value::from(key.as_str()).to_string());
+                out.push(':');
+                canonical(&map[key], out);
+            }
+            out.push('}');
+        }
+        Value::Array(items) => {
+            out.push('[');
+            for (k, item) in items.iter().enumerate() {
+                if k > 0 {
+                    out.push(',');
+                }
+                canonical(item, out);
+            }
+            out.push(']');
+        }
+        other => out.push_str(&other.to_string()),
+    }
+}
+
+/// Checks the checksum of a summary's JSON `value`: `Err` says why it does not match its
+/// content. A summary without [`CHECKSUM_KEY`] (written before summaries had one) passes.
+pub fn verify_checksum(value: &serde_json::Value) -> std::result::Result<(), String> {
+    let Some(saved) = value.get(CHECKSUM_KEY) else {
+        return Ok(());
+    };
+    let calculated = checksum(value);
+    match saved.as_str() {
+        Some(s) if s == calculated => Ok(()),
+        Some(s) => Err(format!(
+            "its content does not match its checksum (saved {s}, calculated {calculated}): it \
+             was changed or damaged after it was written"
+        )),
+        None => Err(format!("its {CHECKSUM_KEY} is not a string: {saved}")),
+    }
+}
+
+impl Summary {
+    /// The text of `summary.json`: the summary as pretty JSON, [`CHECKSUM_KEY`] last.
+    pub fn to_json(&self) -> serde_json::Result<String> {
+        #[derive(serde::Serialize)]
+        struct Sealed<'a> {
+            #[serde(flatten)]
+            summary: &'a Summary,
+            checksum: String,
+        }
+        // From the text itself, as a reader will parse it.
+        let plain: serde_json::Value = serde_json::from_str(&serde_json::to_string(self)?)?;
+        serde_json::to_string_pretty(&Sealed {
+            summary: self,
+            checksum: checksum(&plain),
+        })
+    }
 }
 
 /// The micromechanical state at four points of a test, from the series rows.
@@ -298,7 +420,10 @@ impl Summary {
         Summary {
             version: env!("CARGO_PKG_VERSION").to_string(),
             backend,
+            backends: Vec::new(),
             disks,
+            seed: None,
+            strain_end: None,
             mu,
             sigma3_mpa: sigma3 / 1e6,
             dt_s: None,
@@ -348,9 +473,19 @@ impl Summary {
         let mut s = String::new();
         let mut line = |k: &str, v: String| s.push_str(&format!("  {k:<34} {v}\n"));
         line("disks", format!("{}", self.disks));
-        line("backend", self.backend.clone());
+        if let Some(seed) = self.seed {
+            line("sample seed", format!("{seed}"));
+        }
+        if self.backends.len() > 1 {
+            line("backends (resumed run)", self.backends.join(", then "));
+        } else {
+            line("backend", self.backend.clone());
+        }
         line("contact friction mu", format!("{}", self.mu));
         line("confining stress sigma3", format!("{:.3} MPa", self.sigma3_mpa));
+        if let Some(end) = self.strain_end {
+            line("end axial strain", format!("{end}"));
+        }
         if let Some(dt) = self.dt_s {
             line("time step", format!("{} ms", dt * 1e3));
         }

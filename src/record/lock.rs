@@ -25,7 +25,7 @@ impl RunLock {
     /// Creates `dir` if needed and claims it; an error naming the directory when another
     /// process holds it.
     pub fn acquire(dir: &Path) -> Result<RunLock> {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        crate::fsio::create_dir_all(dir)?;
         let path = dir.join(LOCK_FILE);
         let file = OpenOptions::new()
             .create(true)

@@ -41,8 +41,10 @@ pub use series::{SERIES_FIELDS, csv_header, parse_csv, series_json_schema};
 pub use snapshot::{ContactClass, ContactRecord, DiskRecord, SNAPSHOT_SCHEMA, Snapshot};
 pub use writer::{RecordHead, Recorder, new_run_id};
 
-/// The configuration of a test kept by `cdlab archive` in place of its record
-/// ([`read_config`] reads it when the directory holds no record).
+/// The configuration of a test, as TOML: written beside the record by every run and resume
+/// (what was run, readable without cdlab; the record's copy is the one cdlab uses), and
+/// kept by `cdlab archive` in place of the record ([`read_config`] reads it when the
+/// directory holds no record).
 pub const ARCHIVED_CONFIG_FILE: &str = "config.toml";
 
 /// The time series of a test kept by `cdlab archive`, thinned to a few hundred rows

@@ -46,6 +46,10 @@ pub struct RunRecord {
     pub run_id: Option<String>,
     /// The backend that wrote the record's last part, when the record says.
     pub backend: Option<String>,
+    /// Every backend that wrote a part of the run, in order, one that wrote several parts
+    /// in a row named once (empty when the record names none): a run started on the GPU
+    /// and resumed on the CPU lists both.
+    pub backends: Vec<String>,
 }
 
 impl RunRecord {
@@ -64,6 +68,15 @@ struct Head {
     config_json: String,
     run_id: Option<String>,
     backend: Option<String>,
+    backends: Vec<String>,
+}
+
+/// The backends of a run's parts: the earlier parts' then `last`, repeats in a row merged.
+fn parts_backends(earlier: Vec<String>, last: Option<&String>) -> Vec<String> {
+    let mut all = earlier;
+    all.extend(last.cloned());
+    all.dedup();
+    all
 }
 
 /// The cdlab version, the configuration (as JSON), the run identity and the backend of a
@@ -73,11 +86,20 @@ fn config_message(data: &[u8]) -> std::result::Result<Head, String> {
     let version = v["version"].as_str().ok_or("/config message has no version")?;
     let config = v.get("config").ok_or("/config message has no config")?;
     let text = |k: &str| v.get(k).and_then(serde_json::Value::as_str).map(str::to_string);
+    let earlier = match v.get("earlier_backends") {
+        None => Vec::new(),
+        Some(list) => list
+            .as_array()
+            .and_then(|l| l.iter().map(|b| b.as_str().map(str::to_string)).collect())
+            .ok_or("/config message: earlier_backends is not a list of names")?,
+    };
+    let backend = text("backend");
     Ok(Head {
         version: version.to_string(),
         config_json: config.to_string(),
         run_id: text("run_id"),
-        backend: text("backend"),
+        backends: parts_backends(earlier, backend.as_ref()),
+        backend,
     })
 }
 
@@ -386,6 +408,7 @@ fn read_head(dir: &Path) -> Result<Head> {
                 config_json: run.config_json,
                 run_id: run.run_id,
                 backend: run.backend,
+                backends: run.backends,
             }
         }
     })
@@ -496,6 +519,7 @@ pub fn parse_run(bytes: &[u8]) -> Result<RunRecord> {
                 run.config_json = head.config_json;
                 run.run_id = head.run_id;
                 run.backend = head.backend;
+                run.backends = head.backends;
                 have_config = true;
             }
             TOPIC_SERIES => {
@@ -542,6 +566,16 @@ pub fn parse_run(bytes: &[u8]) -> Result<RunRecord> {
         run.truncated = Some(why.clone());
         run.damaged = Some(why);
     }
+    // The indexes other readers seek through (Foxglove, the Python `mcap` package) are in
+    // the summary section, which this reader does not use: its CRC is checked so that
+    // damage there is found here, not by them.
+    // Checked even when the stream stopped early: a damaged length there reads as a cut.
+    if run.damaged.is_none()
+        && let Some(why) = summary_section_fault(bytes)
+    {
+        run.truncated = Some(why.clone());
+        run.damaged = Some(why);
+    }
     if !have_config {
         let why = run.truncated.as_deref().unwrap_or("complete file");
         return Err(bad(format!(
@@ -549,4 +583,42 @@ pub fn parse_run(bytes: &[u8]) -> Result<RunRecord> {
         )));
     }
     Ok(run)
+}
+
+/// Why the summary section of a complete MCAP file (`bytes`, ending with its footer and
+/// magic) fails its check, if it does: the footer's `summary_crc` is the CRC-32 of every
+/// byte from the summary's start up to that field. `None` for a file that does not end with
+/// a footer (cut short: the streaming read says so), a file without a summary section, or a
+/// CRC of 0 (the format's "not computed").
+pub(super) fn summary_section_fault(bytes: &[u8]) -> Option<String> {
+    // Footer record: opcode (1), length (8), summary_start (8), summary_offset_start (8),
+    // summary_crc (4); then the closing magic (8).
+    const FOOTER: usize = 1 + 8 + 8 + 8 + 4;
+    let n = bytes.len();
+    if n < FOOTER + 8 || bytes[n - 8..] != *mcap::MAGIC {
+        return None;
+    }
+    let footer = &bytes[n - 8 - FOOTER..n - 8];
+    let u64_at = |k: usize| u64::from_le_bytes(footer[k..k + 8].try_into().expect("8 bytes"));
+    if footer[0] != mcap::records::op::FOOTER || u64_at(1) != 20 {
+        return Some("damaged: the footer record is not where the file's end puts it".into());
+    }
+    let start = u64_at(9);
+    let saved = u32::from_le_bytes(footer[25..29].try_into().expect("4 bytes"));
+    if start == 0 || saved == 0 {
+        return None;
+    }
+    let crc_field = n - 8 - 4;
+    let Some(section) = usize::try_from(start).ok().and_then(|s| bytes.get(s..crc_field)) else {
+        return Some(format!(
+            "damaged: the footer puts the summary section at byte {start}, past the footer"
+        ));
+    };
+    let calculated = crc32fast::hash(section);
+    (calculated != saved).then(|| {
+        format!(
+            "damaged summary section (the chunk indexes other readers seek through): CRC \
+             mismatch (saved {saved:08x}, calculated {calculated:08x})"
+        )
+    })
 }

@@ -599,6 +599,7 @@ fn staged_record_replaces_the_old_only_at_commit() {
     let head = RecordHead {
         run_id: "0123".into(),
         backend: Some("test".into()),
+        earlier_backends: Vec::new(),
     };
     let mut rec = Recorder::stage(&tmp.0, &Config::default(), &head).unwrap();
     rec.series(&row(0)).unwrap();
@@ -769,4 +770,78 @@ fn nearest_snapshot_takes_the_last_of_equal_strains() {
     // Rotations of snapshot 3 count from the least strain before it, the last of equals.
     assert_eq!(rotation_reference(&snaps, 3).unwrap().time_s, 1.0);
     assert!(rotation_reference(&snaps, 0).is_none());
+}
+
+/// Damage to the summary section of a finished record (the chunk indexes that other
+/// readers seek through) is found by the footer's summary CRC (issue 36, item 11): every
+/// byte from the summary's start to the CRC field, flipped in turn, makes the record read
+/// as damaged; the intact file reads complete.
+#[test]
+fn a_damaged_summary_section_is_found_by_its_crc() {
+    let tmp = TempDir::new("summary-crc");
+    write_run(&tmp.0);
+    let bytes = std::fs::read(tmp.0.join(MCAP_FILE)).unwrap();
+    let rec = parse_run(&bytes).unwrap();
+    assert!(
+        rec.truncated.is_none() && rec.damaged.is_none(),
+        "{:?}",
+        rec.truncated
+    );
+    // Footer: opcode, length, summary_start, summary_offset_start, summary_crc; then magic.
+    let n = bytes.len();
+    let start = u64::from_le_bytes(bytes[n - 28..n - 20].try_into().unwrap()) as usize;
+    let crc = u32::from_le_bytes(bytes[n - 12..n - 8].try_into().unwrap());
+    assert!(
+        start > 8 && start < n - 37 && crc != 0,
+        "start {start}, crc {crc:08x}"
+    );
+    let missed: Vec<usize> = (start..n - 12)
+        .filter(|&at| {
+            let mut damaged = bytes.clone();
+            damaged[at] ^= 0x10;
+            parse_run(&damaged).is_ok_and(|r| r.damaged.is_none())
+        })
+        .collect();
+    assert!(
+        missed.is_empty(),
+        "{} of {} flips in the summary section went unnoticed, first at byte {}",
+        missed.len(),
+        n - 12 - start,
+        missed[0]
+    );
+}
+
+/// A resumed record names the backends of the run's earlier parts with its own (issue 36,
+/// item 15: a GPU run resumed on the CPU said only `backend: cpu`); parts on one backend in
+/// a row are named once, and a record that names none has none.
+#[test]
+fn a_resumed_record_lists_the_backends_of_its_parts() {
+    let tmp = TempDir::new("backends");
+    let head = RecordHead {
+        run_id: "01".into(),
+        backend: Some("gpu (test adapter)".into()),
+        earlier_backends: Vec::new(),
+    };
+    let config = Config::default();
+    let mut rec = Recorder::stage(&tmp.0, &config, &head).unwrap();
+    rec.checkpoint(1, 0.0, b"state").unwrap();
+    rec.finish().unwrap();
+    let first = read_run(&tmp.0).unwrap();
+    assert_eq!(first.backends, ["gpu (test adapter)"]);
+    for (backend, want) in [
+        ("cpu (1 thread)", vec!["gpu (test adapter)", "cpu (1 thread)"]),
+        ("cpu (1 thread)", vec!["gpu (test adapter)", "cpu (1 thread)"]),
+    ] {
+        let before = read_run(&tmp.0).unwrap();
+        let head = RecordHead::resumed(&before, backend.into());
+        assert_eq!(head.run_id, "01");
+        let mut rec = Recorder::stage(&tmp.0, &config, &head).unwrap();
+        rec.checkpoint(2, 0.0, b"state").unwrap();
+        rec.finish().unwrap();
+        let after = read_run(&tmp.0).unwrap();
+        assert_eq!(after.backends, want);
+        assert_eq!(after.backend.as_deref(), Some(backend));
+    }
+    drop(Recorder::create(&tmp.0, &config).unwrap());
+    assert!(read_run(&tmp.0).unwrap().backends.is_empty());
 }

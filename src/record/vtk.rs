@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use super::Snapshot;
-use crate::error::{Error, Result};
+use crate::error::Result;
 
 /// Formats one disk's value of a point-data array.
 type DiskField = dyn Fn(&super::DiskRecord) -> String;
@@ -116,7 +116,7 @@ pub fn write_vtp(snap: &Snapshot, path: &Path) -> Result<()> {
 /// Writes every snapshot as `snapshot_NNNN.vtp` into `dir` and the series `snapshots.pvd`
 /// (time = simulated time in s); returns the files written.
 pub fn write_series(snaps: &[Snapshot], dir: &Path) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    crate::fsio::create_dir_all(dir)?;
     let mut files = Vec::new();
     let mut pvd = String::from(
         "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\">\n<Collection>\n",

@@ -50,6 +50,22 @@ pub struct RecordHead {
     pub run_id: String,
     /// The backend that writes this part of the run, if known.
     pub backend: Option<String>,
+    /// The backends that wrote the run's earlier parts, in order (a resumed run; empty for
+    /// a new one): a GPU run resumed on the CPU says so ([`RunRecord::backends`]).
+    pub earlier_backends: Vec<String>,
+}
+
+impl RecordHead {
+    /// The head of a resume of `rec` on `backend`: the same run identity (a new one for a
+    /// record written before records had one) and the record's backends as the earlier
+    /// parts'.
+    pub fn resumed(rec: &RunRecord, backend: String) -> RecordHead {
+        RecordHead {
+            run_id: rec.run_id.clone().unwrap_or_else(new_run_id),
+            backend: Some(backend),
+            earlier_backends: rec.backends.clone(),
+        }
+    }
 }
 
 /// A fresh run identity: 128 bits from the clock, the process and the standard library's
@@ -101,7 +117,7 @@ impl Recorder {
     pub fn create(dir: impl AsRef<Path>, config: &Config) -> Result<Self> {
         let head = RecordHead {
             run_id: new_run_id(),
-            backend: None,
+            ..Default::default()
         };
         let mut rec = Self::stage(dir, config, &head)?;
         rec.commit()?;
@@ -115,7 +131,7 @@ impl Recorder {
     /// written ([`check_replaceable`]).
     pub fn stage(dir: impl AsRef<Path>, config: &Config, head: &RecordHead) -> Result<Self> {
         let dir = dir.as_ref();
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        crate::fsio::create_dir_all(dir)?;
         let mcap_path = dir.join(MCAP_FILE);
         let csv_path = dir.join(CSV_FILE);
         // The commit would refuse them too, but only after a resume's copy of the record.
@@ -171,6 +187,9 @@ impl Recorder {
         if let Some(b) = &head.backend {
             payload["backend"] = serde_json::Value::from(b.as_str());
         }
+        if !head.earlier_backends.is_empty() {
+            payload["earlier_backends"] = serde_json::Value::from(head.earlier_backends.clone());
+        }
         let header = MessageHeader {
             channel_id: config_ch,
             sequence: 0,
@@ -210,6 +229,11 @@ impl Recorder {
     /// `series.csv` (the record first: a CSV is a copy that a resume writes again), then
     /// syncs the directory. Later writes go on growing the renamed files. Does nothing
     /// once committed.
+    ///
+    /// The old `series.csv` is removed (synced) before the new record takes its place: a
+    /// CSV rename that then fails, or a kill between the two renames, leaves the new record
+    /// without a CSV (the next resume writes it) rather than beside the rows of the run it
+    /// replaced.
     pub fn commit(&mut self) -> Result<()> {
         if !self.staged {
             return Ok(());
@@ -221,6 +245,7 @@ impl Recorder {
             .flush()
             .and_then(|_| self.csv_sync.sync_all())
             .map_err(|e| Error::io(&csv_tmp, e))?;
+        crate::fsio::remove_file(&self.csv_path)?;
         rename(&mcap_tmp, &self.mcap_path)?;
         rename(&csv_tmp, &self.csv_path)?;
         sync_dir(&self.mcap_path)?;

@@ -63,7 +63,10 @@ pub use recording::{Recording, snapshot};
 pub use sample::{
     Prepared, PreparedSample, adopt_sample, differences, prepare, read_sample, sample_differences,
 };
-pub use summary::{Summarized, rebuild_summary, summarize, summary_fault, summary_of, write_summary};
+pub use summary::{
+    SUMMARY_FILE, Summarized, read_checked_summary, rebuild_summary, summarize, summary_fault, summary_of,
+    write_summary,
+};
 pub use test::{RESULT_FILES, check_out_dir, clear_results, resume, run_fresh, run_resume, start};
 
 use crate::config::units::{Dimension, parse_with_unit};

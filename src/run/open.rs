@@ -75,7 +75,7 @@ fn run_title(config: Result<Config>, run: &Path) -> String {
 /// files written.
 pub fn write_curves(run: &Path, out: &Path) -> Result<Vec<PathBuf>> {
     let (series, config) = read_series(run)?;
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    crate::fsio::create_dir_all(out)?;
     let title = run_title(config, run);
     let mut written = Vec::with_capacity(4);
     written.extend(figures::save_both(

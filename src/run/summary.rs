@@ -10,7 +10,7 @@ use crate::measure::SeriesRow;
 use crate::measure::summary::Summary;
 use crate::protocol::checkpoint::decode;
 use crate::protocol::{Phase, PhaseEnd};
-use crate::record::{MCAP_FILE, RunRecord, atomic, read_run};
+use crate::record::{MCAP_FILE, RunLock, RunRecord, atomic, read_run};
 
 /// The summary of a finished test from its rows and phase ends, with the shear bands of
 /// its record's snapshots: the same at the end of a run and in [`summarize`]. A band
@@ -35,6 +35,13 @@ pub fn summary_of(
         wall_s,
     );
     summary.dt_s = Some(config.solver.dt.si());
+    summary.seed = Some(config.sample.seed);
+    summary.strain_end = Some(config.test.strain_end);
+    if let Ok(rec) = record
+        && rec.backends.len() > 1
+    {
+        summary.backends = rec.backends.clone();
+    }
     summary.deep_contacts = crate::measure::summary::DeepContacts::of_run(
         config.solver.deep_overlap_rel(),
         config.solver.deep_sweeps,
@@ -61,10 +68,67 @@ pub fn summary_of(
 /// Writes `summary.txt` and then `summary.json` into `dir`, each to a temporary name,
 /// synced and renamed into place ([`atomic::write_file`]): `summary.json` marks the test
 /// finished, so it comes last and is never seen half-written.
+/// `summary.json` carries the checksum of its content ([`Summary::to_json`]).
 pub fn write_summary(dir: &Path, summary: &Summary) -> Result<()> {
-    let json = serde_json::to_string_pretty(summary).map_err(|e| unwritable(dir, e))?;
+    let json = summary.to_json().map_err(|e| unwritable(dir, e))?;
     atomic::write_file(&dir.join("summary.txt"), summary.table().as_bytes())?;
-    atomic::write_file(&dir.join("summary.json"), json.as_bytes())
+    atomic::write_file(&dir.join(SUMMARY_FILE), json.as_bytes())
+}
+
+/// The file that holds a finished test's summary, and marks it finished.
+pub const SUMMARY_FILE: &str = "summary.json";
+
+/// Why the summary JSON `value` cannot stand as the summary of the record `run_id` (when
+/// known), if it cannot: its checksum does not match its content, or it names another
+/// record (a stale summary of an earlier run of the directory).
+fn value_fault(value: &serde_json::Value, run_id: Option<&str>) -> Option<String> {
+    if let Err(why) = crate::measure::summary::verify_checksum(value) {
+        return Some(format!("is damaged: {why}"));
+    }
+    match (value.get("record_id").and_then(|v| v.as_str()), run_id) {
+        (Some(theirs), Some(ours)) if theirs != ours => Some(format!(
+            "belongs to another record (record_id {theirs}) than the {MCAP_FILE} beside it \
+             (run_id {ours}): a stale summary of an earlier run"
+        )),
+        _ => None,
+    }
+}
+
+/// Reads the `summary.json` of the test in `dir` and checks that it stands: it parses, its
+/// checksum matches its content, and it names the record beside it, if there is one (an
+/// archived test has none). The one check of a finished test that `cdlab report`, `cdlab
+/// sweep` and `cdlab archive` share, so that none takes as finished a test another
+/// refuses. The error ([`RunFault::Damaged`]) names the file and says how to repair it.
+pub fn read_checked_summary(dir: &Path) -> Result<serde_json::Value> {
+    let path = dir.join(SUMMARY_FILE);
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let damaged = |why: String| {
+        let repair = if dir.join(MCAP_FILE).is_file() {
+            format!(
+                "; `cdlab summarize {}` writes it again from the record once that run is complete",
+                dir.display()
+            )
+        } else {
+            String::new()
+        };
+        Error::Run {
+            path: path.clone(),
+            fault: RunFault::Damaged,
+            message: format!("{} {why}{repair}", path.display()),
+        }
+    };
+    let value: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| damaged(format!("is damaged ({e})")))?;
+    // A record whose head cannot be read is judged where it is read whole.
+    let run_id = if dir.join(MCAP_FILE).is_file() {
+        crate::record::read_run_id(dir).ok().flatten()
+    } else {
+        None
+    };
+    match value_fault(&value, run_id.as_deref()) {
+        Some(why) => Err(damaged(why)),
+        None => Ok(value),
+    }
 }
 
 /// A summary that cannot be put into JSON: the error of writing `dir`'s `summary.json`.
@@ -88,15 +152,13 @@ pub fn summary_fault(dir: &Path, rec: &RunRecord) -> Option<String> {
         Ok(v) => v,
         Err(e) => return Some(format!("is damaged ({e})")),
     };
-    if serde_json::from_value::<Summary>(value.clone()).is_err() {
+    if let Some(why) = value_fault(&value, rec.run_id.as_deref()) {
+        return Some(why);
+    }
+    if serde_json::from_value::<Summary>(value).is_err() {
         return Some("is not a cdlab summary".into());
     }
-    match (value.get("record_id").and_then(|v| v.as_str()), &rec.run_id) {
-        (Some(theirs), Some(ours)) if theirs != ours => Some(format!(
-            "belongs to another record (record_id {theirs}, the record's run_id is {ours})"
-        )),
-        _ => None,
-    }
+    None
 }
 
 /// An [`Error::Run`] about the record file `file`.
@@ -174,6 +236,11 @@ pub enum Summarized {
 /// `dry_run`) when it differs from the one there. A missing, empty or damaged summary, or
 /// one of another record, is rebuilt from the record. A test without its record (an
 /// archived one) or not finished is an error naming why.
+///
+/// Unless `dry_run`, it holds the directory's lock ([`RunLock`]) from the read of the record
+/// to the write: a run started meanwhile (`biaxial --force`, a sweep) replaces the record,
+/// and a summary computed from the old one would then mark the new run finished. A
+/// directory whose lock another process holds is an error ([`Error::InUse`]).
 pub fn summarize(dir: &Path, dry_run: bool) -> Result<Summarized> {
     if !dir.join(MCAP_FILE).exists() {
         return Err(Error::Run {
@@ -184,6 +251,11 @@ pub fn summarize(dir: &Path, dry_run: bool) -> Result<Summarized> {
             ),
         });
     }
+    let _lock = if dry_run {
+        None
+    } else {
+        Some(RunLock::acquire(dir)?)
+    };
     let record = read_run(dir)?;
     if let Some(why) = &record.damaged {
         let file = dir.join(MCAP_FILE);
@@ -213,7 +285,15 @@ pub fn summarize(dir: &Path, dry_run: bool) -> Result<Summarized> {
     let summary = rebuild_summary(dir, &record, old.as_ref())?;
     let new = serde_json::to_value(&summary).map_err(|e| unwritable(dir, e))?;
     let changed = match (&old, &fault) {
-        (Some(old), None) => changed_keys(old, &new),
+        // The checksum follows the content: no change of its own (and a summary written
+        // before summaries had one gets it only when rewritten for another reason).
+        (Some(old), None) => {
+            let mut old = old.clone();
+            if let Some(o) = old.as_object_mut() {
+                o.remove(crate::measure::summary::CHECKSUM_KEY);
+            }
+            changed_keys(&old, &new)
+        }
         _ => vec![format!("all (summary.json {})", fault.unwrap_or_default())],
     };
     // Which version wrote it is no change of the test's figures.

@@ -13,7 +13,9 @@ use crate::model::Scene;
 use crate::protocol::biaxial::Lab;
 use crate::protocol::checkpoint::decode;
 use crate::protocol::{Phase, prepare};
-use crate::record::{MCAP_FILE, RecordHead, Recorder, RunLock, RunRecord, atomic, new_run_id, read_run};
+use crate::record::{
+    ARCHIVED_CONFIG_FILE, MCAP_FILE, RecordHead, Recorder, RunLock, RunRecord, atomic, new_run_id, read_run,
+};
 
 /// The files in a run directory that hold a finished test's results.
 pub const RESULT_FILES: [&str; 2] = ["summary.json", "summary.txt"];
@@ -61,9 +63,10 @@ pub fn resume(
 
 /// The files a run writes into its directory besides [`RESULT_FILES`]: the record, its CSV
 /// copy and the figures.
-const OUTPUT_FILES: [&str; 6] = [
+const OUTPUT_FILES: [&str; 7] = [
     MCAP_FILE,
     crate::record::CSV_FILE,
+    ARCHIVED_CONFIG_FILE,
     "stress_strain.png",
     "stress_strain.svg",
     "contacts.png",
@@ -100,8 +103,9 @@ pub fn check_out_dir(dir: &Path, replace: bool) -> Result<()> {
 }
 
 /// Removes the results of a test from `dir`: `summary.json` first (it is what marks a test
-/// finished to `cdlab report` and `cdlab sweep`), then `summary.txt` and the figures drawn
-/// there (`*.png`, `*.svg`), each removal synced. Called before a new record replaces an
+/// finished to `cdlab report` and `cdlab sweep`), then `summary.txt`, the configuration
+/// written beside the record and the figures drawn there (`*.png`, `*.svg`), each removal
+/// synced. Called before a new record replaces an
 /// old one, and before a resume continues an unfinished record (results beside it cannot
 /// be its own). The temporary files of killed writes whose process has ended go too
 /// ([`atomic::remove_stale_tmps`]).
@@ -111,6 +115,8 @@ pub fn clear_results(dir: &Path) -> Result<()> {
     for name in RESULT_FILES {
         atomic::remove_file(&dir.join(name))?;
     }
+    // The run that follows writes its own once its record is in place.
+    atomic::remove_file(&dir.join(ARCHIVED_CONFIG_FILE))?;
     let Ok(entries) = std::fs::read_dir(dir) else {
         return Ok(());
     };
@@ -152,9 +158,11 @@ pub fn run_fresh(
     let head = RecordHead {
         run_id: new_run_id(),
         backend: Some(lab.backend.name()),
+        earlier_backends: Vec::new(),
     };
     let mut recorder = Recorder::stage(dir, config, &head)?;
     recorder.commit()?;
+    write_config(dir, config)?;
     let obs = Recording::new(recorder, params.strain_end, progress, started);
     let summary = finish(config, dir, lab, obs, cancel)?;
     Ok(RunOutcome {
@@ -244,10 +252,7 @@ pub fn run_resume(
     let backend = open_backend(&config, ck.scene.clone(), params.step)?;
     let time = ck.scene.time;
     let lab = Lab::resume(backend, ck)?;
-    let head = RecordHead {
-        run_id: rec.run_id.clone().unwrap_or_else(new_run_id),
-        backend: Some(lab.backend.name()),
-    };
+    let head = RecordHead::resumed(&rec, lab.backend.name());
     // Only now, with everything read and checked, write the new record beside the old.
     let mut obs = Recording::new(
         Recorder::stage(dir, &config, &head)?,
@@ -266,6 +271,7 @@ pub fn run_resume(
     // Results beside an unfinished record are not its own.
     clear_results(dir)?;
     obs.recorder.commit()?;
+    write_config(dir, &config)?;
     obs.event(&Event::Resuming {
         dir,
         step,
@@ -279,6 +285,20 @@ pub fn run_resume(
         resumed_from: Some(step),
         summary_only: false,
     })
+}
+
+/// Writes the run's configuration beside its record ([`ARCHIVED_CONFIG_FILE`], TOML),
+/// whole ([`atomic::write_file`]): what was run, readable without cdlab. The record holds
+/// the same configuration, and that copy is the one cdlab reads.
+fn write_config(dir: &Path, config: &Config) -> Result<()> {
+    let text = format!(
+        "# The configuration of the run recorded in {MCAP_FILE} beside this file (cdlab {}).\n\
+         # `cdlab config --of {}` prints it from the record.\n{}",
+        env!("CARGO_PKG_VERSION"),
+        dir.display(),
+        config.to_toml_string()?
+    );
+    atomic::write_file(&dir.join(ARCHIVED_CONFIG_FILE), text.as_bytes())
 }
 
 /// The axial strain of the last row at or before `step`, when that row is in the
