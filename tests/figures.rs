@@ -240,7 +240,8 @@ fn stress_strain_curve_marks_the_peak_of_the_mean_over_a_start_spike() {
     let label = format!("peak {:.3} MPa at strain {:.4}", peak / 1e6, at);
     assert!(texts.contains(&label), "{label:?} in {texts:?}");
     assert!(!texts.iter().any(|t| t.contains('_')), "{texts:?}");
-    // Tick labels: strains below 0.03, volumetric strains below 0.005, stresses from 7 MPa.
+    // Tick labels: strains below 0.03, volumetric strains below 0.005, stresses from about
+    // 3.4 MPa (8 MPa, less the margin and the legend's room below): none at 0 or 2.
     let stress_ticks: Vec<f64> = texts
         .iter()
         .filter_map(|t| t.parse::<f64>().ok())
@@ -248,7 +249,7 @@ fn stress_strain_curve_marks_the_peak_of_the_mean_over_a_start_spike() {
         .collect();
     assert!(!stress_ticks.is_empty(), "{texts:?}");
     assert!(
-        stress_ticks.iter().all(|v| *v >= 7.0) && stress_ticks.iter().any(|v| *v >= 19.0),
+        stress_ticks.iter().all(|v| *v >= 3.0) && stress_ticks.iter().any(|v| *v >= 19.0),
         "the stress axis spans the rows, spike included: {stress_ticks:?}"
     );
 }

@@ -35,6 +35,10 @@ pub const STRAIN_AXIS: &str = "axial strain ε₁ (-)";
 /// ([`LINE_COLORS`]`[0]`) halfway to white.
 pub const ROW_COLOR: RGBColor = RGBColor(143, 187, 217);
 
+/// The share of the curves' range added below them in [`StressStrainFigure`], for its
+/// legend.
+const LEGEND_ROOM: f64 = 0.3;
+
 /// The windows of the summary's peak over `rows` (in increasing strain): for each row, the
 /// mean sigma_1 (MPa) of the rows within [`PEAK_WINDOW`] of strain from it, at the window's
 /// centre, as [`crate::measure::derived::moving_peak`] takes them.
@@ -156,8 +160,11 @@ impl Figure for StressStrainFigure<'_> {
         let strain = |r: &&SeriesRow| r.strain_axial;
         let means = window_means(&rows);
         let (x0, x1) = padded_range(rows.iter().map(strain), true);
-        let (s0, s1) = padded_range(rows.iter().map(|r| r.sigma1_pa / 1e6), false);
-        let (v0, v1) = padded_range(rows.iter().map(|r| r.volumetric_strain), false);
+        // Room below both curves for the legend (four lines in the lower right), which
+        // would otherwise hide them now that the stress axis does not start at 0.
+        let room = |(lo, hi): (f64, f64)| (lo - LEGEND_ROOM * (hi - lo), hi);
+        let (s0, s1) = room(padded_range(rows.iter().map(|r| r.sigma1_pa / 1e6), false));
+        let (v0, v1) = room(padded_range(rows.iter().map(|r| r.volumetric_strain), false));
         let mut chart = ChartBuilder::on(root)
             .caption(&self.title, LABEL)
             .margin(15)
