@@ -303,9 +303,9 @@ const KEY_TEXT_X: i32 = 48;
 
 impl CompareFigure<'_> {
     /// Width of the key's column: the longest label, measured in the key's font, with its
-    /// line sample and a margin, from [`KEY_WIDTH`] to [`KEY_WIDTH_MAX`]. A fixed column
-    /// cut long labels (directory names) at the figure's edge, where two runs' labels could
-    /// no longer be told apart.
+    /// line sample and a margin, from 250 to 1200 px. A fixed column cut long labels
+    /// (directory names) at the figure's edge, where two runs' labels could no longer be
+    /// told apart.
     pub fn key_width(&self) -> u32 {
         // Measuring needs the embedded font (registered once; a failure leaves the narrow key).
         let _ = super::font::ensure();
