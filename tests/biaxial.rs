@@ -76,11 +76,17 @@ fn small_biaxial_test_confines_then_peaks_and_dilates() {
     let worst = obs.rows.iter().map(|r| r.overlap_max_rel).fold(0.0, f64::max);
     assert!(worst < 0.01, "largest overlap {worst} r_min");
     assert!(last.strain_axial >= p.strain_end);
+    // The ends of the compaction and the confinement (strain 0), every 0.01 of the
+    // compression, and its end.
+    let s = &obs.snapshots;
+    assert_eq!(s.len(), 5, "snapshots: {s:?}");
+    assert_eq!(&s[..2], &[0.0, 0.0], "{s:?}");
+    for (k, want) in [(2, 0.01), (3, 0.02)] {
+        assert!(s[k] >= want && s[k] < want + 1e-4, "{s:?}");
+    }
     assert_eq!(
-        obs.snapshots.len(),
-        4,
-        "snapshots at strain 0, 0.01, 0.02, 0.03: {:?}",
-        obs.snapshots
+        s[4], last.strain_axial,
+        "the last snapshot is the final state: {s:?}"
     );
 }
 

@@ -409,3 +409,102 @@ fn a_run_warns_once_when_its_overlaps_pass_the_bound() {
     }
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// Every phase ends with a snapshot (issue 36, item 13: a run to strain 0.005 had one
+/// snapshot, at 0.00006): the compaction's and the confinement's last states at strain 0
+/// and the final state at the end strain, though it is no multiple of `snapshot_every`,
+/// each at the time of its phase's last row. So `bands` has two snapshots to compare, and
+/// `render --at` names the strain it drew when no snapshot is at the one asked for.
+#[test]
+fn every_phase_ends_with_a_snapshot_and_render_names_the_one_it_draws() {
+    let base = scratch("phase-snapshots");
+    std::fs::create_dir_all(&base).unwrap();
+    let cfg = base.join("c.toml");
+    std::fs::write(
+        &cfg,
+        "[sample]\ndisks = 200\n[solver]\ntol = 1e-3\nbackend = \"cpu\"\n\
+         [test]\nstrip_thickness = \"3 m\"\nstrain_end = 0.0025\n\
+         [output]\nseries_every = 10\nsnapshot_every = 0.01\ncheckpoint_every = 500\n",
+    )
+    .unwrap();
+    let out = base.join("run");
+    let (ok, text) = biaxial(&cfg, &out, &["--no-figures"]);
+    assert!(ok, "{text}");
+    let rec = cdlab::record::read_run(&out).unwrap();
+    let last_row = |phase: &str| rec.series.iter().rfind(|r| r.phase == phase).unwrap();
+    let strains: Vec<f64> = rec.snapshots.iter().map(|s| s.strain).collect();
+    assert_eq!(rec.snapshots.len(), 3, "{strains:?}");
+    for (snap, phase) in rec
+        .snapshots
+        .iter()
+        .zip(["compaction", "confinement", "compression"])
+    {
+        assert_eq!(snap.time_s, last_row(phase).time_s, "{phase}: {strains:?}");
+        assert_eq!(snap.strain, last_row(phase).strain_axial, "{phase}");
+    }
+    assert!(strains[2] >= 0.0025, "{strains:?}");
+    let (ok, text) = cdlab(&["bands", out.to_str().unwrap()]);
+    assert!(ok, "{text}");
+    let fig = base.join("f.png");
+    let render = |at: &str| {
+        cdlab(&[
+            "render",
+            out.to_str().unwrap(),
+            "--at",
+            at,
+            "-o",
+            fig.to_str().unwrap(),
+        ])
+    };
+    let (ok, text) = render("0.005");
+    assert!(ok, "{text}");
+    let note = format!(
+        "no snapshot at axial strain 0.005: drawing the nearest, at axial strain {:.5}",
+        strains[2]
+    );
+    assert!(text.contains(&note), "{text}");
+    let (ok, text) = render(&format!("{}", strains[2]));
+    assert!(ok && !text.contains("no snapshot at"), "{text}");
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// `cdlab version` prints the build's information (issue 36, item 18: the version alone):
+/// the git commit it was built from when built in a checkout, the wgpu version of
+/// Cargo.lock, the target and the profile.
+#[test]
+fn version_prints_the_build_information() {
+    let (ok, text) = cdlab(&["version"]);
+    assert!(ok, "{text}");
+    assert!(
+        text.starts_with(&format!("cdlab {}\n", env!("CARGO_PKG_VERSION"))),
+        "{text}"
+    );
+    let root = env!("CARGO_MANIFEST_DIR");
+    let lock = std::fs::read_to_string(Path::new(root).join("Cargo.lock")).unwrap();
+    let wgpu = lock
+        .split("[[package]]")
+        .find(|p| p.contains("\nname = \"wgpu\"\n"))
+        .and_then(|p| p.split("version = \"").nth(1))
+        .and_then(|v| v.split('"').next())
+        .unwrap();
+    assert!(text.contains(&format!("\nwgpu: {wgpu}\n")), "{text}");
+    assert!(
+        text.contains("\nprofile: release\n") || text.contains("\nprofile: debug\n"),
+        "{text}"
+    );
+    assert!(
+        text.contains(&format!("\ntarget: {}-", std::env::consts::ARCH)),
+        "{text}"
+    );
+    let head = std::process::Command::new("git")
+        .args(["rev-parse", "--short=12", "HEAD"])
+        .current_dir(root)
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    match head {
+        Some(h) => assert!(text.contains(&format!("\ngit commit: {h} ")), "{text}"),
+        None => assert!(text.contains("\ngit commit: unknown"), "{text}"),
+    }
+}

@@ -448,3 +448,26 @@ fn anchors_follow_github() {
     );
     assert_eq!(anchor("The 5000-disk campaign"), "the-5000-disk-campaign");
 }
+
+/// The README's command table has a row for every subcommand the binary has (issue 36,
+/// item 18: `cdlab fabric` was missing).
+#[test]
+fn the_readme_lists_every_command() {
+    use clap::CommandFactory;
+    let readme = read("README.md");
+    let table = &readme[readme.find("## Commands").expect("a Commands section")..];
+    let names: Vec<String> = cdlab::cli::Cli::command()
+        .get_subcommands()
+        .map(|c| c.get_name().to_string())
+        .collect();
+    assert!(
+        names.len() > 10 && names.contains(&"fabric".to_string()),
+        "{names:?}"
+    );
+    for name in names {
+        assert!(
+            table.contains(&format!("| `cdlab {name}")) || table.contains(&format!("`cdlab {name} ")),
+            "README.md's command table has no row for `cdlab {name}`"
+        );
+    }
+}

@@ -181,7 +181,7 @@ fn stress_strain_curve_shows_both_axes_and_its_text() {
         .iter()
         .filter_map(|n| n.text().map(|t| t.trim().to_string()))
         .collect();
-    for want in ["axial stress σ₁ (MPa)", "axial strain ε_z (-)"] {
+    for want in ["axial stress σ₁ (MPa)", "axial strain ε₁ (-)"] {
         assert!(
             texts.iter().any(|t| t.contains(want)),
             "axis title {want:?} in {texts:?}"
@@ -190,6 +190,67 @@ fn stress_strain_curve_shows_both_axes_and_its_text() {
     assert!(
         texts.iter().any(|t| t.starts_with("volumetric strain")),
         "the twin axis has its title"
+    );
+}
+
+/// The start of the top wall (issue 36, item 14): a spike of one row at 20 MPa, above the
+/// peak, is drawn row by row in a light color under the mean over 0.002 strain whose top is
+/// the summary's peak, marked and labelled with it; the stress axis spans the rows instead
+/// of starting at 0; no text shows a literal underscore (it showed in "ε_z").
+#[test]
+fn stress_strain_curve_marks_the_peak_of_the_mean_over_a_start_spike() {
+    let mut rows: Vec<SeriesRow> = (0..=1000)
+        .map(|k| {
+            let e = 2e-5 * k as f64;
+            SeriesRow {
+                phase: "compression".into(),
+                strain_axial: e,
+                sigma1_pa: if e < 0.01 {
+                    8e6 + 7e8 * e
+                } else {
+                    12e6 + 3e6 * (-(e - 0.01) / 0.005).exp()
+                },
+                volumetric_strain: 0.2 * e,
+                ..Default::default()
+            }
+        })
+        .collect();
+    rows[1].sigma1_pa = 20e6;
+    let (peak, at) = cdlab::measure::derived::moving_peak(&rows, 0.002);
+    assert!(peak < 15e6, "{peak}");
+    let fig = StressStrainFigure {
+        rows: &rows,
+        title: "spike".into(),
+    };
+    let (svg, ()) = render_svg(&fig).unwrap();
+    let doc = roxmltree::Document::parse(&svg).expect("well-formed SVG");
+    let longest = |c: RGBColor| {
+        svg_elements(&doc, "polyline", Some(("stroke", &hex(c))))
+            .iter()
+            .map(|n| points(n).len())
+            .max()
+            .unwrap_or(0)
+    };
+    assert_eq!(longest(cdlab::figures::curves::ROW_COLOR), 1001, "rows");
+    assert_eq!(longest(LINE_COLORS[0]), 1001, "window means");
+    let texts: Vec<String> = svg_elements(&doc, "text", None)
+        .iter()
+        .filter_map(|n| n.text().map(|t| t.trim().to_string()))
+        .collect();
+    let label = format!("peak {:.3} MPa at strain {:.4}", peak / 1e6, at);
+    assert!(texts.contains(&label), "{label:?} in {texts:?}");
+    assert!(!texts.iter().any(|t| t.contains('_')), "{texts:?}");
+    // Tick labels: strains below 0.03, volumetric strains below 0.005, stresses from about
+    // 3.4 MPa (8 MPa, less the margin and the legend's room below): none at 0 or 2.
+    let stress_ticks: Vec<f64> = texts
+        .iter()
+        .filter_map(|t| t.parse::<f64>().ok())
+        .filter(|v| *v > 0.5)
+        .collect();
+    assert!(!stress_ticks.is_empty(), "{texts:?}");
+    assert!(
+        stress_ticks.iter().all(|v| *v >= 3.0) && stress_ticks.iter().any(|v| *v >= 19.0),
+        "the stress axis spans the rows, spike included: {stress_ticks:?}"
     );
 }
 
@@ -763,7 +824,7 @@ fn render_command_draws_the_nearest_snapshot_and_the_curves() {
     let texts = svg_texts(&doc);
     for want in [
         "axial stress σ₁ (MPa)",
-        "axial strain ε_z (-)",
+        "axial strain ε₁ (-)",
         "volumetric strain",
     ] {
         assert!(texts.iter().any(|t| t.contains(want)), "{want:?} in {texts:?}");
@@ -810,6 +871,41 @@ fn render_command_draws_the_nearest_snapshot_and_the_curves() {
     let (ok, text) = cdlab(&["render", bare.to_str().unwrap(), "--at", "0.05", "-o", fig]);
     assert!(!ok && text.contains("no snapshot"), "{text}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Long key labels (two runs told apart by their directories' names) widen the key column
+/// instead of being cut at the figure's edge, where they could no longer be told apart;
+/// the title keeps a margin above it (issue 36, item 18: the title's top and the labels'
+/// ends were cut).
+#[test]
+fn compare_keeps_long_labels_and_its_title_whole() {
+    let a: Vec<SeriesRow> = series()
+        .into_iter()
+        .map(|r| SeriesRow { sigma3_pa: 8e6, ..r })
+        .collect();
+    let long = |k: usize| format!("σ₃ = 8 MPa (a_very_long_directory_name_of_run_number_{k})");
+    let fig = CompareFigure {
+        runs: vec![(long(1), &a[..]), (long(2), &a[..])],
+        title: "μ = 0.3, σ₃ = 8 MPa, 5000 disks, dt = 0.5 ms, 2 runs".into(),
+    };
+    let (w, h) = fig.size();
+    assert!(w > cdlab::figures::curves::COMPARE_SIZE.0 + 100, "{w}");
+    let (png, ()) = render_png(&fig).unwrap();
+    let img = Img::decode(&png);
+    assert_eq!((img.w, img.h), (w, h));
+    let dark_in_columns = |x0: u32, x1: u32| {
+        (0..img.h)
+            .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+            .filter(|&(x, y)| {
+                let c = img.at(x as f64, y as f64);
+                (c.0 as u32 + c.1 as u32 + c.2 as u32) < 3 * 100
+            })
+            .count()
+    };
+    assert_eq!(dark_in_columns(w - 8, w), 0, "a label reaches the right edge");
+    assert!(dark_in_columns(w - 200, w - 8) > 50, "the labels' ends are drawn");
+    assert_eq!(img.dark_in_rows(0, 8), 0, "the title touches the top");
+    assert!(img.dark_in_rows(8, 45) > 50, "the title is drawn");
 }
 
 /// Two runs compared, the second at half the confining stress and half the axial stress

@@ -2,6 +2,8 @@
 //! the prefixes are the outside truth (micro 1e-6, milli 1e-3, kilo 1e3, mega 1e6), and a
 //! value that is not a finite number of its unit is refused with the field named.
 
+mod common;
+
 use cdlab::config::{Config, Duration, Length, Pressure};
 
 /// `got` equals the exact SI value `want` to within one rounding of the product number x
@@ -95,5 +97,39 @@ fn a_time_step_below_f64_range_is_refused_naming_it() {
     assert!(
         text.contains("solver.dt"),
         "the error does not name solver.dt: {text}"
+    );
+}
+
+/// A unit in the wrong case is refused, and the message states the rule as it applies
+/// (issue 36, item 17: `--sigma3 8mpa` was told "a number (Pa) or a string with one of the
+/// units", while the command line refuses a bare number): on the command line a number
+/// with a unit, in a file also a bare SI number; units are case-sensitive, and the unit
+/// meant is named.
+#[test]
+fn a_unit_in_the_wrong_case_is_refused_with_the_rule_and_the_unit_meant() {
+    use cdlab::config::units::{Dimension, parse_with_unit};
+    let e = parse_with_unit("8mpa", Dimension::Pressure)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("a number with one of the units Pa, kPa, MPa, GPa (case-sensitive)")
+            && e.contains("did you mean `MPa`?")
+            && !e.contains("a number (Pa)"),
+        "{e}"
+    );
+    let e = "8 mpa".parse::<Pressure>().unwrap_err().to_string();
+    assert!(
+        e.contains("a number (Pa) or") && e.contains("did you mean `MPa`?"),
+        "{e}"
+    );
+    // No hint where no unit is meant.
+    let e = parse_with_unit("8 furlongs", Dimension::Length)
+        .unwrap_err()
+        .to_string();
+    assert!(!e.contains("did you mean"), "{e}");
+    let (ok, text) = common::cdlab(&["biaxial", "--sigma3", "8mpa", "--out", "/nonexistent-cdlab/x"]);
+    assert!(
+        !ok && text.contains("did you mean `MPa`?") && !text.contains("a number (Pa)"),
+        "{text}"
     );
 }

@@ -25,8 +25,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable, Dict, Iterable, List, Optional, Tuple, Union
 
-import numpy as np
-import pandas as pd
+# Underscored, as the other imports' names are left out of dir() below: the package's
+# namespace is its API.
+import numpy as _np
+import pandas as _pd
 
 from . import _cdlab
 from ._cdlab import (
@@ -67,9 +69,18 @@ __all__ = [
     "StoppedError",
     "RunError",
     "CampaignError",
+    "PreparedSample",
+    "PathLike",
+    "ConfigLike",
+    "ProgressLike",
 ]
 
 __version__: str = _cdlab.library_version()
+
+
+def __dir__() -> List[str]:
+    """The package's API (``__all__``): not the modules and typing names it imports."""
+    return sorted(set(__all__) | {"__version__", "__doc__", "__name__", "__file__", "__path__"})
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -80,14 +91,14 @@ SERIES_FIELDS: List[Tuple[str, str, str]] = list(_cdlab.series_fields())
 #: The contact classes of a snapshot, by their code in the ``class`` column.
 CONTACT_CLASSES: Tuple[str, ...] = ("open", "zero-force", "rolling", "sliding")
 
-_F64 = np.dtype("<f8")
-_U64 = np.dtype("<u8")
-_U32 = np.dtype("<u4")
+_F64 = _np.dtype("<f8")
+_U64 = _np.dtype("<u8")
+_U32 = _np.dtype("<u4")
 
 
-def _column(raw: bytes, dtype: np.dtype) -> np.ndarray:
+def _column(raw: bytes, dtype: _np.dtype) -> _np.ndarray:
     """A writable native-order array of the little-endian bytes ``raw``."""
-    return np.frombuffer(raw, dtype=dtype).astype(dtype.newbyteorder("="))
+    return _np.frombuffer(raw, dtype=dtype).astype(dtype.newbyteorder("="))
 
 
 class Snapshot:
@@ -111,24 +122,24 @@ class Snapshot:
     def __repr__(self) -> str:
         return f"<cdlab.Snapshot {self.index}: t = {self.time_s:g} s, strain {self.strain:g}>"
 
-    def disks(self) -> pd.DataFrame:
+    def disks(self) -> _pd.DataFrame:
         """The disks, one row each: ``x_m``, ``y_m`` (centre, m), ``theta_rad`` (rotation,
         counterclockwise), ``vx_m_s``, ``vy_m_s`` (m/s), ``w_rad_s`` (rad/s), ``r_m``
         (radius, m), ``dx_m``, ``dy_m`` (displacement since the compression began, m; 0
         before). Every column is float64."""
         cols = self._record.snapshot_disks(self.index)
-        return pd.DataFrame({k: _column(v, _F64) for k, v in cols.items()})
+        return _pd.DataFrame({k: _column(v, _F64) for k, v in cols.items()})
 
-    def contacts(self) -> pd.DataFrame:
+    def contacts(self) -> _pd.DataFrame:
         """The candidate contacts, one row each: ``i``, ``j`` (bodies, uint32), ``nx``,
         ``ny`` (unit normal from j to i), ``f_n_n_m`` (normal force, N/m, compressive
         positive), ``f_t_n_m`` (tangential force along ``(ny, -nx)``, N/m), ``class``
         (uint8 code of :data:`CONTACT_CLASSES`)."""
         cols = self._record.snapshot_contacts(self.index)
-        types = {"i": _U32, "j": _U32, "class": np.dtype("u1")}
-        return pd.DataFrame({k: _column(v, types.get(k, _F64)) for k, v in cols.items()})
+        types = {"i": _U32, "j": _U32, "class": _np.dtype("u1")}
+        return _pd.DataFrame({k: _column(v, types.get(k, _F64)) for k, v in cols.items()})
 
-    def arrays(self) -> Dict[str, np.ndarray]:
+    def arrays(self) -> Dict[str, _np.ndarray]:
         """The snapshot as NumPy arrays (SI units): ``positions`` (n, 2) m, ``radii`` (n,)
         m, ``rotations`` (n,) rad, ``velocities`` (n, 2) m/s, ``angular_velocities`` (n,)
         rad/s, ``displacements`` (n, 2) m; ``pairs`` (m, 2) uint32, ``normals`` (m, 2),
@@ -136,11 +147,11 @@ class Snapshot:
         d = self._record.snapshot_disks(self.index)
         c = self._record.snapshot_contacts(self.index)
 
-        def f(raw: bytes) -> np.ndarray:
+        def f(raw: bytes) -> _np.ndarray:
             return _column(raw, _F64)
 
-        def pair(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-            return np.ascontiguousarray(np.column_stack([a, b]))
+        def pair(a: _np.ndarray, b: _np.ndarray) -> _np.ndarray:
+            return _np.ascontiguousarray(_np.column_stack([a, b]))
 
         return {
             "positions": pair(f(d["x_m"]), f(d["y_m"])),
@@ -152,7 +163,7 @@ class Snapshot:
             "pairs": pair(_column(c["i"], _U32), _column(c["j"], _U32)),
             "normals": pair(f(c["nx"]), f(c["ny"])),
             "forces": pair(f(c["f_n_n_m"]), f(c["f_t_n_m"])),
-            "classes": _column(c["class"], np.dtype("u1")),
+            "classes": _column(c["class"], _np.dtype("u1")),
         }
 
     def fabric(self) -> Dict[str, Any]:
@@ -164,9 +175,9 @@ class Snapshot:
         densities ``rose_all``/``rose_strong`` (1/rad over 18 bins of [0, pi)).
         Raises :class:`CdlabError` when no contact carries force."""
         a = json.loads(self._record.snapshot_fabric_json(self.index))
-        a["pdf"] = np.asarray(a["pdf"], dtype=np.float64).reshape(-1, 2)
-        a["rose_all"] = np.asarray(a["rose_all"], dtype=np.float64)
-        a["rose_strong"] = np.asarray(a["rose_strong"], dtype=np.float64)
+        a["pdf"] = _np.asarray(a["pdf"], dtype=_np.float64).reshape(-1, 2)
+        a["rose_all"] = _np.asarray(a["rose_all"], dtype=_np.float64)
+        a["rose_strong"] = _np.asarray(a["rose_strong"], dtype=_np.float64)
         return a
 
 
@@ -175,7 +186,7 @@ class Test:
 
     def __init__(self, record: "_cdlab.Record"):
         self._record = record
-        self._series: Optional[pd.DataFrame] = None
+        self._series: Optional[_pd.DataFrame] = None
         self._config: Optional[Dict[str, Any]] = None
 
     def __repr__(self) -> str:
@@ -207,7 +218,7 @@ class Test:
         return None if text is None else json.loads(text)
 
     @property
-    def series(self) -> pd.DataFrame:
+    def series(self) -> _pd.DataFrame:
         """The time series: the columns of ``series.csv`` (:data:`SERIES_FIELDS`), one row per
         measurement, read from the record (an archived test: its thinned series). float64,
         uint64 and text (``phase``) columns; NaN where the record holds none (a copy)."""
@@ -219,10 +230,10 @@ class Test:
                 if kind == "string":
                     # pandas' own text dtype (object before pandas 3, str from it on),
                     # as pandas.read_csv gives for series.csv.
-                    data[name] = pd.Series(raw)
+                    data[name] = _pd.Series(raw)
                 else:
                     data[name] = _column(raw, _U64 if kind == "integer" else _F64)
-            self._series = pd.DataFrame(data)
+            self._series = _pd.DataFrame(data)
         return self._series.copy()
 
     @property
@@ -286,11 +297,11 @@ class Report:
     #: the peak friction angle) and ``mu_macro_se``, the same at the residual, the
     #: Mohr-Coulomb cohesion of the free fit ``cohesion_peak_mpa`` with its error (MPa),
     #: ``dt_ms`` (str: several time steps are joined by ``;``) and ``wall_time_h``.
-    fits: pd.DataFrame
+    fits: _pd.DataFrame
     #: One row per test (``tests.csv``): strengths (MPa), strains, shear bands, stress drops,
     #: overlap, kinetic ratio, time step (ms) and wall time (h); NaN where the summary holds
     #: no figure.
-    tests: pd.DataFrame
+    tests: _pd.DataFrame
     #: ``report.json``: the fits with their points, the friction saturation fits
     #: ``mu_macro_fit``/``mu_macro_res_fit``, the tests that could not be read (``missing``)
     #: and those flagged ``suspect`` (not quasi-static) or ``overlapping``.
@@ -315,7 +326,7 @@ def report(paths: Union[PathLike, Iterable[PathLike]]) -> Report:
     return Report(fits=fits, tests=tests, raw=json.loads(json_text))
 
 
-def _frame_from_csv(csv_text: str, *, text: Tuple[str, ...] = ()) -> pd.DataFrame:
+def _frame_from_csv(csv_text: str, *, text: Tuple[str, ...] = ()) -> _pd.DataFrame:
     """A DataFrame of a CSV text that cdlab wrote: the ``text`` columns as str, the others as
     int64 when every cell is an integer, else float64 with NaN for an empty cell. Python's
     float() reads Rust's shortest round-trip form back to the same bits, which
@@ -326,12 +337,12 @@ def _frame_from_csv(csv_text: str, *, text: Tuple[str, ...] = ()) -> pd.DataFram
     for k, name in enumerate(header):
         cells = [r[k] for r in body]
         if name in text:
-            data[name] = pd.Series(cells)
+            data[name] = _pd.Series(cells)
         elif cells and all(c.lstrip("-").isdigit() for c in cells):
-            data[name] = np.array([int(c) for c in cells], dtype=np.int64)
+            data[name] = _np.array([int(c) for c in cells], dtype=_np.int64)
         else:
-            data[name] = np.array([float(c) if c else np.nan for c in cells], dtype=np.float64)
-    return pd.DataFrame(data, columns=header)
+            data[name] = _np.array([float(c) if c else _np.nan for c in cells], dtype=_np.float64)
+    return _pd.DataFrame(data, columns=header)
 
 
 # ---------------------------------------------------------------------------------------

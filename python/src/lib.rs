@@ -91,9 +91,63 @@ create_exception!(
     "A campaign that cannot run as asked (sweep file, grid, failed tests); attribute `path`."
 );
 
-/// A cdlab error as the matching Python exception, its fields set as attributes.
+/// The path written after `prefix` in `msg` up to the first of `ends` (or the end), and
+/// where that path ends.
+fn path_after(msg: &str, prefix: &str, ends: &[&str]) -> Option<(usize, usize, String)> {
+    let at = msg.find(prefix)?;
+    let from = at + prefix.len();
+    let rest = &msg[from..];
+    let len = ends
+        .iter()
+        .filter_map(|e| rest.find(e))
+        .min()
+        .unwrap_or(rest.len());
+    Some((at, from + len, rest[..len].to_string()))
+}
+
+/// A library message in a Python user's terms: the ways out it names on the command line
+/// (`--force`, `cdlab biaxial --resume DIR`, `cdlab prepare -o FILE --force`) become the
+/// package's calls and arguments. A message naming none is returned as it is.
+pub fn in_python_terms(msg: &str) -> String {
+    let mut m = msg.to_string();
+    // `cdlab.run`'s refusal of an occupied directory.
+    if let Some((at, end, dir)) = path_after(&m, "pass --force to replace them, --resume ", &[" to continue"])
+    {
+        let tail = m[end..].replacen(" to continue that run, or --out DIR", "", 1);
+        m = format!(
+            "{}pass force=True to replace them, call cdlab.resume({dir:?}) to continue that run, \
+             or give another out directory{tail}",
+            &m[..at]
+        );
+    }
+    while let Some((at, end, dir)) = path_after(&m, "`cdlab biaxial --resume ", &["`"]) {
+        m = format!("{}`cdlab.resume({dir:?})`{}", &m[..at], &m[end + 1..]);
+    }
+    while let Some((at, end, file)) = path_after(&m, "`cdlab prepare -o ", &[" --force`"]) {
+        m = format!(
+            "{}`cdlab.prepare(config, out={file:?})`{}",
+            &m[..at],
+            &m[end + " --force`".len()..]
+        );
+    }
+    m.replace(
+        "resume it with cdlab biaxial --resume)",
+        "resume it with cdlab.resume(path))",
+    )
+    .replace(
+        "start the run again with --force",
+        "start the run again with force=True",
+    )
+    .replace(
+        "(`cdlab render DIR --curves` draws from the thinned series)",
+        "(cdlab.open reads its thinned series and summary)",
+    )
+}
+
+/// A cdlab error as the matching Python exception, its fields set as attributes; its
+/// message in the package's terms ([`in_python_terms`]).
 fn py_err(py: Python<'_>, e: Error) -> PyErr {
-    let msg = e.to_string();
+    let msg = in_python_terms(&e.to_string());
     let (err, attrs): (PyErr, Vec<(&str, Py<PyAny>)>) = match e {
         Error::Invalid {
             field,
@@ -612,4 +666,52 @@ fn _cdlab(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RunError", py.get_type::<RunError>())?;
     m.add("CampaignError", py.get_type::<CampaignError>())?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::in_python_terms;
+
+    /// The library's messages that name command-line flags (issue 36, item 17: RunError
+    /// told a Python user to pass --force) come out as the package's calls: the occupied
+    /// directory's refusal as the library writes it, and the others as they are worded.
+    #[test]
+    fn messages_name_the_package_calls_not_the_flags() {
+        let dir = std::env::temp_dir().join(format!("cdlab-py-terms-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("x"), b"").unwrap();
+        let occupied = cdlab::run::check_out_dir(&dir, false).unwrap_err().to_string();
+        let _ = std::fs::remove_dir_all(&dir);
+        assert!(occupied.contains("--force"), "{occupied}");
+        let d = dir.display().to_string();
+        let m = in_python_terms(&occupied);
+        assert_eq!(
+            m,
+            format!(
+                "output directory {d} already holds files: pass force=True to replace them, \
+                 call cdlab.resume({d:?}) to continue that run, or give another out directory"
+            )
+        );
+        for (cli, py) in [
+            (
+                "run.mcap: damaged: `cdlab biaxial --resume /r/a b` recomputes the run",
+                "run.mcap: damaged: `cdlab.resume(\"/r/a b\")` recomputes the run",
+            ),
+            (
+                "the record ends in phase compression (resume it with cdlab biaxial --resume)",
+                "the record ends in phase compression (resume it with cdlab.resume(path))",
+            ),
+            (
+                "no checkpoint: start the run again with --force",
+                "no checkpoint: start the run again with force=True",
+            ),
+            (
+                "prepare it again (`cdlab prepare -o s.bin --force` with its settings)",
+                "prepare it again (`cdlab.prepare(config, out=\"s.bin\")` with its settings)",
+            ),
+            ("nothing to change here", "nothing to change here"),
+        ] {
+            assert_eq!(in_python_terms(cli), py);
+        }
+    }
 }

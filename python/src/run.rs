@@ -24,7 +24,9 @@ use crate::{path_obj, py_err};
 
 /// A configuration given as JSON text (what `json.dumps` makes of a Python dict with the
 /// TOML file's keys and unit strings), read as the same TOML file would be: the dict goes
-/// through the TOML reader so that its errors name the key, as they do for a file.
+/// through the TOML reader so that units and ranges are checked as for a file, and a value
+/// of the wrong type is an InvalidParameterError naming its key
+/// ([`Config::from_generated_toml`]), not a line of a TOML text the user never wrote.
 fn config_from_json(json: &str) -> cdlab::Result<Config> {
     let bad = |why: String| Error::Parse {
         path: PathBuf::from("<config dict>"),
@@ -37,7 +39,7 @@ fn config_from_json(json: &str) -> cdlab::Result<Config> {
     }
     let table = toml::Value::try_from(value).map_err(|e| bad(format!("not expressible as TOML: {e}")))?;
     let text = toml::to_string(&table).map_err(|e| bad(format!("not expressible as TOML: {e}")))?;
-    Config::from_toml_str(&text)
+    Config::from_generated_toml(&text, "<config dict>")
 }
 
 /// The configuration of a call: a dict (as JSON), a TOML file, or the built-in default;

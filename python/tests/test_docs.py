@@ -26,3 +26,13 @@ def test_block_runs(k, small_run, monkeypatch):
     with contextlib.redirect_stdout(out):
         exec(compile(BLOCKS[k], f"docs/python.md block {k + 1}", "exec"), {"RUN": os.fspath(small_run)})
     assert out.getvalue().strip(), "each block prints what it shows"
+
+
+def test_the_namespace_is_the_api():
+    """dir(cdlab) lists the package's API, not the modules it imports (np, pd, Any)."""
+    import cdlab
+
+    public = [n for n in dir(cdlab) if not n.startswith("_")]
+    assert sorted(public) == sorted(cdlab.__all__)
+    for name in cdlab.__all__:
+        assert hasattr(cdlab, name), name

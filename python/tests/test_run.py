@@ -45,10 +45,14 @@ def test_summary_config_and_identity(small_run):
 def test_snapshots_have_strain_time_and_documented_arrays(small_run):
     t = cdlab.open(small_run)
     snaps = t.snapshots
-    # snapshot_every = 0.001 over 0.002 strain.
-    assert len(snaps) >= 2
-    assert all(a.time_s < b.time_s and a.strain < b.strain for a, b in zip(snaps, snaps[1:]))
-    assert math.isclose(snaps[-1].strain, t.summary["strain_final"], rel_tol=0.05)
+    # The ends of the compaction and the confinement at strain 0, then snapshot_every =
+    # 0.001 over 0.002 strain, the last one the final state.
+    assert len(snaps) >= 4
+    assert [s.strain for s in snaps[:2]] == [0.0, 0.0]
+    assert all(a.time_s < b.time_s and a.strain <= b.strain for a, b in zip(snaps, snaps[1:]))
+    assert all(a.strain < b.strain for a, b in zip(snaps[1:], snaps[2:]))
+    assert snaps[-1].strain == t.summary["strain_final"]
+    assert snaps[-1].time_s == t.series["time_s"].iloc[-1]
 
     last = snaps[-1]
     disks = last.disks()

@@ -77,7 +77,21 @@ def test_run_into_an_occupied_directory_needs_force(small_run, tmp_path):
     with pytest.raises(cdlab.RunError) as e:
         cdlab.run(SMALL_DICT, out)
     assert e.value.fault == "Occupied"
+    # In the package's terms, not the command line's.
+    msg = str(e.value)
+    assert "force=True" in msg and "cdlab.resume(" in msg and "--" not in msg, msg
     assert cdlab.run(SMALL_DICT, out, force=True).summary is not None
+
+
+def test_a_value_of_the_wrong_type_in_a_dict_names_its_key(tmp_path):
+    """Issue 36, item 17: a negative disk count was a ParseError naming line 2 of a TOML
+    text the user never wrote, in Rust's words ("expected usize")."""
+    bad = {**SMALL_DICT, "sample": {"disks": -5}}
+    with pytest.raises(cdlab.InvalidParameterError) as e:
+        cdlab.run(bad, tmp_path / "run")
+    assert e.value.field == "sample.disks" and e.value.value == "-5"
+    msg = str(e.value)
+    assert "whole number" in msg and "usize" not in msg and "line" not in msg, msg
 
 
 @pytest.fixture
@@ -174,8 +188,8 @@ def test_other_callback_exceptions_stop_the_run_and_propagate(tmp_path):
     [
         ("sample", "disks", 5, cdlab.InvalidParameterError),
         ("test", "sigma3", "-1 MPa", cdlab.CdlabError),
-        ("sample", "disks", -3, cdlab.ParseError),
-        ("sample", "diskz", 300, cdlab.ParseError),
+        ("sample", "disks", -3, cdlab.InvalidParameterError),
+        ("sample", "diskz", 300, cdlab.InvalidParameterError),
     ],
 )
 def test_bad_config_dict_names_the_field(tmp_path, section, key, value, kind):

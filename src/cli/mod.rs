@@ -98,6 +98,26 @@ pub enum Command {
     Info(info::Args),
 }
 
+/// What `cdlab version` prints: the version, then the build's git commit, wgpu version,
+/// target, profile and compiler (`unknown` for what the build could not find out, e.g. the
+/// commit of a build outside a git checkout), one `key: value` line each.
+pub fn build_info() -> String {
+    format!(
+        "cdlab {}\n\
+         git commit: {} (at build time)\n\
+         wgpu: {}\n\
+         target: {}\n\
+         profile: {}\n\
+         compiler: {}\n",
+        env!("CARGO_PKG_VERSION"),
+        env!("CDLAB_GIT_COMMIT"),
+        env!("CDLAB_WGPU_VERSION"),
+        env!("CDLAB_TARGET"),
+        env!("CDLAB_PROFILE"),
+        env!("CDLAB_RUSTC"),
+    )
+}
+
 /// Parses the command line, runs the subcommand and returns the process exit code.
 ///
 /// A terminal or log that refuses writes (a full disk under a redirected stderr) makes Rust's
@@ -146,7 +166,7 @@ fn run_command() -> i32 {
         Command::Compare(args) => compare::run(&args),
         Command::Bench(args) => bench::run(&args),
         Command::Version => {
-            println!("cdlab {}", env!("CARGO_PKG_VERSION"));
+            print!("{}", build_info());
             Ok(())
         }
         Command::Config(args) => config::run(&args),

@@ -67,6 +67,9 @@ fn snapshot(args: &Args, at: f64) -> Result<()> {
         message: format!("{}: the run holds no snapshot", args.run.display()),
     })?;
     let snap = &rec.snapshots[k];
+    if let Some(note) = not_exact(&rec.snapshots, k, at) {
+        eprintln!("{note}");
+    }
     // Rotations count from the snapshot nearest the start of the compression recorded
     // before the one drawn (the record keeps total rotations since the deposition).
     let reference = rotation_reference(&rec.snapshots, k);
@@ -115,6 +118,35 @@ fn snapshot(args: &Args, at: f64) -> Result<()> {
         args.out.display()
     );
     Ok(())
+}
+
+/// How close a snapshot's strain must be to the one asked for to count as it (the
+/// strains printed have five decimals).
+const SAME_STRAIN: f64 = 5e-6;
+
+/// The note that snapshot `k`, the nearest to axial strain `at`, is not at it: its strain
+/// and where the run's snapshots are. `None` when it is.
+pub fn not_exact(snapshots: &[crate::record::Snapshot], k: usize, at: f64) -> Option<String> {
+    let got = snapshots.get(k)?.strain;
+    if (got - at).abs() <= SAME_STRAIN {
+        return None;
+    }
+    let strains: Vec<String> = snapshots.iter().map(|s| format!("{:.5}", s.strain)).collect();
+    let list = if strains.len() <= 12 {
+        strains.join(", ")
+    } else {
+        format!(
+            "{}, ..., {} ({} snapshots)",
+            strains[..3].join(", "),
+            strains[strains.len() - 3..].join(", "),
+            strains.len()
+        )
+    };
+    Some(format!(
+        "note: no snapshot at axial strain {at}: drawing the nearest, at axial strain {got:.5}. \
+         The run's snapshots are at {list} (every output.snapshot_every of the compression, \
+         and at the end of each phase)"
+    ))
 }
 
 fn curves(args: &Args) -> Result<()> {

@@ -86,6 +86,26 @@ fn key_at(text: &str, at: usize) -> Option<String> {
     })
 }
 
+/// A TOML reader's message in a scientist's words: the Rust types a value was expected as
+/// (`usize`, `f64`) become what they mean ("a whole number >= 0", "a number").
+pub fn plain_words(message: &str) -> String {
+    let mut out = message.trim().to_string();
+    for (rust, plain) in [
+        ("usize", "a whole number >= 0"),
+        ("u64", "a whole number >= 0"),
+        ("u32", "a whole number >= 0 (below 2^32)"),
+        ("u16", "a whole number >= 0 (below 65536)"),
+        ("u8", "a whole number >= 0 (below 256)"),
+        ("i64", "a whole number"),
+        ("i32", "a whole number"),
+        ("f64", "a number"),
+        ("f32", "a number"),
+    ] {
+        out = out.replace(&format!("expected {rust}"), &format!("expected {plain}"));
+    }
+    out
+}
+
 /// Largest configuration or sweep file read (1 MiB): the default configuration, comments
 /// included, is a few kilobytes, so anything larger is the wrong file (or `/dev/zero`), and
 /// reading it whole would take all the memory there is.
@@ -134,13 +154,53 @@ impl Config {
             let start = e.span().map(|s| s.start.min(text.len()));
             let line = start.map_or(0, |s| text[..s].matches('\n').count() + 1);
             let message = match start.and_then(|s| key_at(text, s)) {
-                Some(key) => format!("`{key}`: {}", e.message()),
-                None => e.message().to_string(),
+                Some(key) => format!("`{key}`: {}", plain_words(e.message())),
+                None => plain_words(e.message()),
             };
             Error::Parse {
                 path: path.to_path_buf(),
                 line,
                 message,
+            }
+        })?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Parses and validates TOML text that a program made from other values (the Python
+    /// package's dicts): nobody wrote its lines, so a value of the wrong type is an
+    /// [`Error::Invalid`] naming its key and value rather than a line of the text; only
+    /// what names no key (a key that does not exist, a section that is not a table) is an
+    /// [`Error::Parse`] of `source`, without a line.
+    pub fn from_generated_toml(text: &str, source: &str) -> Result<Self> {
+        let config: Config = toml::from_str(text).map_err(|e| {
+            let start = e.span().map(|s| s.start.min(text.len()));
+            let at_key = start.and_then(|s| key_at(text, s).map(|k| (s, k)));
+            match at_key {
+                Some((s, key)) => {
+                    let line_start = text[..s].rfind('\n').map_or(0, |k| k + 1);
+                    let value = text[line_start..]
+                        .lines()
+                        .next()
+                        .and_then(|l| l.split_once('='))
+                        .map_or("", |(_, v)| v.trim());
+                    let message = plain_words(e.message());
+                    // "invalid value: integer `-5`, expected a whole number >= 0"
+                    let allowed = ["invalid value: ", "invalid type: "]
+                        .iter()
+                        .find_map(|p| message.strip_prefix(p))
+                        .and_then(|m| m.split_once(", expected "))
+                        .map_or_else(
+                            || message.clone(),
+                            |(got, want)| format!("must be {want}, not {got}"),
+                        );
+                    Error::invalid(&key, value, &allowed)
+                }
+                None => Error::Parse {
+                    path: source.into(),
+                    line: 0,
+                    message: plain_words(e.message()),
+                },
             }
         })?;
         config.validate()?;

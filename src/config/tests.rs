@@ -235,3 +235,41 @@ fn paper_defaults_update_deep_contacts_as_the_configuration_does() {
         (from_config.deep_gap, from_config.deep_sweeps)
     );
 }
+
+/// A value of the wrong type in text a program made (the Python package's dicts) names its
+/// key and value, in words rather than Rust types, and no line of a text nobody wrote; in
+/// a file the line stays, in the same words (issue 36, item 17: "line 2: ... invalid
+/// value: integer -5, expected usize").
+#[test]
+fn a_value_of_the_wrong_type_names_its_key_in_plain_words() {
+    let text = "[sample]\ndisks = -5\n";
+    match Config::from_generated_toml(text, "<config dict>") {
+        Err(Error::Invalid {
+            field,
+            value,
+            allowed,
+        }) => {
+            assert_eq!((field.as_str(), value.as_str()), ("sample.disks", "-5"));
+            assert!(allowed.starts_with("must be a whole number >= 0"), "{allowed}");
+            assert!(!allowed.contains("usize"), "{allowed}");
+        }
+        other => panic!("{other:?}"),
+    }
+    match Config::from_generated_toml("[test]\nmu = \"much\"\n", "<config dict>") {
+        Err(Error::Invalid { field, allowed, .. }) => {
+            assert_eq!(field, "test.mu");
+            assert!(
+                allowed.contains("a number") && !allowed.contains("f64"),
+                "{allowed}"
+            );
+        }
+        other => panic!("{other:?}"),
+    }
+    match Config::from_toml_str(text) {
+        Err(e @ Error::Parse { line: 2, .. }) => {
+            let m = e.to_string();
+            assert!(m.contains("sample.disks") && !m.contains("usize"), "{m}");
+        }
+        other => panic!("{other:?}"),
+    }
+}

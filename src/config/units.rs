@@ -93,7 +93,7 @@ pub struct UnitError(pub String);
 /// `1e308 GPa` once converted) is an error; range checks of finite values belong to
 /// `Config::validate`, which names the field.
 pub fn parse_quantity(text: &str, dim: Dimension) -> Result<f64, UnitError> {
-    let (value, _) = split_quantity(text, dim)?;
+    let (value, _) = split_quantity(text, dim, false)?;
     Ok(value)
 }
 
@@ -101,7 +101,7 @@ pub fn parse_quantity(text: &str, dim: Dimension) -> Result<f64, UnitError> {
 /// where a bare number is more likely a forgotten unit than a value in SI units. The error
 /// gives an example with a unit.
 pub fn parse_with_unit(text: &str, dim: Dimension) -> Result<f64, UnitError> {
-    let (value, unit) = split_quantity(text, dim)?;
+    let (value, unit) = split_quantity(text, dim, true)?;
     if !unit {
         let example = match dim {
             Dimension::Pressure => "8MPa or 500kPa",
@@ -120,8 +120,31 @@ pub fn parse_with_unit(text: &str, dim: Dimension) -> Result<f64, UnitError> {
     Ok(value)
 }
 
-/// The value in SI units, and whether a unit was written.
-fn split_quantity(text: &str, dim: Dimension) -> Result<(f64, bool), UnitError> {
+/// What a quantity that could not be read must be: with `need_unit` (the command line) a
+/// number with one of the units; otherwise also a bare number in SI units. A unit that
+/// differs from an accepted one only in case is named: units are case-sensitive (`mPa`,
+/// millipascal, and `MPa` differ by 1e9).
+fn not_a_quantity(text: &str, unit: &str, dim: Dimension, need_unit: bool) -> UnitError {
+    let list: Vec<&str> = dim.units().iter().map(|(u, _)| *u).collect();
+    let rule = if need_unit {
+        format!(
+            "a {}: a number with one of the units {} (case-sensitive)",
+            dim.name(),
+            list.join(", ")
+        )
+    } else {
+        format!("{} (case-sensitive)", dim.expected())
+    };
+    let hint = list
+        .iter()
+        .find(|u| u.eq_ignore_ascii_case(unit))
+        .map_or(String::new(), |u| format!(": did you mean `{u}`?"));
+    UnitError(format!("`{text}` is not {rule}{hint}"))
+}
+
+/// The value in SI units, and whether a unit was written (`need_unit`: the error says that
+/// a unit is required).
+fn split_quantity(text: &str, dim: Dimension, need_unit: bool) -> Result<(f64, bool), UnitError> {
     let s = text.trim();
     let split = s
         .find(|c: char| !(c.is_ascii_digit() || matches!(c, '.' | 'e' | 'E' | '+' | '-')))
@@ -129,9 +152,9 @@ fn split_quantity(text: &str, dim: Dimension) -> Result<(f64, bool), UnitError> 
     // "5e-4s" must split as 5e-4 / s, but a trailing 'e' with no exponent belongs to nothing:
     // f64 parsing rejects it below with the full text in the message.
     let (num, unit) = s.split_at(split);
-    let bad = || UnitError(format!("`{text}` is not {}", dim.expected()));
-    let value: f64 = num.parse().map_err(|_| bad())?;
     let unit = unit.trim();
+    let bad = || not_a_quantity(text, unit, dim, need_unit);
+    let value: f64 = num.parse().map_err(|_| bad())?;
     let (value, has_unit) = if unit.is_empty() {
         (value, false)
     } else {

@@ -7,6 +7,7 @@ use plotters::prelude::*;
 
 use super::{Figure, LABEL, LINE_COLORS, TICK, draw_err, draw_legend};
 use crate::error::{Error, Result};
+use crate::measure::derived::PEAK_WINDOW;
 use crate::record::SeriesRow;
 
 /// Figure size in pixels: a landscape page-width plot.
@@ -24,6 +25,41 @@ fn compression(rows: &[SeriesRow]) -> Result<Vec<&SeriesRow>> {
         ));
     }
     Ok(c)
+}
+
+/// Title of the axial-strain axis. The subscript is a character of its own: plotters draws
+/// text as given, so `ε_z` showed its underscore.
+pub const STRAIN_AXIS: &str = "axial strain ε₁ (-)";
+
+/// The color of sigma_1 row by row, under its moving mean: the mean's color
+/// ([`LINE_COLORS`]`[0]`) halfway to white.
+pub const ROW_COLOR: RGBColor = RGBColor(143, 187, 217);
+
+/// The share of the curves' range added below them in [`StressStrainFigure`], for its
+/// legend.
+const LEGEND_ROOM: f64 = 0.3;
+
+/// The windows of the summary's peak over `rows` (in increasing strain): for each row, the
+/// mean sigma_1 (MPa) of the rows within [`PEAK_WINDOW`] of strain from it, at the window's
+/// centre, as [`crate::measure::derived::moving_peak`] takes them.
+fn window_means(rows: &[&SeriesRow]) -> Vec<(f64, f64)> {
+    let mut out = Vec::with_capacity(rows.len());
+    let (mut end, mut sum) = (0, 0.0);
+    for start in 0..rows.len() {
+        while end < rows.len() && rows[end].strain_axial <= rows[start].strain_axial + PEAK_WINDOW {
+            sum += rows[end].sigma1_pa;
+            end += 1;
+        }
+        if end > start {
+            let n = (end - start) as f64;
+            out.push((
+                0.5 * (rows[start].strain_axial + rows[end - 1].strain_axial),
+                sum / n / 1e6,
+            ));
+        }
+        sum -= rows[start].sigma1_pa;
+    }
+    out
 }
 
 /// A range that contains `values` with a margin of 5% of their spread (or +-1 around a
@@ -86,7 +122,7 @@ fn strain_chart<'a, DB: DrawingBackend>(
     if count {
         mesh.y_label_formatter(&whole);
     }
-    mesh.x_desc("axial strain ε_z (-)")
+    mesh.x_desc(STRAIN_AXIS)
         .y_desc(y_desc)
         .label_style(TICK)
         .axis_desc_style(LABEL)
@@ -97,6 +133,13 @@ fn strain_chart<'a, DB: DrawingBackend>(
 }
 
 /// sigma_1 (MPa, left axis) and volumetric strain (right axis) against axial strain.
+///
+/// sigma_1 is drawn twice: row by row (light), and as its mean over [`PEAK_WINDOW`] of
+/// axial strain (dark), the curve whose maximum is the summary's peak, which is marked.
+/// Row by row, the first rows show the top wall's start: set moving at full speed from
+/// rest, it can push sigma_1 above the peak for a few steps (a spike at strain of order
+/// 1e-5). The mean smooths it as the peak does; the stress axis spans the rows rather
+/// than starting at 0, so that the curve fills the plot.
 #[derive(Clone, Debug)]
 pub struct StressStrainFigure<'a> {
     /// The run's series (any phases; only compression rows are drawn).
@@ -115,9 +158,13 @@ impl Figure for StressStrainFigure<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
         let rows = compression(self.rows)?;
         let strain = |r: &&SeriesRow| r.strain_axial;
+        let means = window_means(&rows);
         let (x0, x1) = padded_range(rows.iter().map(strain), true);
-        let (s0, s1) = padded_range(rows.iter().map(|r| r.sigma1_pa / 1e6), true);
-        let (v0, v1) = padded_range(rows.iter().map(|r| r.volumetric_strain), false);
+        // Room below both curves for the legend (four lines in the lower right), which
+        // would otherwise hide them now that the stress axis does not start at 0.
+        let room = |(lo, hi): (f64, f64)| (lo - LEGEND_ROOM * (hi - lo), hi);
+        let (s0, s1) = room(padded_range(rows.iter().map(|r| r.sigma1_pa / 1e6), false));
+        let (v0, v1) = room(padded_range(rows.iter().map(|r| r.volumetric_strain), false));
         let mut chart = ChartBuilder::on(root)
             .caption(&self.title, LABEL)
             .margin(15)
@@ -129,7 +176,7 @@ impl Figure for StressStrainFigure<'_> {
             .set_secondary_coord(x0..x1, v0..v1);
         chart
             .configure_mesh()
-            .x_desc("axial strain ε_z (-)")
+            .x_desc(STRAIN_AXIS)
             .y_desc("axial stress σ₁ (MPa)")
             .label_style(TICK)
             .axis_desc_style(LABEL)
@@ -147,11 +194,23 @@ impl Figure for StressStrainFigure<'_> {
         chart
             .draw_series(LineSeries::new(
                 rows.iter().map(|r| (r.strain_axial, r.sigma1_pa / 1e6)),
-                c1.stroke_width(2),
+                ROW_COLOR.stroke_width(1),
             ))
             .map_err(draw_err)?
-            .label("σ₁ (MPa, left axis)")
+            .label("σ₁ row by row (MPa, left axis)")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 25, y)], ROW_COLOR.stroke_width(2)));
+        chart
+            .draw_series(LineSeries::new(means.iter().copied(), c1.stroke_width(2)))
+            .map_err(draw_err)?
+            .label("σ₁ mean over 0.002 strain (its top: the peak)")
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 25, y)], c1.stroke_width(2)));
+        if let Some(&(at, peak)) = means.iter().reduce(|a, b| if b.1 > a.1 { b } else { a }) {
+            chart
+                .draw_series(std::iter::once(Circle::new((at, peak), 6, BLACK.stroke_width(2))))
+                .map_err(draw_err)?
+                .label(format!("peak {peak:.3} MPa at strain {at:.4}"))
+                .legend(|(x, y)| Circle::new((x + 12, y), 5, BLACK.stroke_width(2)));
+        }
         chart
             .draw_secondary_series(LineSeries::new(
                 rows.iter().map(|r| (r.strain_axial, r.volumetric_strain)),
@@ -229,11 +288,38 @@ pub struct CompareFigure<'a> {
     pub title: String,
 }
 
-/// Size of the comparison figure: two stacked panels and the key on their right.
+/// Size of the comparison figure with its narrowest key: two stacked panels and the key on
+/// their right. The key widens with its labels ([`CompareFigure::key_width`]).
 pub const COMPARE_SIZE: (u32, u32) = (1150, 900);
 
-/// Width of the key's column (px): room for labels such as "μ = 12, dt = 0.0625 ms".
+/// Narrowest width of the key's column (px): room for labels such as "μ = 12, dt = 0.0625 ms".
 const KEY_WIDTH: u32 = 250;
+
+/// Widest key column (px): a label longer than this is cut at the figure's edge.
+const KEY_WIDTH_MAX: u32 = 1200;
+
+/// Left of a key label in its column (px): the line sample before it.
+const KEY_TEXT_X: i32 = 48;
+
+impl CompareFigure<'_> {
+    /// Width of the key's column: the longest label, measured in the key's font, with its
+    /// line sample and a margin, from 250 to 1200 px. A fixed column cut long labels
+    /// (directory names) at the figure's edge, where two runs' labels could no longer be
+    /// told apart.
+    pub fn key_width(&self) -> u32 {
+        // Measuring needs the embedded font (registered once; a failure leaves the narrow key).
+        let _ = super::font::ensure();
+        let font = TICK.into_font();
+        let widest = self
+            .runs
+            .iter()
+            .filter_map(|(label, _)| font.box_size(label).ok())
+            .map(|(w, _)| w)
+            .max()
+            .unwrap_or(0);
+        (widest + KEY_TEXT_X as u32 + 20).clamp(KEY_WIDTH, KEY_WIDTH_MAX)
+    }
+}
 
 /// One panel of [`CompareFigure`]: its area, value range, axis title and value of a row.
 type Panel<'a, DB> = (
@@ -247,7 +333,7 @@ impl Figure for CompareFigure<'_> {
     type Output = ();
 
     fn size(&self) -> (u32, u32) {
-        COMPARE_SIZE
+        (COMPARE_SIZE.0 - KEY_WIDTH + self.key_width(), COMPARE_SIZE.1)
     }
 
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> Result<()> {
@@ -266,12 +352,17 @@ impl Figure for CompareFigure<'_> {
         }
         let all = || runs.iter().flat_map(|(_, rows)| rows.iter());
         let (x0, x1) = padded_range(all().map(|r| r.strain_axial), true);
-        let (s0, s1) = padded_range(all().map(|r| r.sigma1_pa / r.sigma3_pa), true);
+        let (s0, s1) = padded_range(all().map(|r| r.sigma1_pa / r.sigma3_pa), false);
         let (v0, v1) = padded_range(all().map(|r| r.volumetric_strain), false);
-        let root = root.titled(&self.title, LABEL).map_err(draw_err)?;
+        // A margin above the title: plotters places it 5 px from the top, where the accents
+        // and the tops of its capitals were cut.
+        let root = root
+            .margin(12, 0, 0, 0)
+            .titled(&self.title, LABEL)
+            .map_err(draw_err)?;
         // The key has its own column: inside a panel it would hide curves, which fill both.
         let (w, h) = root.dim_in_pixel();
-        let (plots, key) = root.split_horizontally(w.saturating_sub(KEY_WIDTH));
+        let (plots, key) = root.split_horizontally(w.saturating_sub(self.key_width()));
         let (top, bottom) = plots.split_vertically(h / 2);
         let n = runs.len();
         let color = |k: usize| super::colormap::friction_color(k, n);
@@ -307,7 +398,7 @@ impl Figure for CompareFigure<'_> {
             .map_err(draw_err)?;
             key.draw(&Text::new(
                 label.as_str(),
-                (48, y - 8),
+                (KEY_TEXT_X, y - 8),
                 TICK.into_font().color(&BLACK),
             ))
             .map_err(draw_err)?;

@@ -26,25 +26,73 @@ pub struct Strength {
 /// Mean of `sigma1` over every strain window `[e, e + window]` of the compression rows, and
 /// the largest such mean with its window centre. Rows must be in increasing strain.
 pub fn moving_peak(rows: &[SeriesRow], window: f64) -> (f64, f64) {
-    let mut best = (f64::NAN, f64::NAN);
-    let mut end = 0;
-    let mut sum = 0.0;
-    for start in 0..rows.len() {
-        while end < rows.len() && rows[end].strain_axial <= rows[start].strain_axial + window {
-            sum += rows[end].sigma1_pa;
-            end += 1;
-        }
-        let n = (end - start) as f64;
-        let mean = sum / n;
-        if best.0.is_nan() || mean > best.0 {
-            best = (
-                mean,
-                0.5 * (rows[start].strain_axial + rows[end - 1].strain_axial),
-            );
-        }
-        sum -= rows[start].sigma1_pa;
+    let mut peak = MovingPeak::new(window);
+    for r in rows {
+        peak.push(r.strain_axial, r.sigma1_pa);
     }
-    best
+    peak.result()
+}
+
+/// [`moving_peak`] fed one point at a time, in increasing strain, so that a run can keep
+/// it as it goes ([`DerivedCurve`]): a window is closed as soon as a point beyond it
+/// arrives, with the same additions and subtractions in the same order as over the whole
+/// list, so both give the same bits. Holds only the points of the open windows.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MovingPeak {
+    /// Width of the window (strain).
+    window: f64,
+    /// The points (strain, value) of the windows not yet closed.
+    open: std::collections::VecDeque<(f64, f64)>,
+    /// Sum of the values in `open`.
+    sum: f64,
+    /// The largest window mean so far and its window centre.
+    best: Option<(f64, f64)>,
+}
+
+impl MovingPeak {
+    /// No point yet, windows `window` wide.
+    pub fn new(window: f64) -> Self {
+        MovingPeak {
+            window,
+            ..Default::default()
+        }
+    }
+
+    /// Adds the next point: every window it lies beyond is closed first.
+    pub fn push(&mut self, strain: f64, value: f64) {
+        while let Some(&(start, _)) = self.open.front() {
+            if strain <= start + self.window {
+                break;
+            }
+            self.close_front();
+        }
+        self.sum += value;
+        self.open.push_back((strain, value));
+    }
+
+    /// Closes the window that starts at the oldest open point: its mean over every open
+    /// point (all lie within it).
+    fn close_front(&mut self) {
+        let (Some(&(start, first)), Some(&(end, _))) = (self.open.front(), self.open.back()) else {
+            return;
+        };
+        let mean = self.sum / self.open.len() as f64;
+        if self.best.is_none_or(|(b, _)| b.is_nan() || mean > b) {
+            self.best = Some((mean, 0.5 * (start + end)));
+        }
+        self.sum -= first;
+        self.open.pop_front();
+    }
+
+    /// The largest window mean and its window centre, the windows still open (cut by the
+    /// end of the points) included; NaN without points.
+    pub fn result(&self) -> (f64, f64) {
+        let mut rest = self.clone();
+        while !rest.open.is_empty() {
+            rest.close_front();
+        }
+        rest.best.unwrap_or((f64::NAN, f64::NAN))
+    }
 }
 
 /// Mean sigma_1 over rows with strain in `[lo, hi]` (NaN when none).
@@ -97,7 +145,7 @@ pub fn strength(rows: &[SeriesRow], sigma3: f64) -> Strength {
         .filter(|r| r.phase == "compression")
         .cloned()
         .collect();
-    let (peak, at) = moving_peak(&comp, 0.002);
+    let (peak, at) = moving_peak(&comp, PEAK_WINDOW);
     let residual = residual(&comp);
     Strength {
         sigma1_peak_pa: peak,
@@ -137,43 +185,103 @@ pub const STRESS_DROP_BIN: f64 = 1e-4;
 /// decreases at every one, whose total fall is at least `min_drop` (Pa), and over which the
 /// volumetric strain decreases (contraction).
 pub fn stress_drops(rows: &[SeriesRow], min_drop: f64, bin: f64) -> Vec<StressDrop> {
-    let comp: Vec<&SeriesRow> = rows
-        .iter()
-        .filter(|r| r.phase == "compression" && r.strain_axial.is_finite())
-        .collect();
-    let same_bin = |a: &&SeriesRow, b: &&SeriesRow| {
-        bin > 0.0 && (a.strain_axial / bin).floor() == (b.strain_axial / bin).floor()
-    };
-    // (strain, sigma_1, volumetric strain) per bin.
-    let points: Vec<(f64, f64, f64)> = comp
-        .chunk_by(same_bin)
-        .map(|c| {
-            let n = c.len() as f64;
-            // A fold from +0.0: f64's `sum` starts at -0.0, which a bin of zero strains keeps.
-            let mean = |f: fn(&SeriesRow) -> f64| c.iter().fold(0.0, |a, r| a + f(r)) / n;
-            (
-                mean(|r| r.strain_axial),
-                mean(|r| r.sigma1_pa),
-                mean(|r| r.volumetric_strain),
-            )
-        })
-        .collect();
-    let mut events = Vec::new();
-    let mut k = 0;
-    while k + 1 < points.len() {
-        if points[k + 1].1 >= points[k].1 {
-            k += 1;
-            continue;
+    let mut finder = DropFinder::new(min_drop, bin);
+    for r in rows.iter().filter(|r| r.phase == "compression") {
+        finder.push(r.strain_axial, r.sigma1_pa, r.volumetric_strain);
+    }
+    finder.result()
+}
+
+/// The sums of one bin of [`DropFinder`]: its index, points, and sums of strain, sigma_1
+/// and volumetric strain.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+struct Bin {
+    /// `floor(strain / bin)`; none without bins (every point a bin of its own).
+    index: Option<f64>,
+    n: u64,
+    sums: (f64, f64, f64),
+}
+
+impl Bin {
+    fn mean(&self) -> (f64, f64, f64) {
+        let n = self.n as f64;
+        (self.sums.0 / n, self.sums.1 / n, self.sums.2 / n)
+    }
+}
+
+/// [`stress_drops`] fed one point at a time, in increasing strain ([`DerivedCurve`]): the
+/// bin being filled, the fall in progress and the events found. Points of a non-finite
+/// strain are left out.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct DropFinder {
+    min_drop: f64,
+    bin: f64,
+    /// The bin being filled (a point of its own when `bin` is 0).
+    current: Option<Bin>,
+    /// The last finished bin's means, and the first of the fall that ends there, if any.
+    last: Option<(f64, f64, f64)>,
+    fall_from: Option<(f64, f64, f64)>,
+    events: Vec<StressDrop>,
+}
+
+impl DropFinder {
+    /// No point yet; events of at least `min_drop` (Pa) over bins `bin` of strain wide.
+    pub fn new(min_drop: f64, bin: f64) -> Self {
+        DropFinder {
+            min_drop,
+            bin,
+            ..Default::default()
         }
-        let start = k;
-        while k + 1 < points.len() && points[k + 1].1 < points[k].1 {
-            k += 1;
+    }
+
+    /// Adds the next point.
+    pub fn push(&mut self, strain: f64, sigma1: f64, volumetric: f64) {
+        if !strain.is_finite() {
+            return;
         }
-        let (a, b) = (points[start], points[k]);
+        let index = (self.bin > 0.0).then(|| (strain / self.bin).floor());
+        match &mut self.current {
+            Some(b) if index.is_some() && b.index == index => {
+                b.n += 1;
+                b.sums.0 += strain;
+                b.sums.1 += sigma1;
+                b.sums.2 += volumetric;
+            }
+            _ => {
+                if let Some(b) = self.current.take() {
+                    self.point(b.mean());
+                }
+                // Sums from +0.0: f64's `sum` starts at -0.0, which a bin of zero strains keeps.
+                self.current = Some(Bin {
+                    index,
+                    n: 1,
+                    sums: (0.0 + strain, 0.0 + sigma1, 0.0 + volumetric),
+                });
+            }
+        }
+    }
+
+    /// A finished bin's means: extends or ends the fall in progress.
+    fn point(&mut self, p: (f64, f64, f64)) {
+        if let Some(last) = self.last {
+            if p.1 < last.1 {
+                self.fall_from.get_or_insert(last);
+            } else {
+                self.end_fall(last);
+            }
+        }
+        self.last = Some(p);
+    }
+
+    /// Ends the fall in progress at `b`: an event if large enough with a contraction.
+    fn end_fall(&mut self, b: (f64, f64, f64)) {
+        let Some(a) = self.fall_from.take() else {
+            return;
+        };
         let drop = a.1 - b.1;
         let dv = b.2 - a.2;
-        if drop >= min_drop && dv < 0.0 {
-            events.push(StressDrop {
+        if drop >= self.min_drop && dv < 0.0 {
+            self.events.push(StressDrop {
                 strain_start: a.0,
                 strain_end: b.0,
                 drop_pa: drop,
@@ -181,7 +289,102 @@ pub fn stress_drops(rows: &[SeriesRow], min_drop: f64, bin: f64) -> Vec<StressDr
             });
         }
     }
-    events
+
+    /// The events, the bin being filled and a fall in progress at the last point included.
+    pub fn result(&self) -> Vec<StressDrop> {
+        let mut rest = self.clone();
+        if let Some(b) = rest.current.take() {
+            rest.point(b.mean());
+        }
+        if let Some(last) = rest.last {
+            rest.end_fall(last);
+        }
+        rest.events
+    }
+}
+
+/// The compression's derived results (peak, residual, stress drops, largest kinetic
+/// ratio), kept by the protocol as it runs from a point every
+/// [`QUASI_STATIC_CHECK_EVERY`](crate::protocol::biaxial::QUASI_STATIC_CHECK_EVERY) steps
+/// (sigma_1 averaged over those steps, strains at their end), so that they do not depend on
+/// how often rows are written (`output.series_every`). Small: only the open peak windows,
+/// the bin being filled and the events are kept; it goes into checkpoints with the
+/// protocol's state. Points whose strain or sigma_1 is not finite are left out.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct DerivedCurve {
+    /// Points received.
+    pub points: u64,
+    peak: MovingPeak,
+    drops: DropFinder,
+    /// Sum and count of sigma_1 over [`RESIDUAL_RANGE`].
+    residual: (f64, u64),
+    /// Strain of the last point.
+    last_strain: f64,
+    /// Largest kinetic ratio `K / (sigma3 h w)` of the points.
+    kinetic_ratio_max: f64,
+}
+
+/// Width of the moving window of the peak (strain; docs/protocol.md, "Derived results").
+pub const PEAK_WINDOW: f64 = 0.002;
+
+/// The smallest stress drop counted, as a fraction of sigma3.
+pub const STRESS_DROP_MIN_REL: f64 = 0.05;
+
+impl DerivedCurve {
+    /// A compression at confining stress `sigma3` (Pa), no point yet.
+    pub fn new(sigma3: f64) -> Self {
+        DerivedCurve {
+            peak: MovingPeak::new(PEAK_WINDOW),
+            drops: DropFinder::new(STRESS_DROP_MIN_REL * sigma3, STRESS_DROP_BIN),
+            ..Default::default()
+        }
+    }
+
+    /// Adds the point of a block of steps, as a row of the series built from them.
+    pub fn push(&mut self, row: &SeriesRow) {
+        let (e, s) = (row.strain_axial, row.sigma1_pa);
+        if !(e.is_finite() && s.is_finite()) {
+            return;
+        }
+        self.points += 1;
+        self.peak.push(e, s);
+        if row.volumetric_strain.is_finite() {
+            self.drops.push(e, s, row.volumetric_strain);
+        }
+        if e >= RESIDUAL_RANGE.0 && e <= RESIDUAL_RANGE.1 {
+            self.residual.0 += s;
+            self.residual.1 += 1;
+        }
+        self.last_strain = e;
+        let k = row.kinetic_ratio();
+        if k > self.kinetic_ratio_max {
+            self.kinetic_ratio_max = k;
+        }
+    }
+
+    /// The peak (Pa) over windows [`PEAK_WINDOW`] wide and its strain.
+    pub fn peak(&self) -> (f64, f64) {
+        self.peak.result()
+    }
+
+    /// The residual (Pa) as [`residual`] defines it: NaN when the points stop more than
+    /// [`RESIDUAL_END_SLACK`] before the end of the range, or none lies in it.
+    pub fn residual(&self) -> f64 {
+        if self.points == 0 || self.last_strain < RESIDUAL_MIN_END || self.residual.1 == 0 {
+            return f64::NAN;
+        }
+        self.residual.0 / self.residual.1 as f64
+    }
+
+    /// The stress-drop events (as [`stress_drops`] over bins [`STRESS_DROP_BIN`] wide).
+    pub fn stress_drops(&self) -> Vec<StressDrop> {
+        self.drops.result()
+    }
+
+    /// The largest kinetic ratio of the points (0 without points).
+    pub fn kinetic_ratio_max(&self) -> f64 {
+        self.kinetic_ratio_max
+    }
 }
 
 #[cfg(test)]
@@ -272,6 +475,109 @@ mod tests {
             assert!((e[0].drop_pa - 3.0).abs() < 0.06, "{e:?}");
             assert!(e[0].strain_start > 0.0095 && e[0].strain_end < 0.0115, "{e:?}");
         }
+    }
+
+    /// The curve a run keeps point by point, saved to JSON and read back halfway (as a
+    /// checkpoint and a resume do), gives the same bits as the functions over the whole
+    /// list: peak, residual and stress drops of a noisy curve with falls and contractions.
+    #[test]
+    fn the_curve_kept_point_by_point_equals_the_whole_list_bit_for_bit() {
+        let sigma3 = 1e6;
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut noise = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let rows: Vec<SeriesRow> = (0..4000)
+            .map(|k| {
+                let e = 2.7e-5 * k as f64;
+                let mut r = rows(&[(e, 2e6 + 1e6 * (e / 0.01).min(1.0) + 2e5 * noise())]).remove(0);
+                r.volumetric_strain = 1e-3 * noise() + 0.1 * e;
+                r
+            })
+            .collect();
+        let mut curve = DerivedCurve::new(sigma3);
+        for (k, r) in rows.iter().enumerate() {
+            if k == 1234 {
+                let json = serde_json::to_string(&curve).unwrap();
+                curve = serde_json::from_str(&json).unwrap();
+            }
+            curve.push(r);
+        }
+        assert_eq!(curve.points, 4000);
+        let (peak, at) = moving_peak(&rows, PEAK_WINDOW);
+        let (p2, a2) = curve.peak();
+        assert_eq!((peak.to_bits(), at.to_bits()), (p2.to_bits(), a2.to_bits()));
+        // Against the definition, window by window.
+        let naive = (0..rows.len())
+            .map(|i| {
+                let w: Vec<f64> = rows[i..]
+                    .iter()
+                    .take_while(|r| r.strain_axial <= rows[i].strain_axial + PEAK_WINDOW)
+                    .map(|r| r.sigma1_pa)
+                    .collect();
+                w.iter().sum::<f64>() / w.len() as f64
+            })
+            .fold(f64::NEG_INFINITY, f64::max);
+        assert!((naive - peak).abs() < 1e-9 * peak, "{naive} {peak}");
+        assert!(rows.last().unwrap().strain_axial > RESIDUAL_MIN_END);
+        assert_eq!(residual(&rows).to_bits(), curve.residual().to_bits());
+        let drops = stress_drops(&rows, STRESS_DROP_MIN_REL * sigma3, STRESS_DROP_BIN);
+        assert!(!drops.is_empty());
+        assert_eq!(drops, curve.stress_drops());
+        assert_eq!(
+            drops,
+            whole_list_drops(&rows, STRESS_DROP_MIN_REL * sigma3, STRESS_DROP_BIN)
+        );
+        // Without bins, row by row.
+        let by_rows = stress_drops(&rows, 1e5, 0.0);
+        assert_eq!(by_rows, whole_list_drops(&rows, 1e5, 0.0));
+        assert!(by_rows.len() > drops.len());
+    }
+
+    /// Stress drops over the whole list at once (binned, then the maximal falls): the
+    /// reference for [`DropFinder`].
+    fn whole_list_drops(rows: &[SeriesRow], min_drop: f64, bin: f64) -> Vec<StressDrop> {
+        let same = |a: &&SeriesRow, b: &&SeriesRow| {
+            bin > 0.0 && (a.strain_axial / bin).floor() == (b.strain_axial / bin).floor()
+        };
+        let all: Vec<&SeriesRow> = rows.iter().collect();
+        let points: Vec<(f64, f64, f64)> = all
+            .chunk_by(same)
+            .map(|c| {
+                let n = c.len() as f64;
+                let mean = |f: fn(&SeriesRow) -> f64| c.iter().fold(0.0, |a, r| a + f(r)) / n;
+                (
+                    mean(|r| r.strain_axial),
+                    mean(|r| r.sigma1_pa),
+                    mean(|r| r.volumetric_strain),
+                )
+            })
+            .collect();
+        let mut events = Vec::new();
+        let mut k = 0;
+        while k + 1 < points.len() {
+            if points[k + 1].1 >= points[k].1 {
+                k += 1;
+                continue;
+            }
+            let start = k;
+            while k + 1 < points.len() && points[k + 1].1 < points[k].1 {
+                k += 1;
+            }
+            let (a, b) = (points[start], points[k]);
+            if a.1 - b.1 >= min_drop && b.2 - a.2 < 0.0 {
+                events.push(StressDrop {
+                    strain_start: a.0,
+                    strain_end: b.0,
+                    drop_pa: a.1 - b.1,
+                    volumetric_change: b.2 - a.2,
+                });
+            }
+        }
+        events
     }
 
     #[test]

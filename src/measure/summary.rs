@@ -99,6 +99,10 @@ pub struct Summary {
     pub steps_per_second: f64,
     /// How each phase ended.
     pub phases: Vec<PhaseEnd>,
+    /// What the peak, the residual, the stress drops and `kinetic_ratio_max` were derived
+    /// from; absent in summaries written before it (derived from the series rows).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub derived_from: Option<DerivedFrom>,
     /// Stress-drop events: falls of sigma_1 of at least 5% of sigma3 with concurrent
     /// contraction, over the rows averaged per `stress_drop_bin_strain` of axial strain.
     pub stress_drops: Vec<super::derived::StressDrop>,
@@ -225,6 +229,35 @@ impl Summary {
     }
 }
 
+/// What a summary's derived results (peak, residual, stress drops, largest kinetic ratio)
+/// were computed from.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct DerivedFrom {
+    /// `"steps"`: the compression's every step, averaged by the protocol over blocks of
+    /// `every_steps` steps as it ran ([`super::derived::DerivedCurve`]), whatever
+    /// `output.series_every` is; `"rows"`: the series rows, written every `every_steps`
+    /// steps (a record whose checkpoints do not keep the blocks): the peak and the stress
+    /// drops then move with the row interval.
+    pub source: String,
+    /// Steps a point averages (see `source`).
+    pub every_steps: u64,
+}
+
+impl DerivedFrom {
+    fn line(&self) -> String {
+        match self.source.as_str() {
+            "steps" => format!(
+                "every step of the compression, averaged over blocks of {} steps",
+                self.every_steps
+            ),
+            _ => format!(
+                "the series rows, one every {} steps (the peak and the stress drops depend on that interval)",
+                self.every_steps
+            ),
+        }
+    }
+}
+
 /// The micromechanical state at four points of a test, from the series rows.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct FabricSummary {
@@ -248,6 +281,13 @@ pub struct FabricSummary {
     /// within what the sample's size can show.
     pub homogeneity_bin_noise_pct: f64,
 }
+
+/// The Love-Weber `q / p` below which the summary's table gives no strong network's share
+/// of `q`: the share divides by the network's `q`, which a nearly isotropic state (after
+/// compaction or confinement) has close to 0, so that any value, -69% or 300%, can come
+/// out of the noise (docs/micromechanics.md, "Strong and weak networks"). The sheared
+/// states of the paper's tests have `q / p` of 0.2 to 0.6.
+pub const STRONG_SHARE_MIN_Q_OVER_P: f64 = 0.05;
 
 /// The micromechanical columns of one row.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -300,16 +340,32 @@ impl FabricState {
         .then_some(s)
     }
 
+    /// The Love-Weber `q / p`, `(sigma1 - sigma3) / (sigma1 + sigma3)` (NaN without a
+    /// positive mean stress).
+    pub fn q_over_p(&self) -> f64 {
+        let p = self.lw_sigma1_mpa + self.lw_sigma3_mpa;
+        if p > 0.0 {
+            (self.lw_sigma1_mpa - self.lw_sigma3_mpa) / p
+        } else {
+            f64::NAN
+        }
+    }
+
     fn line(&self) -> String {
+        let q_over_p = self.q_over_p();
+        let share = if q_over_p.abs() >= STRONG_SHARE_MIN_Q_OVER_P {
+            format!("carrying {:.0}% of q", 100.0 * self.strong_q_share)
+        } else {
+            format!("(share of q n/a: q/p {q_over_p:.3}, nearly isotropic)")
+        };
         format!(
-            "a_c {:.3} at {:.0} deg, a_n {:.3}, a_t {:.3}; strong {:.1}% carrying {:.0}% of q; \
+            "a_c {:.3} at {:.0} deg, a_n {:.3}, a_t {:.3}; strong {:.1}% {share}; \
              Love-Weber sigma1 {:.3} MPa, sigma3 {:.3} MPa",
             self.a_c,
             self.theta_c_deg,
             self.a_n,
             self.a_t,
             100.0 * self.strong_fraction,
-            100.0 * self.strong_q_share,
             self.lw_sigma1_mpa,
             self.lw_sigma3_mpa
         )
@@ -354,6 +410,13 @@ impl FabricSummary {
         ] {
             s.push_str(&format!("    {k:<18} (strain {:.4}) {}\n", st.strain, st.line()));
         }
+        s.push_str(&format!(
+            "    strong: the contacts with f_n above the mean; its share of q is the deviator of \
+             its stress along the network's principal direction over the network's q, the weak \
+             network carrying the rest (a share below 0% or above 100%: the weak network's \
+             deviator points the other way); n/a where q/p < {STRONG_SHARE_MIN_Q_OVER_P} \
+             (q near 0, the share is noise)\n"
+        ));
         s.push_str(&format!(
             "    orientation homogeneity after compaction: largest deviation {:.1}% of the mean \
              ({} bins of {:.0} deg; counting noise {:.1}% a bin)\n",
@@ -451,12 +514,47 @@ impl Summary {
             wall_time_s,
             steps_per_second: steps as f64 / wall_time_s.max(1e-9),
             phases: ends.to_vec(),
-            stress_drops: super::derived::stress_drops(rows, 0.05 * sigma3, super::derived::STRESS_DROP_BIN),
+            derived_from: None,
+            stress_drops: super::derived::stress_drops(
+                rows,
+                super::derived::STRESS_DROP_MIN_REL * sigma3,
+                super::derived::STRESS_DROP_BIN,
+            ),
             stress_drop_bin_strain: Some(super::derived::STRESS_DROP_BIN),
             shear_bands: None,
             fabric: FabricSummary::of_run(rows, st.strain_peak),
             record_id: None,
         }
+    }
+
+    /// The summary with its derived results (peak, residual, friction angles, stress drops,
+    /// largest kinetic ratio, the fabric at the peak) from `curve`, the compression's every
+    /// step in blocks of `block_steps`, instead of from the series rows `rows` it was
+    /// built from.
+    pub fn with_derived(
+        mut self,
+        curve: &super::derived::DerivedCurve,
+        block_steps: u64,
+        rows: &[SeriesRow],
+    ) -> Self {
+        use super::derived::friction_angle_deg;
+        let sigma3 = self.sigma3_mpa * 1e6;
+        let (peak, at) = curve.peak();
+        let residual = curve.residual();
+        let finite = |x: f64| x.is_finite().then_some(x);
+        self.sigma1_peak_mpa = peak / 1e6;
+        self.strain_peak = at;
+        self.phi_peak_deg = friction_angle_deg(peak, sigma3);
+        self.sigma1_residual_mpa = finite(residual / 1e6);
+        self.phi_residual_deg = finite(friction_angle_deg(residual, sigma3));
+        self.stress_drops = curve.stress_drops();
+        self.kinetic_ratio_max = curve.kinetic_ratio_max();
+        self.fabric = FabricSummary::of_run(rows, at);
+        self.derived_from = Some(DerivedFrom {
+            source: "steps".into(),
+            every_steps: block_steps,
+        });
+        self
     }
 
     /// A human-readable table (every number with its unit).
@@ -511,6 +609,9 @@ impl Summary {
             "residual sigma1 (strain 0.05-0.10)",
             opt(self.sigma1_residual_mpa, "MPa"),
         );
+        if let Some(d) = &self.derived_from {
+            line("peak, residual, drops derived from", d.line());
+        }
         line("friction angle, peak", format!("{:.2} deg", self.phi_peak_deg));
         line("friction angle, residual", opt(self.phi_residual_deg, "deg"));
         line("final axial strain", format!("{:.4}", self.strain_final));
@@ -646,6 +747,31 @@ mod tests {
         assert_eq!(back, s);
     }
 
+    /// The strong network's share of q is given with its meaning, and not at all for a
+    /// nearly isotropic state, whose q is near 0 and share noise (issue 36, item 18:
+    /// "strong 42.3% carrying -69% of q" after compaction).
+    #[test]
+    fn the_strong_share_of_q_is_left_out_where_q_is_near_zero() {
+        let state = |s1: f64, s3: f64, share: f64| FabricState {
+            strain: 0.0,
+            a_c: 0.01,
+            theta_c_deg: 90.0,
+            a_n: 0.0,
+            a_t: 0.0,
+            strong_fraction: 0.423,
+            strong_q_share: share,
+            lw_sigma1_mpa: s1,
+            lw_sigma3_mpa: s3,
+        };
+        let iso = state(8.05, 7.95, -0.69).line();
+        assert!(
+            !iso.contains("-69%") && iso.contains("share of q n/a: q/p 0.006"),
+            "{iso}"
+        );
+        let sheared = state(17.0, 8.0, 0.87).line();
+        assert!(sheared.contains("strong 42.3% carrying 87% of q"), "{sheared}");
+    }
+
     /// The fabric summary takes the last compaction and confinement rows, the compression
     /// row nearest the peak strain and the last row; a record without the columns (NaN, as
     /// read from files written before them) gives none. 1800 contacts in 18 bins: 100 a
@@ -682,6 +808,11 @@ mod tests {
         assert!((f.homogeneity_after_compaction_pct - 2.0).abs() < 1e-12);
         assert!((f.homogeneity_bin_noise_pct - 10.0).abs() < 1e-12);
         assert!(f.table().contains("counting noise 10.0% a bin"), "{}", f.table());
+        assert!(
+            f.table().contains("its share of q is the deviator"),
+            "{}",
+            f.table()
+        );
         let mut old = rows.clone();
         old[1].a_c = f64::NAN;
         assert_eq!(FabricSummary::of_run(&old, 0.0035), None);

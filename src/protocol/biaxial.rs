@@ -206,6 +206,7 @@ impl<B: Backend> Lab<B> {
                 obs.series(&row)?;
                 self.state.loading.wall_forces = vec![(walls::RIGHT, applied)];
                 if self.settle(&red, p.sigma_c, applied, pushed, obs)? {
+                    self.snapshot(0.0, obs)?;
                     self.enter_confinement()?;
                 }
             }
@@ -217,6 +218,8 @@ impl<B: Backend> Lab<B> {
                 let pushed = red.wall_force[walls::TOP].y;
                 self.state.loading.wall_forces = vec![(walls::TOP, applied)];
                 if self.settle(&red, p.sigma3, applied, pushed, obs)? {
+                    // The state the compression starts from: axial strain 0.
+                    self.snapshot(0.0, obs)?;
                     self.enter_compression(&red)?;
                 }
             }
@@ -228,10 +231,22 @@ impl<B: Backend> Lab<B> {
                 let row = self.row(&whole, p.sigma3, p.axial_velocity);
                 self.state.strain = Some(row.strain_axial);
                 let reached = row.strain_axial >= p.strain_end;
-                let guard = if self.state.since_guard >= QUASI_STATIC_CHECK_EVERY {
-                    self.state.since_guard = 0;
-                    self.check_quasi_static(&red, &row)
+                // A block of the derived results ends at each quasi-static check and at the
+                // end: the windows always end there, whatever the series interval.
+                let guard = if self.state.since_guard >= QUASI_STATIC_CHECK_EVERY || reached {
+                    let block = merged(self.state.block_sums.take().as_ref(), &red);
+                    let block = self.row(&block, p.sigma3, p.axial_velocity);
+                    if let Some(d) = &mut self.state.derived {
+                        d.push(&block);
+                    }
+                    if self.state.since_guard >= QUASI_STATIC_CHECK_EVERY {
+                        self.state.since_guard = 0;
+                        self.check_quasi_static(&red, &block)
+                    } else {
+                        Ok(())
+                    }
                 } else {
+                    self.state.block_sums = Some(self.state.block_sums.take().unwrap_or_default().add(&red));
                     Ok(())
                 };
                 // The last row of a run, however it ends, is always written.
@@ -240,10 +255,12 @@ impl<B: Backend> Lab<B> {
                     self.state.since_series = 0;
                     self.state.row_sums = None;
                     guard?;
-                    if p.snapshot_every > 0.0 && row.strain_axial >= self.state.next_snapshot {
-                        let scene = self.backend.scene()?;
-                        let contacts = self.backend.contacts()?;
-                        obs.snapshot(row.strain_axial, &scene, &contacts, &self.reference)?;
+                    // The final state always has its snapshot, whatever the interval.
+                    let periodic = p.snapshot_every > 0.0 && row.strain_axial >= self.state.next_snapshot;
+                    if periodic || reached {
+                        self.snapshot(row.strain_axial, obs)?;
+                    }
+                    if periodic {
                         while self.state.next_snapshot <= row.strain_axial {
                             self.state.next_snapshot += p.snapshot_every;
                         }
@@ -294,6 +311,13 @@ impl<B: Backend> Lab<B> {
             w = w.min(short.min(u32::MAX as f64) as u32);
         }
         Ok(w.max(1))
+    }
+
+    /// Hands the current state to `obs` as a snapshot at axial strain `strain`.
+    fn snapshot(&mut self, strain: f64, obs: &mut dyn Observer) -> Result<()> {
+        let scene = self.backend.scene()?;
+        let contacts = self.backend.contacts()?;
+        obs.snapshot(strain, &scene, &contacts, &self.reference)
     }
 
     /// Recomputes which disks form the strips once `strip_refresh_every` steps have passed
@@ -502,10 +526,13 @@ impl<B: Backend> Lab<B> {
         self.backend.set_scene(&s)?;
         self.state.phase = Phase::Compression;
         self.state.phase_start = s.time;
-        self.state.next_snapshot = 0.0;
+        // The end of the confinement gave the snapshot at strain 0.
+        self.state.next_snapshot = p.snapshot_every;
         self.state.since_series = 0;
         self.state.since_guard = 0;
         self.state.row_sums = None;
+        self.state.block_sums = None;
+        self.state.derived = Some(crate::measure::derived::DerivedCurve::new(p.sigma3));
         self.state.strain = Some(0.0);
         Ok(())
     }

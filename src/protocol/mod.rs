@@ -125,7 +125,9 @@ pub struct ProtocolParams {
     /// only: where the compression stops, when the strips are refreshed and when the run is
     /// checked never depend on it ([`biaxial::Lab::advance`]).
     pub series_every: u32,
-    /// Axial strain between two snapshots (0 disables them).
+    /// Axial strain between two snapshots of the compression (0: none but the snapshots
+    /// at the end of each phase, which every run records: compaction and confinement at
+    /// strain 0, the compression at its final strain).
     pub snapshot_every: f64,
     /// Steps between two checkpoints (taken at the end of the first window of steps that
     /// reaches it; a checkpoint changes nothing in the run).
@@ -261,7 +263,8 @@ pub trait Observer {
     fn series(&mut self, row: &SeriesRow) -> Result<()>;
     /// A phase ended.
     fn phase_end(&mut self, end: &PhaseEnd) -> Result<()>;
-    /// A snapshot of the state and contacts (at the requested strain interval).
+    /// A snapshot of the state and contacts: at the end of each phase, and every
+    /// `snapshot_every` of axial strain during the compression.
     fn snapshot(
         &mut self,
         strain: f64,
@@ -351,6 +354,18 @@ pub struct LabState {
     /// checkpoints written before it was kept: then it is measured from the scene).
     #[serde(default)]
     pub strain: Option<f64>,
+    /// The sums of the compression windows since the last quasi-static check, when a block
+    /// of [`biaxial::QUASI_STATIC_CHECK_EVERY`] steps spans several windows (a row or a
+    /// strip refresh fell inside it).
+    #[serde(default)]
+    pub block_sums: Option<biaxial::RowSums>,
+    /// The compression's derived results, fed at every quasi-static check and at the end
+    /// ([`crate::measure::derived::DerivedCurve`]): the summary's peak, residual, stress
+    /// drops and largest kinetic ratio, whatever `series_every` is. `None` before the
+    /// compression, and for a compression resumed from a checkpoint written before it was
+    /// kept (the summary then derives them from the rows).
+    #[serde(default)]
+    pub derived: Option<crate::measure::derived::DerivedCurve>,
 }
 
 impl LabState {
@@ -376,6 +391,8 @@ impl LabState {
             since_guard: 0,
             row_sums: None,
             strain: None,
+            block_sums: None,
+            derived: None,
         }
     }
 }

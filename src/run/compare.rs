@@ -28,6 +28,27 @@ fn parts(c: &Config) -> [String; 4] {
     ]
 }
 
+/// The shortest tail of `dir`'s path (its name, then its parent's name and its name, ...)
+/// that none of `others` shares, so that twin runs in directories of the same name
+/// (`a/biaxial`, `b/biaxial`) get different labels; the whole path when no tail differs.
+fn distinct_name(dir: &Path, others: &[&Path]) -> String {
+    let parts = |p: &Path| -> Vec<String> {
+        p.components()
+            .map(|c| c.as_os_str().to_string_lossy().into_owned())
+            .collect()
+    };
+    let tail = |v: &[String], n: usize| v[v.len().saturating_sub(n)..].join("/");
+    let mine = parts(dir);
+    let theirs: Vec<Vec<String>> = others.iter().map(|p| parts(p)).collect();
+    for n in 1..=mine.len() {
+        let t = tail(&mine, n);
+        if theirs.iter().all(|o| tail(o, n) != t) {
+            return t;
+        }
+    }
+    dir.display().to_string()
+}
+
 /// Legend labels naming what differs between the runs (the directory's name where that
 /// leaves two alike), and a title naming what they share.
 fn labels_and_title(runs: &[Run]) -> (Vec<String>, String) {
@@ -46,12 +67,14 @@ fn labels_and_title(runs: &[Run]) -> (Vec<String>, String) {
     // Twins are found among the labels as first made, before any is renamed.
     let first = labels.clone();
     for (k, label) in labels.iter_mut().enumerate() {
-        let twin = first.iter().enumerate().any(|(j, l)| j != k && *l == first[k]);
-        if twin || label.is_empty() {
-            let dir = &runs[k].dir;
-            let name = dir.file_name().unwrap_or(dir.as_os_str()).to_string_lossy();
+        let twins: Vec<&Path> = (0..runs.len())
+            .filter(|&j| j != k && first[j] == first[k])
+            .map(|j| runs[j].dir.as_path())
+            .collect();
+        if !twins.is_empty() || label.is_empty() {
+            let name = distinct_name(&runs[k].dir, &twins);
             *label = if label.is_empty() {
-                name.into_owned()
+                name
             } else {
                 format!("{label} ({name})")
             };
@@ -143,6 +166,25 @@ mod tests {
         ];
         let (labels, _) = labels_and_title(&runs);
         assert_eq!(labels, ["σ₃ = 8 MPa (seed1)", "σ₃ = 8 MPa (seed2)", "σ₃ = 4 MPa"]);
+        // Alike in everything the labels name, in directories of the same name: the
+        // parents tell them apart (issue 36, item 18: two runs labelled alike).
+        let runs = [
+            run(0.3, 8.0, "a/biaxial"),
+            run(0.3, 8.0, "b/biaxial"),
+            run(0.3, 8.0, "c"),
+        ];
+        let (labels, _) = labels_and_title(&runs);
+        assert_eq!(labels, ["a/biaxial", "b/biaxial", "c"]);
+        let runs = [
+            run(0.3, 8.0, "x/a/run"),
+            run(0.3, 8.0, "y/a/run"),
+            run(0.3, 4.0, "z"),
+        ];
+        let (labels, _) = labels_and_title(&runs);
+        assert_eq!(
+            labels,
+            ["σ₃ = 8 MPa (x/a/run)", "σ₃ = 8 MPa (y/a/run)", "σ₃ = 4 MPa"]
+        );
         let (labels, title) = labels_and_title(&[run(1.0, 1.0, "p/only")]);
         assert_eq!(labels, ["only"]);
         assert!(

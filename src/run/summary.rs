@@ -7,7 +7,9 @@ use super::{Event, Progress};
 use crate::config::Config;
 use crate::error::{Error, Result, RunFault};
 use crate::measure::SeriesRow;
-use crate::measure::summary::Summary;
+use crate::measure::derived::DerivedCurve;
+use crate::measure::summary::{DerivedFrom, Summary};
+use crate::protocol::biaxial::QUASI_STATIC_CHECK_EVERY;
 use crate::protocol::checkpoint::decode;
 use crate::protocol::{Phase, PhaseEnd};
 use crate::record::{MCAP_FILE, RunLock, RunRecord, atomic, read_run};
@@ -20,6 +22,7 @@ pub fn summary_of(
     config: &Config,
     rows: &[SeriesRow],
     ends: &[PhaseEnd],
+    derived: Option<&DerivedCurve>,
     backend: String,
     wall_s: f64,
     record: &Result<RunRecord>,
@@ -34,6 +37,16 @@ pub fn summary_of(
         backend,
         wall_s,
     );
+    summary = match derived {
+        Some(curve) if curve.points > 0 => summary.with_derived(curve, QUASI_STATIC_CHECK_EVERY.into(), rows),
+        _ => Summary {
+            derived_from: Some(DerivedFrom {
+                source: "rows".into(),
+                every_steps: config.output.series_every,
+            }),
+            ..summary
+        },
+    };
     summary.dt_s = Some(config.solver.dt.si());
     summary.seed = Some(config.sample.seed);
     summary.strain_end = Some(config.test.strain_end);
@@ -215,6 +228,7 @@ pub fn rebuild_summary(dir: &Path, rec: &RunRecord, old: Option<&serde_json::Val
         &config,
         &rec.series,
         &state.ends,
+        state.derived.as_ref(),
         backend,
         wall_s,
         &record,

@@ -342,6 +342,7 @@ fn finish(
         config,
         &obs.rows,
         &obs.ends,
+        lab.state.derived.as_ref(),
         backend,
         wall_s,
         &Ok(record),
