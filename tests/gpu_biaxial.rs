@@ -235,11 +235,11 @@ impl cdlab::protocol::Observer for StopAt {
     }
 }
 
-/// A GPU run stopped in its compression, its checkpoint resumed on a new GPU backend and
-/// run to the end, gives the curve of the uninterrupted GPU run within the bands of the
-/// test above (the CPU's own spread under a 1-ulp change: the resumed backend colors the
-/// contacts afresh, so the sweeps' order and the trajectory part as for any perturbation),
-/// with its rows at the same strains and no row lost or doubled at the stop.
+/// A GPU run stopped in its compression, its checkpoint resumed on a new GPU backend, and
+/// on the CPU, and run to the end, gives the curve of the uninterrupted GPU run within the
+/// bands of the test above (the CPU's own spread under a 1-ulp change: the resumed backend
+/// colors the contacts afresh, or is the CPU, so the trajectory parts as for any
+/// perturbation), with its rows at the same strains and no row lost or doubled at the stop.
 #[test]
 fn gpu_run_resumed_from_its_checkpoint_follows_the_uninterrupted_one() {
     let p = params();
@@ -285,28 +285,34 @@ fn gpu_run_resumed_from_its_checkpoint_follows_the_uninterrupted_one() {
     let ck = cdlab::protocol::checkpoint::decode(&bytes).unwrap();
     assert_eq!(ck.scene.step, step);
     let gpu = gpu_support::gpu_or_skip("GPU resume", &ck.scene, ck.state.params.step).unwrap();
-    let mut resumed = Lab::resume(gpu, ck).unwrap();
-    let mut rest = Collect::default();
-    resumed.run(&mut rest).unwrap();
+    let cpu = CpuBackend::new(ck.scene.clone(), ck.state.params.step).unwrap();
     let before = compression(&stop.inner.rows);
-    let after = compression(&rest.rows);
-    assert!(
-        !before.is_empty() && !after.is_empty(),
-        "{} rows before the stop, {} after",
-        before.len(),
-        after.len()
-    );
-    let mut joined = before;
-    joined.extend(after);
-    // curve_gap pairs the rows by index and checks their strains: a row lost or written
-    // twice at the stop fails there.
-    let gap = curve_gap(&uninterrupted, &joined);
-    println!("uninterrupted GPU run vs stopped and resumed: {gap:?}");
-    let band = [0.075, 0.08, 0.021, 6e-4];
-    for (k, (g, b)) in gap.iter().zip(band).enumerate() {
+    // The same checkpoint resumed on the GPU and on the CPU (a GPU run continued on a
+    // machine without one).
+    for backend in [Box::new(gpu) as Box<dyn Backend>, Box::new(cpu)] {
+        let name = backend.name();
+        let mut resumed = Lab::resume(backend, ck.clone()).unwrap();
+        let mut rest = Collect::default();
+        resumed.run(&mut rest).unwrap();
+        let after = compression(&rest.rows);
         assert!(
-            *g < b,
-            "measure {k}: resumed vs uninterrupted gap {g:.3e} exceeds the band {b:.1e}"
+            !before.is_empty() && !after.is_empty(),
+            "{} rows before the stop, {} after on {name}",
+            before.len(),
+            after.len()
         );
+        let mut joined = before.clone();
+        joined.extend(after);
+        // curve_gap pairs the rows by index and checks their strains: a row lost or
+        // written twice at the stop fails there.
+        let gap = curve_gap(&uninterrupted, &joined);
+        println!("uninterrupted GPU run vs stopped and resumed on {name}: {gap:?}");
+        let band = [0.075, 0.08, 0.021, 6e-4];
+        for (k, (g, b)) in gap.iter().zip(band).enumerate() {
+            assert!(
+                *g < b,
+                "measure {k}: resumed on {name} vs uninterrupted gap {g:.3e} exceeds the band {b:.1e}"
+            );
+        }
     }
 }

@@ -146,7 +146,7 @@ impl<'de> serde::Deserialize<'de> for Summary {
 pub const CHECKSUM_KEY: &str = "checksum";
 
 /// The checksum of a summary's JSON `value`: `crc32:` and the CRC-32 (IEEE), in 8 hex
-/// digits, of its canonical text ([`canonical`]) without [`CHECKSUM_KEY`]. Computed on the
+/// digits, of its canonical text (compact, keys sorted) without [`CHECKSUM_KEY`]. Computed on the
 /// values, not the bytes, so that it does not depend on the spacing or the order of keys.
 pub fn checksum(value: &serde_json::Value) -> String {
     let mut text = String::new();
