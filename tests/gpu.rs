@@ -787,6 +787,34 @@ fn gpu_sweeps_in_one_workgroup_equal_a_dispatch_per_color() {
     assert_eq!(a.disks.spin, b.disks.spin);
 }
 
+/// A fresh backend's first long window is probed with one step whose state is put back
+/// (`GpuBackend::probe`): 30 steps in one window end in the state of 10 then 20 steps
+/// (windows too short to be probed), bit for bit, at the same time and step, with the
+/// probe counted as a window run again and not as a step.
+#[test]
+fn gpu_first_window_probed_with_one_step_equals_short_windows() {
+    let s = column(60, 0.5, G, Some(-2.0e4));
+    let mut p = tight(Method::ColoredGs);
+    p.solver.tol = 1e-6;
+    p.solver.max_iter = 2000;
+    let Some(mut probed) = gpu_or_skip("probe", &s, p) else {
+        return;
+    };
+    let mut short = gpu_or_skip("probe", &s, p).unwrap();
+    probed.run(30, &Loading::default()).unwrap();
+    short.run(10, &Loading::default()).unwrap();
+    short.run(20, &Loading::default()).unwrap();
+    let (kp, ks) = (probed.counters(), short.counters());
+    assert_eq!(kp.steps, 30, "{kp:?}");
+    assert!(kp.redone >= 1 && kp.redone_steps >= 1, "no probe: {kp:?}");
+    assert_eq!(kp.iterations, ks.iterations);
+    let (a, b) = (probed.scene().unwrap(), short.scene().unwrap());
+    assert_eq!((a.step, a.time), (b.step, b.time));
+    assert_eq!(a.disks.pos, b.disks.pos);
+    assert_eq!(a.disks.vel, b.disks.vel);
+    assert_eq!(a.disks.spin, b.disks.spin);
+}
+
 /// `solver.backend = "auto"` takes the GPU path only on a hardware adapter, and only for a
 /// method the GPU runs: on a machine whose only adapter is a software one (CI's lavapipe)
 /// it runs on the CPU, on one with a GPU on the GPU; `apgd` runs on the CPU everywhere.
