@@ -711,6 +711,28 @@ fn gpu_window_run_again_equals_one_with_room_to_spare() {
     assert_eq!(a.disks.spin, b.disks.spin);
 }
 
+/// Two fresh GPU backends on a loaded column of 60 disks whose steps need hundreds of
+/// iterations (tolerance 1e-6, cap 2000): more than a fresh backend's margins, so that its
+/// windows are run again. `None` without an adapter (the test is skipped).
+fn loaded_column_pair(what: &str) -> Option<(cdlab::gpu::GpuBackend, cdlab::gpu::GpuBackend)> {
+    let s = column(60, 0.5, G, Some(-2.0e4));
+    let mut p = tight(Method::ColoredGs);
+    p.solver.tol = 1e-6;
+    p.solver.max_iter = 2000;
+    let a = gpu_or_skip(what, &s, p)?;
+    let b = gpu_or_skip(what, &s, p).unwrap();
+    Some((a, b))
+}
+
+/// Asserts that two backends hold the same disks, bit for bit.
+fn same_disks(a: &mut cdlab::gpu::GpuBackend, b: &mut cdlab::gpu::GpuBackend) {
+    let (a, b) = (a.scene().unwrap(), b.scene().unwrap());
+    assert_eq!((a.step, a.time), (b.step, b.time));
+    assert_eq!(a.disks.pos, b.disks.pos);
+    assert_eq!(a.disks.vel, b.disks.vel);
+    assert_eq!(a.disks.spin, b.disks.spin);
+}
+
 /// Steps recorded by several host threads (`GpuBackend::record_threads`) are the same
 /// commands submitted in the same order: three threads, with margins small enough that a
 /// window is run again, end in the state of one thread, bit for bit, after windows of 7
@@ -718,14 +740,9 @@ fn gpu_window_run_again_equals_one_with_room_to_spare() {
 /// account of its activity counts the windows run, run again included.
 #[test]
 fn gpu_steps_recorded_on_several_threads_equal_one_thread() {
-    let s = column(60, 0.5, G, Some(-2.0e4));
-    let mut p = tight(Method::ColoredGs);
-    p.solver.tol = 1e-6;
-    p.solver.max_iter = 2000;
-    let Some(mut one) = gpu_or_skip("recording threads", &s, p) else {
+    let Some((mut one, mut three)) = loaded_column_pair("recording threads") else {
         return;
     };
-    let mut three = gpu_or_skip("recording threads", &s, p).unwrap();
     one.record_threads = 1;
     three.record_threads = 3;
     assert_eq!(three.recording_threads(), 3);
@@ -742,10 +759,7 @@ fn gpu_steps_recorded_on_several_threads_equal_one_thread() {
         text.contains(&format!("{} windows, {} run again", k3.windows, k3.redone)),
         "{text}"
     );
-    let (a, b) = (one.scene().unwrap(), three.scene().unwrap());
-    assert_eq!(a.disks.pos, b.disks.pos);
-    assert_eq!(a.disks.vel, b.disks.vel);
-    assert_eq!(a.disks.spin, b.disks.spin);
+    same_disks(&mut one, &mut three);
 }
 
 /// Iterations past the typical count swept by one workgroup each (`sweep_all`, the
@@ -754,14 +768,9 @@ fn gpu_steps_recorded_on_several_threads_equal_one_thread() {
 /// agree bit for bit after three windows, with fewer dispatches recorded.
 #[test]
 fn gpu_sweeps_in_one_workgroup_equal_a_dispatch_per_color() {
-    let s = column(60, 0.5, G, Some(-2.0e4));
-    let mut p = tight(Method::ColoredGs);
-    p.solver.tol = 1e-6;
-    p.solver.max_iter = 2000;
-    let Some(mut per_color) = gpu_or_skip("one-workgroup sweeps", &s, p) else {
+    let Some((mut per_color, mut one)) = loaded_column_pair("one-workgroup sweeps") else {
         return;
     };
-    let mut one = gpu_or_skip("one-workgroup sweeps", &s, p).unwrap();
     per_color.overflow_sweeps = false;
     assert!(one.overflow_sweeps, "sweep_all is not the default");
     for _ in 0..3 {
@@ -781,10 +790,7 @@ fn gpu_sweeps_in_one_workgroup_equal_a_dispatch_per_color() {
         recorded(kb),
         recorded(ka)
     );
-    let (a, b) = (per_color.scene().unwrap(), one.scene().unwrap());
-    assert_eq!(a.disks.pos, b.disks.pos);
-    assert_eq!(a.disks.vel, b.disks.vel);
-    assert_eq!(a.disks.spin, b.disks.spin);
+    same_disks(&mut per_color, &mut one);
 }
 
 /// A fresh backend's first long window is probed with one step whose state is put back
@@ -793,14 +799,9 @@ fn gpu_sweeps_in_one_workgroup_equal_a_dispatch_per_color() {
 /// probe counted as a window run again and not as a step.
 #[test]
 fn gpu_first_window_probed_with_one_step_equals_short_windows() {
-    let s = column(60, 0.5, G, Some(-2.0e4));
-    let mut p = tight(Method::ColoredGs);
-    p.solver.tol = 1e-6;
-    p.solver.max_iter = 2000;
-    let Some(mut probed) = gpu_or_skip("probe", &s, p) else {
+    let Some((mut probed, mut short)) = loaded_column_pair("probe") else {
         return;
     };
-    let mut short = gpu_or_skip("probe", &s, p).unwrap();
     probed.run(30, &Loading::default()).unwrap();
     short.run(10, &Loading::default()).unwrap();
     short.run(20, &Loading::default()).unwrap();
@@ -808,11 +809,7 @@ fn gpu_first_window_probed_with_one_step_equals_short_windows() {
     assert_eq!(kp.steps, 30, "{kp:?}");
     assert!(kp.redone >= 1 && kp.redone_steps >= 1, "no probe: {kp:?}");
     assert_eq!(kp.iterations, ks.iterations);
-    let (a, b) = (probed.scene().unwrap(), short.scene().unwrap());
-    assert_eq!((a.step, a.time), (b.step, b.time));
-    assert_eq!(a.disks.pos, b.disks.pos);
-    assert_eq!(a.disks.vel, b.disks.vel);
-    assert_eq!(a.disks.spin, b.disks.spin);
+    same_disks(&mut probed, &mut short);
 }
 
 /// `solver.backend = "auto"` takes the GPU path only on a hardware adapter, and only for a

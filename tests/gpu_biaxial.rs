@@ -19,6 +19,18 @@ fn params() -> ProtocolParams {
     p
 }
 
+/// The sample of `p` deposited and compacted on the CPU, once for both backends.
+fn compacted(p: &ProtocolParams) -> cdlab::model::Scene {
+    let (scene, _) = prepare::deposit_scene(p).unwrap();
+    let cpu = CpuBackend::new(scene.clone(), p.step).unwrap();
+    let mut lab = Lab::new(cpu, p.clone(), &scene, false).unwrap();
+    let mut obs = Collect::default();
+    while lab.state.phase == Phase::Compaction {
+        lab.advance(&mut obs).unwrap();
+    }
+    lab.backend.scene().unwrap()
+}
+
 fn compression(rows: &[SeriesRow]) -> Vec<SeriesRow> {
     rows.iter()
         .filter(|r| r.phase == "compression")
@@ -30,19 +42,7 @@ fn compression(rows: &[SeriesRow]) -> Vec<SeriesRow> {
 fn short_biaxial_run_gives_the_same_macroscopic_curve_on_both_backends() {
     let p = params();
     // Compaction on the CPU, once: both backends start from the same compacted sample.
-    let (scene, _) = prepare::deposit_scene(&p).unwrap();
-    let mut lab = Lab::new(
-        CpuBackend::new(scene.clone(), p.step).unwrap(),
-        p.clone(),
-        &scene,
-        false,
-    )
-    .unwrap();
-    let mut obs = Collect::default();
-    while lab.state.phase == Phase::Compaction {
-        lab.advance(&mut obs).unwrap();
-    }
-    let compacted = lab.backend.scene().unwrap();
+    let compacted = compacted(&p);
     let mut curves = Vec::new();
     let Some(gpu) = gpu_support::gpu_or_skip("short biaxial run", &compacted, p.step) else {
         return;
@@ -243,19 +243,7 @@ impl cdlab::protocol::Observer for StopAt {
 #[test]
 fn gpu_run_resumed_from_its_checkpoint_follows_the_uninterrupted_one() {
     let p = params();
-    let (scene, _) = prepare::deposit_scene(&p).unwrap();
-    let mut lab = Lab::new(
-        CpuBackend::new(scene.clone(), p.step).unwrap(),
-        p.clone(),
-        &scene,
-        false,
-    )
-    .unwrap();
-    let mut obs = Collect::default();
-    while lab.state.phase == Phase::Compaction {
-        lab.advance(&mut obs).unwrap();
-    }
-    let compacted = lab.backend.scene().unwrap();
+    let compacted = compacted(&p);
     let Some(gpu) = gpu_support::gpu_or_skip("GPU resume", &compacted, p.step) else {
         return;
     };
