@@ -133,6 +133,30 @@ fn elastic_head_on_collision_swaps_velocities() {
     assert!((s.disks.vel[1].x - 2.0).abs() < 1e-12, "{}", s.disks.vel[1]);
 }
 
+/// The head-on collisions at the built-in settings: one contact, solved exactly by its
+/// first Gauss-Seidel update whatever the tolerance or relaxation, so the closed forms hold
+/// to round-off; momentum to a few ulps.
+#[test]
+fn head_on_collisions_at_the_built_in_settings() {
+    for method in [Method::ColoredGs, Method::Gs] {
+        for (e_n, expected) in [(0.0, [0.5, 0.5]), (1.0, [-1.0, 2.0])] {
+            let mut s = pair(2.0, -1.0, e_n);
+            let p0 = momentum(&s);
+            let mut e = cdlab::engine::CpuEngine::new(builtin(method)).unwrap();
+            e.step(&mut s).unwrap();
+            for k in 0..2 {
+                assert!(
+                    (s.disks.vel[k].x - expected[k]).abs() < 1e-12,
+                    "{method:?}, e_n {e_n}: v{k} = {}, expected {}",
+                    s.disks.vel[k],
+                    expected[k]
+                );
+            }
+            assert!((momentum(&s) - p0).length() <= 4.0 * f64::EPSILON * p0.length());
+        }
+    }
+}
+
 #[test]
 fn newtons_cradle_gives_the_simultaneous_impact_outcome() {
     // Three equal touching disks, the first at v = 1 m/s, e_n = 1. The scheme solves both

@@ -12,11 +12,22 @@ const G: f64 = 9.81;
 /// frame of a plane inclined at `angle`, downhill along +x). Returns the velocity and spin
 /// after `steps` steps.
 fn incline(angle: f64, mu: f64, r: f64, steps: usize) -> (f64, f64, f64) {
+    incline_with(angle, mu, r, steps, tight(Method::Gs))
+}
+
+/// [`incline`] with step parameters `params`.
+fn incline_with(
+    angle: f64,
+    mu: f64,
+    r: f64,
+    steps: usize,
+    params: cdlab::engine::StepParams,
+) -> (f64, f64, f64) {
     let mut s = scene(mu);
     s.walls.push(floor());
     s.gravity = G * DVec2::new(angle.sin(), -angle.cos());
     s.disks.push(DVec2::new(0.0, r), r, RHO).unwrap();
-    let mut e = engine(Method::Gs);
+    let mut e = cdlab::engine::CpuEngine::new(params).unwrap();
     for _ in 0..steps {
         e.step(&mut s).unwrap();
     }
@@ -61,6 +72,40 @@ fn disk_on_a_steep_incline_slips_with_coulomb_friction() {
         (alpha - expected_alpha).abs() < 1e-9 * expected_alpha.abs(),
         "alpha = {alpha}"
     );
+}
+
+/// Both inclines at the built-in settings: a single contact, which one Gauss-Seidel update
+/// solves exactly whatever the tolerance, relaxation or velocity test, so the closed forms
+/// hold to the same 1e-9 as with the tight settings.
+#[test]
+fn inclines_at_the_built_in_settings() {
+    for method in [Method::ColoredGs, Method::Gs] {
+        let r = 0.8;
+        let a = 0.6f64.atan();
+        let (acc, alpha, lift) = incline_with(a, 0.3, r, 200, builtin(method));
+        let rolling = 2.0 / 3.0 * G * a.sin();
+        assert!(
+            (acc - rolling).abs() < 1e-9 * rolling,
+            "{method:?}: rolling a = {acc}, expected {rolling}"
+        );
+        assert!(
+            (alpha + rolling / r).abs() < 1e-9 * rolling / r,
+            "{method:?}: alpha = {alpha}"
+        );
+        assert!(lift.abs() < 1e-12, "{method:?}: lift {lift} m");
+        let (mu, a) = (0.2, std::f64::consts::FRAC_PI_4);
+        let (acc, alpha, _) = incline_with(a, mu, r, 200, builtin(method));
+        let slipping = G * (a.sin() - mu * a.cos());
+        let spin = -2.0 * mu * G * a.cos() / r;
+        assert!(
+            (acc - slipping).abs() < 1e-9 * slipping,
+            "{method:?}: slipping a = {acc}, expected {slipping}"
+        );
+        assert!(
+            (alpha - spin).abs() < 1e-9 * spin.abs(),
+            "{method:?}: alpha = {alpha}, expected {spin}"
+        );
+    }
 }
 
 #[test]

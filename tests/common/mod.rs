@@ -37,6 +37,14 @@ pub fn tight(method: Method) -> StepParams {
     }
 }
 
+/// The built-in step parameters (those of the default configuration, as a run gets them),
+/// with `method`: the closed forms' twins at the settings users run.
+pub fn builtin(method: Method) -> StepParams {
+    let mut p = cdlab::protocol::ProtocolParams::paper_defaults(1).step;
+    p.solver.method = method;
+    p
+}
+
 /// An engine with `tight` parameters.
 pub fn engine(method: Method) -> CpuEngine {
     CpuEngine::new(tight(method)).expect("valid parameters")
