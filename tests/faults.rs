@@ -910,6 +910,16 @@ fn an_archived_configuration_is_checked_and_named() {
         assert!(!ok, "{name}: {text}");
         named(text);
     }
+    // A syntax error in a file with a valid checksum: the line is the file's, the
+    // checksum line counted.
+    assert!(body.starts_with("[sample]\ndisks = 200\n"), "{body}");
+    std::fs::write(
+        &file,
+        cdlab::config::with_checksum(&body.replacen("disks = 200", "disks = = 200", 1)),
+    )
+    .unwrap();
+    let e = cdlab::record::read_config(&arch).unwrap_err().to_string();
+    assert!(e.contains(&format!("{}: line 3:", file.display())), "{e}");
     // Written before archives had the checksum line: read unchecked.
     std::fs::write(&file, &body).unwrap();
     assert!(check_point(&ours, &p).is_ok());

@@ -307,11 +307,18 @@ fn an_archived_campaign_reports_and_resumes_without_its_records() {
         "{text}"
     );
 
-    // An archived test of another friction than its directory says is refused by name.
+    // An archived test of another friction than its directory says is refused by name
+    // (its configuration written with a checksum of its own: one changed on disk is
+    // damaged, `tests/faults.rs`, `an_archived_configuration_is_checked_and_named`).
     let config = seeded.join("seed1_mu0.3_s4MPa/config.toml");
     let toml = std::fs::read_to_string(&config).unwrap();
-    assert!(toml.contains("mu = 0.3"), "{toml}");
-    std::fs::write(&config, toml.replace("mu = 0.3", "mu = 0.4")).unwrap();
+    let body = toml.split_once('\n').unwrap().1;
+    assert!(body.contains("mu = 0.3"), "{toml}");
+    std::fs::write(
+        &config,
+        cdlab::config::with_checksum(&body.replace("mu = 0.3", "mu = 0.4")),
+    )
+    .unwrap();
     let (ok, text) = cdlab(&["sweep", s, "--dry-run"]);
     assert!(!ok, "{text}");
     assert!(

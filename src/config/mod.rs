@@ -190,31 +190,49 @@ impl Config {
     /// read unchecked. Every error names the file: a missing one says what it is, and a
     /// value out of range ("invalid parameter `sample.r_min` = 0") says where it was read.
     pub fn load_archived(path: &Path) -> Result<Self> {
-        let in_file = |e: Error| match e {
-            e @ Error::Parse { .. } => e,
-            e => Error::Other(format!("{}: {e}", path.display())),
+        // An error of the file itself, for every caller (the Python package's `FileError`
+        // with its path).
+        let damaged = |why: String| Error::Io {
+            path: path.to_path_buf(),
+            source: std::io::Error::new(std::io::ErrorKind::InvalidData, why),
         };
         let text = read_capped(path, MAX_CONFIG_BYTES, "a configuration file").map_err(|e| match e {
-            Error::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
-                Error::Other(format!(
-                    "{}: missing: an archived test (no record) keeps its configuration in this file; \
-                 archive the test again from its run directory",
-                    path.display()
-                ))
-            }
+            Error::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => damaged(
+                "missing: an archived test (no record) keeps its configuration in this file; \
+                 archive the test again from its run directory"
+                    .into(),
+            ),
             e => e,
         })?;
+        let checked = text.starts_with(CHECKSUM_PREFIX);
+        let in_file = |e: Error| match e {
+            // Lines of the file, the checksum line included.
+            Error::Parse { path, line, message } if checked && line > 0 => Error::Parse {
+                path,
+                line: line + 1,
+                message,
+            },
+            Error::Invalid {
+                field,
+                value,
+                allowed,
+            } => Error::Invalid {
+                field,
+                value,
+                allowed: format!("{allowed} (read from {})", path.display()),
+            },
+            e => e,
+        };
         let body = match text.strip_prefix(CHECKSUM_PREFIX) {
             Some(rest) => {
                 let (line, body) = rest.split_once('\n').unwrap_or((rest, ""));
                 let recorded = line.get(..8).and_then(|h| u32::from_str_radix(h, 16).ok());
                 let computed = crc32fast::hash(body.as_bytes());
                 if recorded != Some(computed) {
-                    return Err(Error::Other(format!(
-                        "{} is damaged: the CRC-32 of its content is {computed:08x}, its checksum \
-                         line says {}: changed or cut after it was written; archive the test \
-                         again from its run directory",
-                        path.display(),
+                    return Err(damaged(format!(
+                        "damaged: the CRC-32 of its content is {computed:08x}, its checksum line \
+                         says {}: changed or cut after it was written; archive the test again \
+                         from its run directory",
                         line.get(..8).unwrap_or(line)
                     )));
                 }
