@@ -1,5 +1,5 @@
 //! Build information for `cdlab version`: the git commit the binary was built from (when
-//! built in a git checkout), the wgpu version of Cargo.lock, the target, the profile and
+//! built in a git checkout; "-dirty" after it when its sources had uncommitted changes), the wgpu version of Cargo.lock, the target, the profile and
 //! the compiler.
 //! Everything is optional: a build from a source archive without git or Cargo.lock says
 //! "unknown" rather than failing.
@@ -33,14 +33,35 @@ fn locked_version(lock: &str, name: &str) -> Option<String> {
     None
 }
 
+/// What the binary is built from: where a change makes the build differ from its commit.
+/// The build script reruns when any of them changes (cargo scans a directory's files), so
+/// the "-dirty" marker follows edits made after the last build.
+const SOURCES: &[&str] = &["src", "shaders", "build.rs", "Cargo.toml", "Cargo.lock"];
+
 fn main() {
     let unknown = || "unknown".to_string();
     // The commit changes with HEAD or with the branch it points to (loose or packed): the
     // paths git names for them, so that worktrees and submodules are followed too. (A new
     // branch packed away later is missed until the next change of HEAD.)
-    let commit = git(&["rev-parse", "--short=12", "HEAD"]);
-    if commit.is_some() {
-        let mut watched = vec!["HEAD".to_string(), "packed-refs".to_string()];
+    let mut commit = git(&["rev-parse", "--short=12", "HEAD"]);
+    if let Some(hash) = &mut commit {
+        // Sources that differ from the commit, staged or not, or new ones: the build is
+        // not that commit's, and says so (a binary built from a tree with a merge not yet
+        // committed named the commit before it). `--no-optional-locks`: git status would
+        // otherwise refresh the index, a change that ran this script again on every build.
+        let mut status = vec!["--no-optional-locks", "status", "--porcelain", "--"];
+        status.extend(SOURCES);
+        if git(&status).is_some() {
+            hash.push_str("-dirty");
+        }
+        for source in SOURCES {
+            println!(
+                "cargo:rerun-if-changed={}",
+                Path::new(env!("CARGO_MANIFEST_DIR")).join(source).display()
+            );
+        }
+        // The index changes with every `git add` and commit.
+        let mut watched = vec!["HEAD".to_string(), "packed-refs".to_string(), "index".to_string()];
         if let Some(branch) = git(&["symbolic-ref", "-q", "HEAD"]) {
             watched.push(branch);
         }

@@ -17,7 +17,7 @@ pub enum Error {
         allowed: String,
     },
     /// A file that cannot be parsed.
-    #[error("{path}: line {line}: {message}")]
+    #[error("{}", parse_text(path, *line, message))]
     Parse {
         /// The file.
         path: PathBuf,
@@ -294,6 +294,15 @@ pub enum SampleProblem {
     },
     /// The payload passed its checks but does not decode as a sample.
     Payload(String),
+    /// Not a regular file (a device such as `/dev/zero`, a FIFO, a directory): what it is.
+    NotAFile(&'static str),
+    /// Larger than any sample this machine can run: read whole, it would fill the memory.
+    TooLarge {
+        /// Bytes in the file.
+        len: u64,
+        /// The most bytes a sample of the most disks this machine can run takes.
+        limit: u64,
+    },
     /// The scene holds another number of disks than its parameters record.
     DiskCount {
         /// Disks in the scene.
@@ -329,6 +338,13 @@ impl SampleProblem {
                 )
             }
             SampleProblem::Payload(why) => why.clone(),
+            SampleProblem::NotAFile(what) => {
+                format!("{what}, not a sample file (`cdlab prepare` writes them)")
+            }
+            SampleProblem::TooLarge { len, limit } => format!(
+                "{len} bytes, more than the {limit} bytes a sample of the most disks this \
+                 machine can run takes: not a sample, and not read"
+            ),
             SampleProblem::DiskCount { found, recorded } => {
                 format!("the sample holds {found} disks but records {recorded} (a corrupt or foreign file)")
             }
@@ -382,5 +398,13 @@ pub fn check_range(field: &str, value: f64, lo: f64, hi: f64) -> Result<()> {
         Ok(())
     } else {
         Err(Error::invalid(field, value, &format!("must lie in [{lo}, {hi}]")))
+    }
+}
+
+/// What an [`Error::Parse`] says: the file, the line where it is known, and what was wrong.
+fn parse_text(path: &std::path::Path, line: usize, message: &str) -> String {
+    match line {
+        0 => format!("{}: {message}", path.display()),
+        _ => format!("{}: line {line}: {message}", path.display()),
     }
 }

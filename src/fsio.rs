@@ -98,7 +98,9 @@ pub fn rename(from: &Path, to: &Path) -> Result<()> {
     fault::rename_point().map_err(|e| Error::io(to, e))?;
     std::fs::rename(from, to).map_err(|e| Error::io(to, e))?;
     if let Err(e) = sync_dir(to) {
-        eprintln!(
+        // A warning that cannot be shown (stderr closed or full) must not stop the work.
+        let _ = writeln!(
+            std::io::stderr(),
             "warning: {} was written, but syncing its directory failed ({e}): it may not survive \
              a power cut",
             to.display()
@@ -117,6 +119,31 @@ pub fn create_dir_all(dir: &Path) -> Result<()> {
     if e.kind() != std::io::ErrorKind::AlreadyExists {
         return Err(Error::io(dir, e));
     }
+    Err(in_the_way(dir).unwrap_or_else(|| Error::io(dir, e)))
+}
+
+/// Refuses `dir` as a directory to work in when it exists as something else (a symbolic
+/// link that loops or leads nowhere, a file, a FIFO), naming it and what it is, as
+/// [`create_dir_all`] does: for a command that must know before it starts, or that only
+/// says what it would do (a sweep's `--dry-run` said "would start" for each test of an
+/// `out` that was a file). A `dir` that does not exist, or is a directory (through links),
+/// passes.
+pub fn check_directory(dir: &Path) -> Result<()> {
+    match std::fs::metadata(dir) {
+        Ok(m) if m.is_dir() => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound && std::fs::symlink_metadata(dir).is_err() => {
+            Ok(())
+        }
+        _ => match in_the_way(dir) {
+            Some(e) => Err(e),
+            None => Ok(()),
+        },
+    }
+}
+
+/// What stands where the directory `dir` should be, as an error naming it; `None` when
+/// nothing can be said (`dir` cannot be examined).
+fn in_the_way(dir: &Path) -> Option<Error> {
     let what = match (std::fs::symlink_metadata(dir), std::fs::metadata(dir)) {
         (Ok(m), Err(target)) if m.file_type().is_symlink() => {
             #[cfg(unix)]
@@ -133,9 +160,9 @@ pub fn create_dir_all(dir: &Path) -> Result<()> {
             "a symbolic link to something else than a directory".into()
         }
         (Ok(m), _) => file_kind(&m.file_type()).to_string(),
-        (Err(_), _) => return Err(Error::io(dir, e)),
+        (Err(_), _) => return None,
     };
-    Err(Error::Run {
+    Some(Error::Run {
         path: dir.to_path_buf(),
         fault: RunFault::NotRegular,
         message: format!(
@@ -172,8 +199,9 @@ pub fn check_replaceable(path: &Path) -> Result<()> {
     })
 }
 
-/// What a file type is, in words, for [`check_replaceable`].
-fn file_kind(kind: &std::fs::FileType) -> &'static str {
+/// What a file type is, in words ("a FIFO (named pipe)", "a regular file"), for errors
+/// that refuse a path for what it is.
+pub fn file_kind(kind: &std::fs::FileType) -> &'static str {
     if kind.is_symlink() {
         return "a symbolic link";
     }

@@ -469,7 +469,8 @@ fn every_phase_ends_with_a_snapshot_and_render_names_the_one_it_draws() {
 }
 
 /// `cdlab version` prints the build's information (issue 36, item 18: the version alone):
-/// the git commit it was built from when built in a checkout, the wgpu version of
+/// the git commit it was built from when built in a checkout ("-dirty" after it when its
+/// sources had uncommitted changes), the wgpu version of
 /// Cargo.lock, the target and the profile.
 #[test]
 fn version_prints_the_build_information() {
@@ -503,7 +504,20 @@ fn version_prints_the_build_information() {
         .ok()
         .filter(|o| o.status.success())
         .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    // A build from sources that differ from the commit says so (issue 36's follow-up: a
+    // binary built with a merge not yet committed named the commit before it): the same
+    // sources as build.rs looks at, as they are now, which is how the build saw them (a
+    // change to them reruns the build script).
+    let dirty = std::process::Command::new("git")
+        .args(["--no-optional-locks", "status", "--porcelain", "--"])
+        .args(["src", "shaders", "build.rs", "Cargo.toml", "Cargo.lock"])
+        .current_dir(root)
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .is_some_and(|o| !o.stdout.trim_ascii().is_empty());
     match head {
+        Some(h) if dirty => assert!(text.contains(&format!("\ngit commit: {h}-dirty ")), "{text}"),
         Some(h) => assert!(text.contains(&format!("\ngit commit: {h} ")), "{text}"),
         None => assert!(text.contains("\ngit commit: unknown"), "{text}"),
     }

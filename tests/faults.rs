@@ -537,6 +537,17 @@ fn a_summary_changed_after_writing_is_refused_naming_it() {
             .to_string(),
     );
     assert!(!arch.join("run").join("summary.json").exists());
+    // The commands on the test's own directory say why it is not a finished test (they
+    // said only "no finished test (summary.json) below [DIR]").
+    for args in [
+        vec!["report", run.to_str().unwrap()],
+        vec!["archive", run.to_str().unwrap(), "--to", arch.to_str().unwrap()],
+    ] {
+        let (ok, text) = common::cdlab(&args);
+        assert!(!ok, "{args:?}: {text}");
+        named(text);
+    }
+    assert!(!arch.join("run").join("summary.json").exists());
     let parsed = serde_json::from_str::<cdlab::measure::summary::Summary>(&flipped);
     assert!(parsed.unwrap_err().to_string().contains("checksum"));
     assert!(serde_json::from_str::<cdlab::measure::summary::Summary>(&good).is_ok());
@@ -722,5 +733,196 @@ fn a_run_directory_says_what_was_run() {
     let (ok, text) = common::cdlab(&["config", "--of", run.to_str().unwrap()]);
     assert!(ok, "{text}");
     assert_eq!(Config::from_toml_str(&text).unwrap(), recorded);
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// A run whose progress or closing lines cannot be shown still runs to its end, exit code 0
+/// (docs/reliability.md, "Progress never stops a run or a sweep"): stdout and stderr pipes
+/// closed by their reader before the first line (`cdlab biaxial ... 2>&1 | head -3` killed
+/// the run with SIGPIPE, exit code 141), and stdout on a full disk (the run finished, then
+/// exited 1 with nothing on stderr). A command that exists to print (`version`, `report`,
+/// `config --of`) fails on a full stdout, and says so on stderr.
+#[cfg(unix)]
+#[test]
+fn output_that_cannot_be_written_never_stops_a_run_and_is_named() {
+    use std::process::{Command, Stdio};
+    let base = scratch("closed-output");
+    let toml = base.join("run.toml");
+    std::fs::write(&toml, config(10).to_toml_string().unwrap()).unwrap();
+    let biaxial = |out: &Path| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_cdlab"));
+        c.args(["biaxial", "--config", toml.to_str().unwrap(), "--no-figures"])
+            .arg("--out")
+            .arg(out);
+        c
+    };
+    let full = || std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+
+    let closed = base.join("closed");
+    let mut child = biaxial(&closed)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Both read ends closed before the run writes anything.
+    drop(child.stdout.take());
+    drop(child.stderr.take());
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(0), "{status}");
+    assert!(closed.join("summary.json").exists());
+
+    let on_full = base.join("full");
+    let out = biaxial(&on_full).stdout(full()).output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(0), "{err}");
+    assert!(on_full.join("summary.json").exists());
+    assert!(err.contains("could not write to stdout"), "{err}");
+
+    for args in [
+        vec!["version"],
+        vec!["report", on_full.to_str().unwrap()],
+        vec!["config", "--of", on_full.to_str().unwrap()],
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_cdlab"))
+            .args(&args)
+            .stdout(full())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("stdout") && err.contains("No space left on device"),
+            "{args:?}: {err}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// `cdlab archive` writes a test's thinned series from its record, whose chunks are
+/// checked, never from the `series.csv` beside it: a CSV cut through a row, one with
+/// flipped digits and a missing one each give the archive the intact test's series (they
+/// were copied on as they were, or the archive had no series).
+#[test]
+fn the_archived_series_comes_from_the_record() {
+    use cdlab::campaign::archive::{archive_finished, thin_csv};
+    let base = scratch("archive-series");
+    let run = base.join("run");
+    {
+        let _turn = turn();
+        fresh(&config(10), &run, sample()).unwrap();
+    }
+    let csv = run.join("series.csv");
+    let intact = std::fs::read_to_string(&csv).unwrap();
+    let expected = thin_csv(&intact, 40);
+    let flipped: String = intact
+        .lines()
+        .enumerate()
+        .map(|(k, l)| match k % 5 {
+            3 => format!("{}\n", l.replacen('3', "4", 1)),
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    assert_ne!(flipped, intact);
+    for (name, damaged) in [
+        ("cut", Some(intact[..intact.len() / 2 + 3].to_string())),
+        ("flipped", Some(flipped)),
+        ("missing", None),
+    ] {
+        match damaged {
+            Some(text) => std::fs::write(&csv, text).unwrap(),
+            None => std::fs::remove_file(&csv).unwrap(),
+        }
+        let dest = base.join(name).join("run");
+        archive_finished(&run, &dest, 40, false).unwrap();
+        let kept = std::fs::read_to_string(dest.join("series_thinned.csv")).unwrap();
+        assert!(
+            kept == expected,
+            "{name}: the archive's series is not the record's"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// An archived test's `config.toml` is its only configuration, and carries a checksum that
+/// every reader checks (issue 36's follow-up: a digit changed from 150 to 250 disks was
+/// taken by the sweep as the test's settings, and the report counted the test). Changed,
+/// cut or missing, it is an error naming the file, to `cdlab config --of`, the report and
+/// the sweep's check; a missing one said "run.mcap: No such file", a cut one "invalid
+/// parameter `sample.r_min` = 0" without a file. A file without the checksum line (older
+/// archives) is read as before, its errors naming it too.
+#[test]
+fn an_archived_configuration_is_checked_and_named() {
+    use cdlab::campaign::{Point, archive::archive_finished, check_point, collect, point_config};
+    let base = scratch("archive-config");
+    let cfg = config(10);
+    let run = base.join("run");
+    {
+        let _turn = turn();
+        fresh(&cfg, &run, sample()).unwrap();
+    }
+    let arch = base.join("arch").join("run");
+    archive_finished(&run, &arch, 40, false).unwrap();
+    let file = arch.join("config.toml");
+    let good = std::fs::read_to_string(&file).unwrap();
+    assert!(good.starts_with("# checksum: crc32:"), "{good}");
+    let p = Point {
+        mu: cfg.test.mu,
+        sigma3: cfg.test.sigma3.si(),
+        seed: cfg.sample.seed,
+        dt: cfg.solver.dt.si(),
+        dir: arch.clone(),
+    };
+    let ours = point_config(&cfg, &p);
+    assert!(check_point(&ours, &p).is_ok());
+    assert_eq!(collect(std::slice::from_ref(&arch)).0.len(), 1);
+    let body = good.split_once('\n').unwrap().1.to_string();
+    assert!(body.contains("disks = 200"), "{body}");
+    for (name, text, why) in [
+        (
+            "changed",
+            Some(good.replace("disks = 200", "disks = 300")),
+            "damaged",
+        ),
+        ("cut", Some(good[..good.len() / 2].to_string()), "damaged"),
+        ("missing", None, "missing"),
+        (
+            "old, invalid",
+            Some(body.replace("disks = 200", "disks = 1")),
+            "sample.disks",
+        ),
+    ] {
+        match &text {
+            Some(t) => std::fs::write(&file, t).unwrap(),
+            None => std::fs::remove_file(&file).unwrap(),
+        }
+        let named = |e: String| {
+            assert!(
+                e.contains(file.to_str().unwrap()) && e.contains(why) && !e.contains("run.mcap"),
+                "{name}: {e}"
+            );
+        };
+        named(cdlab::record::read_config(&arch).unwrap_err().to_string());
+        named(check_point(&ours, &p).unwrap_err().to_string());
+        let (points, missing) = collect(std::slice::from_ref(&arch));
+        assert!(points.is_empty(), "{name}: counted");
+        named(missing[0].1.clone());
+        let (ok, text) = common::cdlab(&["config", "--of", arch.to_str().unwrap()]);
+        assert!(!ok, "{name}: {text}");
+        named(text);
+    }
+    // A syntax error in a file with a valid checksum: the line is the file's, the
+    // checksum line counted.
+    assert!(body.starts_with("[sample]\ndisks = 200\n"), "{body}");
+    std::fs::write(
+        &file,
+        cdlab::config::with_checksum(&body.replacen("disks = 200", "disks = = 200", 1)),
+    )
+    .unwrap();
+    let e = cdlab::record::read_config(&arch).unwrap_err().to_string();
+    assert!(e.contains(&format!("{}: line 3:", file.display())), "{e}");
+    // Written before archives had the checksum line: read unchecked.
+    std::fs::write(&file, &body).unwrap();
+    assert!(check_point(&ours, &p).is_ok());
+    assert_eq!(collect(std::slice::from_ref(&arch)).0.len(), 1);
     let _ = std::fs::remove_dir_all(&base);
 }

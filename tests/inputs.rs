@@ -284,6 +284,130 @@ fn a_sweep_grid_is_validated_before_a_dry_run() {
     let _ = std::fs::remove_dir_all(&base);
 }
 
+/// A sweep file that is not valid TOML for a sweep names the line and the key where it is
+/// wrong; the message said "line 0:" before the parser's own line.
+#[test]
+fn a_sweep_file_error_names_its_line() {
+    let base = scratch("sweep-lines");
+    for (grid, line, key) in [
+        ("mu = [0.3]\nseeds = [-1]", 3, "seeds"),
+        ("mu = \"0.3\"", 2, "mu"),
+        ("mu = [0.3]\nfriction = [0.3]", 3, "friction"),
+        ("mu = [0.3]\nsigma3 = [\"1 MPa\"]\nmu = [0.4]", 4, "mu"),
+    ] {
+        let file = base.join("sweep.toml");
+        std::fs::write(
+            &file,
+            format!("out = \"{}\"\n{grid}\n", base.join("campaign").display()),
+        )
+        .unwrap();
+        let text = exits_with_error(&["sweep", file.to_str().unwrap(), "--dry-run"]);
+        assert!(
+            text.contains(&format!("{}: line {line}:", file.display()))
+                && text.contains(key)
+                && !text.contains("line 0"),
+            "{grid}: {text}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// A sweep whose `out` is a looping link, a FIFO or a regular file is refused up front,
+/// naming the path and what it is, by a dry run too (which said "would start" for each
+/// test; a real sweep warned "File exists", then failed every test with "Too many levels
+/// of symbolic links").
+#[cfg(unix)]
+#[test]
+fn a_sweep_whose_out_is_no_directory_is_refused_naming_it() {
+    let base = scratch("sweep-out");
+    let looped = base.join("loop");
+    std::os::unix::fs::symlink(&looped, &looped).unwrap();
+    let fifo = base.join("fifo");
+    mkfifo(&fifo);
+    let file = base.join("file");
+    std::fs::write(&file, "not a campaign").unwrap();
+    for (out, what) in [
+        (&looped, "symbolic link that loops"),
+        (&fifo, "FIFO"),
+        (&file, "regular file"),
+    ] {
+        let sweep = base.join("sweep.toml");
+        std::fs::write(
+            &sweep,
+            format!("out = \"{}\"\nmu = [0.3]\nsigma3 = [\"1 MPa\"]\n", out.display()),
+        )
+        .unwrap();
+        for dry in [true, false] {
+            let mut args = vec!["sweep", sweep.to_str().unwrap()];
+            if dry {
+                args.push("--dry-run");
+            }
+            let text = exits_with_error(&args);
+            assert!(
+                text.contains(out.to_str().unwrap())
+                    && text.contains(what)
+                    && !text.contains("would start")
+                    && !text.contains("FAILED"),
+                "{args:?}: {text}"
+            );
+        }
+        assert_eq!(std::fs::read(&file).unwrap(), b"not a campaign");
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// A `--sample` that is no sample file of a size this machine can run is refused before it
+/// is read, naming the file: a character device (`/dev/zero` was read without end, until
+/// the memory ran out) and a sparse file one byte larger than the largest sample this
+/// machine can run (it was read whole into memory).
+#[cfg(unix)]
+#[test]
+fn a_sample_that_cannot_be_one_is_not_read() {
+    use std::time::{Duration, Instant};
+    let base = scratch("huge-sample");
+    let sparse = base.join("sparse.bin");
+    let limit = cdlab::protocol::sample_file::max_sample_bytes();
+    std::fs::File::create(&sparse)
+        .unwrap()
+        .set_len(limit + 1)
+        .unwrap();
+    for (path, what) in [
+        (std::path::Path::new("/dev/zero"), "character device"),
+        (sparse.as_path(), "more than"),
+    ] {
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+            .args(["biaxial", "--out"])
+            .arg(base.join("run"))
+            .arg("--sample")
+            .arg(path)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let t0 = Instant::now();
+        let status = loop {
+            if let Some(status) = child.try_wait().unwrap() {
+                break status;
+            }
+            if t0.elapsed() > Duration::from_secs(60) {
+                let _ = child.kill();
+                let _ = child.wait();
+                panic!("{}: still reading after 60 s", path.display());
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        let mut err = String::new();
+        std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+        assert_eq!(status.code(), Some(1), "{}: {err}", path.display());
+        assert!(
+            err.contains(path.to_str().unwrap()) && err.contains(what),
+            "{}: {err}",
+            path.display()
+        );
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}
+
 /// A full disk under the terminal: with stdout and stderr on `/dev/full` (every write fails
 /// with ENOSPC) an error still ends with exit code 1, and a command that succeeds but
 /// cannot print ends with 1 too, never with a panic's 101.

@@ -307,11 +307,18 @@ fn an_archived_campaign_reports_and_resumes_without_its_records() {
         "{text}"
     );
 
-    // An archived test of another friction than its directory says is refused by name.
+    // An archived test of another friction than its directory says is refused by name
+    // (its configuration written with a checksum of its own: one changed on disk is
+    // damaged, `tests/faults.rs`, `an_archived_configuration_is_checked_and_named`).
     let config = seeded.join("seed1_mu0.3_s4MPa/config.toml");
     let toml = std::fs::read_to_string(&config).unwrap();
-    assert!(toml.contains("mu = 0.3"), "{toml}");
-    std::fs::write(&config, toml.replace("mu = 0.3", "mu = 0.4")).unwrap();
+    let body = toml.split_once('\n').unwrap().1;
+    assert!(body.contains("mu = 0.3"), "{toml}");
+    std::fs::write(
+        &config,
+        cdlab::config::with_checksum(&body.replace("mu = 0.3", "mu = 0.4")),
+    )
+    .unwrap();
     let (ok, text) = cdlab(&["sweep", s, "--dry-run"]);
     assert!(!ok, "{text}");
     assert!(
@@ -507,7 +514,22 @@ fn an_unfinished_test_is_archived_to_resume_and_ends_as_if_uninterrupted() {
         "{text}"
     );
     let slim = cdlab::record::read_run(archive.join(name)).unwrap();
-    assert!(slim.truncated.is_none() && slim.snapshots.is_empty());
+    assert!(slim.truncated.is_none());
+    // The snapshots before the checkpoint are kept: without them the resumed test ended
+    // without its shear bands (issue 36's follow-up).
+    let time = cdlab::protocol::checkpoint::decode(&partial.last_checkpoint.as_ref().unwrap().1)
+        .unwrap()
+        .scene
+        .time;
+    let strains = |r: &cdlab::record::RunRecord, t: f64| -> Vec<f64> {
+        r.snapshots
+            .iter()
+            .filter(|s| s.time_s <= t)
+            .map(|s| s.strain)
+            .collect()
+    };
+    assert!(!strains(&partial, time).is_empty());
+    assert_eq!(strains(&slim, f64::INFINITY), strains(&partial, time));
     assert_eq!(slim.last_checkpoint, partial.last_checkpoint);
     assert_eq!(
         slim.series.len(),
@@ -553,6 +575,12 @@ fn an_unfinished_test_is_archived_to_resume_and_ends_as_if_uninterrupted() {
     let (ok, text) = cdlab(&["sweep", s]);
     assert!(ok && text.contains("resuming"), "{text}");
     common::assert_same_outcome(&full, &seeded.join(name));
+    let bands = |d: &std::path::Path| {
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(d.join("summary.json")).unwrap()).unwrap();
+        v["shear_bands"].clone()
+    };
+    assert_eq!(bands(&seeded.join(name)), bands(&full));
     // Archived again once finished, the test keeps its summary and drops the slim record.
     let (ok, text) = cdlab(&["archive", seeded.to_str().unwrap(), "--to", a]);
     assert!(ok && text.contains("1 tests archived"), "{text}");
@@ -693,7 +721,8 @@ fn an_archive_that_overlaps_its_sources_is_refused() {
 /// A sweep whose output cannot be written (stdout and stderr on /dev/full, where every
 /// write fails with ENOSPC) runs every test to its end and exits 0 (issue 36, item 9: the
 /// first failed progress line panicked, exit 101 from a worker thread, and the tests left
-/// never started). Progress lines are asked for at every row (`--log-every 0`).
+/// never started). Progress lines are asked for at every row (`--log-every 0`). Then the
+/// same with stdout and stderr pipes that their reader closed.
 #[cfg(target_os = "linux")]
 #[test]
 fn a_sweep_whose_output_hits_a_full_disk_runs_every_test() {
@@ -713,6 +742,32 @@ fn a_sweep_whose_output_hits_a_full_disk_runs_every_test() {
         .status()
         .expect("cdlab runs");
     assert_eq!(status.code(), Some(0));
+    for name in ["seed1_mu0.3_s1MPa", "seed1_mu0.3_s2MPa"] {
+        let summary = base.join("campaign").join(name).join("summary.json");
+        assert!(summary.exists(), "{} was not finished", summary.display());
+    }
+    let _ = std::fs::remove_dir_all(&base);
+
+    // Pipes closed by their reader (`cdlab sweep FILE 2>&1 | head -2`): SIGPIPE ended the
+    // sweep (exit code 141) and the tests left never started.
+    let (base, sweep) = tiny_campaign("sweep-pipe", "mu = [0.3]\nsigma3 = [\"1 MPa\", \"2 MPa\"]\n");
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args([
+            "sweep",
+            sweep.to_str().unwrap(),
+            "--jobs",
+            "1",
+            "--log-every",
+            "0",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("cdlab runs");
+    drop(child.stdout.take());
+    drop(child.stderr.take());
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(0), "{status}");
     for name in ["seed1_mu0.3_s1MPa", "seed1_mu0.3_s2MPa"] {
         let summary = base.join("campaign").join(name).join("summary.json");
         assert!(summary.exists(), "{} was not finished", summary.display());

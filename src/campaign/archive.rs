@@ -4,7 +4,7 @@
 //! sweep's settings through its `config.toml`) and the campaign report reads it like a run,
 //! so a campaign can be kept in a repository, moved between machines and resumed by copying
 //! the archive into its output directory. An unfinished test can be kept as a slim record
-//! (configuration, time series up to its last checkpoint, that checkpoint, no snapshots),
+//! (configuration, time series and snapshots up to its last checkpoint, that checkpoint),
 //! which a campaign resumes from as from its full record.
 
 use std::path::{Path, PathBuf};
@@ -122,6 +122,12 @@ pub fn archive_unfinished(src: &Path, dest: &Path) -> Result<u64> {
     for row in rec.series.iter().filter(|r| r.step <= *step) {
         recorder.series(row)?;
     }
+    // The snapshots up to the checkpoint go with it: the finished test's shear bands are
+    // found from all its snapshots, and a slim record without them ended with none
+    // ("fewer than two snapshots") where the uninterrupted test had its bands.
+    for snap in rec.snapshots.iter().filter(|s| s.time_s <= time) {
+        recorder.snapshot(snap)?;
+    }
     recorder.checkpoint(*step, time, bytes)?;
     recorder.finish()?;
     // The sweep writes the CSV again when it resumes.
@@ -226,7 +232,7 @@ pub fn archive_finished(
         return Ok(Archived::Updated);
     }
     check_same_test(dest, &config)?;
-    let config = config.to_toml_string()?;
+    let config = crate::config::with_checksum(&config.to_toml_string()?);
     crate::fsio::create_dir_all(dest)?;
     let write = |name: &str, bytes: &[u8]| crate::record::atomic::write_file(&dest.join(name), bytes);
     write(ARCHIVED_CONFIG_FILE, config.as_bytes())?;
@@ -235,17 +241,22 @@ pub fn archive_finished(
         write("summary.txt", &read(&text)?)?;
     }
     if series_rows > 0 {
-        let full = src.join(CSV_FILE);
         let thinned = src.join(THINNED_SERIES_FILE);
-        // An archived test keeps only its thinned series; archiving it again copies that.
-        let (from, rows) = if full.exists() {
-            (full, series_rows)
-        } else {
-            (thinned, usize::MAX)
-        };
-        if from.exists() {
-            let csv = std::fs::read_to_string(&from).map_err(|e| Error::io(&from, e))?;
-            write(THINNED_SERIES_FILE, thin_csv(&csv, rows).as_bytes())?;
+        if src.join(MCAP_FILE).exists() {
+            // From the record, whose every chunk is checked, never from `series.csv`
+            // beside it: a CSV cut short, with a torn last row or a flipped digit was
+            // copied on as it was, and a missing one left the archive without a series.
+            write(
+                THINNED_SERIES_FILE,
+                thin_csv(&record_csv(src)?, series_rows).as_bytes(),
+            )?;
+        } else if thinned.exists() {
+            // An archived test keeps only its thinned series; archiving it again copies
+            // that, once it reads as a series.
+            let csv = std::fs::read_to_string(&thinned).map_err(|e| Error::io(&thinned, e))?;
+            crate::record::parse_csv(&csv)
+                .map_err(|e| Error::io(&thinned, std::io::Error::new(std::io::ErrorKind::InvalidData, e)))?;
+            write(THINNED_SERIES_FILE, csv.as_bytes())?;
         }
     }
     if keep_snapshot && src.join(MCAP_FILE).exists() {
@@ -259,6 +270,33 @@ pub fn archive_finished(
         std::fs::remove_file(&slim).map_err(|e| Error::io(&slim, e))?;
     }
     Ok(Archived::Written)
+}
+
+/// The time series of the finished test in `src` as CSV (what its `series.csv` holds when
+/// intact), read from its record. A record that is damaged or cut short is an error naming
+/// it: its rows would not be the whole test.
+fn record_csv(src: &Path) -> Result<String> {
+    let rec = read_run(src)?;
+    if let Some(why) = rec.damaged.as_ref().or(rec.truncated.as_ref()) {
+        let path = src.join(MCAP_FILE);
+        return Err(Error::Run {
+            path: path.clone(),
+            fault: RunFault::Damaged,
+            message: format!(
+                "{}: {why}: its series would not be the whole test, not archived; `cdlab \
+                 biaxial --resume {}` repairs it",
+                path.display(),
+                src.display()
+            ),
+        });
+    }
+    let mut csv = crate::record::csv_header();
+    csv.push('\n');
+    for row in &rec.series {
+        csv.push_str(&row.csv_line());
+        csv.push('\n');
+    }
+    Ok(csv)
 }
 
 /// The header and at most about `rows` data rows of a CSV text: every k-th row from the

@@ -163,9 +163,12 @@ pub fn run(sweep: &Sweep, options: &Options, watch: &dyn Watch, cancel: &Cancel)
             "I/N with 0 <= I < N",
         ));
     }
+    // An `out` that is a file, a FIFO or a looping link is no campaign directory: said
+    // once, up front, in a dry run too (each test failed with "Too many levels of symbolic
+    // links", after a warning that said "File exists").
+    crate::fsio::check_directory(&sweep.out)?;
     if !options.dry_run {
-        let written = std::fs::create_dir_all(&sweep.out)
-            .map_err(|e| Error::io(&sweep.out, e))
+        let written = crate::fsio::create_dir_all(&sweep.out)
             .and_then(|()| super::grid::add_to_grid(&sweep.out, &sweep.names()));
         if let Err(e) = written {
             watch.event(&Event::GridNotWritten(&e));

@@ -129,11 +129,8 @@ impl Sweep {
     /// time steps by friction, and every test's configuration, before anything is run.
     pub fn load(file: &Path) -> Result<Sweep> {
         let text = crate::config::read_capped(file, crate::config::MAX_CONFIG_BYTES, "a sweep file")?;
-        let sweep: SweepFile = toml::from_str(&text).map_err(|e| Error::Parse {
-            path: file.to_path_buf(),
-            line: 0,
-            message: e.to_string(),
-        })?;
+        let sweep: SweepFile =
+            toml::from_str(&text).map_err(|e| crate::config::toml_error(&text, &e, file))?;
         let here = file.parent().unwrap_or(Path::new("."));
         let base = match &sweep.base {
             Some(p) => Config::load(here.join(p))?,

@@ -109,16 +109,16 @@ pub fn run(args: &Args) -> Result<()> {
         }
     };
     let summary = hint_resume(outcome, &dir)?.summary;
-    println!("biaxial test finished: {}\n{}", dir.display(), summary.table());
+    tell!("biaxial test finished: {}\n{}", dir.display(), summary.table());
     if !args.no_figures {
         // The record and summary are complete: a figure that cannot be drawn is reported,
         // not turned into a failed test.
         match run::write_curves(&dir, &dir) {
             Ok(files) => {
                 let names: Vec<String> = files.iter().map(|p| p.display().to_string()).collect();
-                println!("figures: {}", names.join(", "));
+                tell!("figures: {}", names.join(", "));
             }
-            Err(e) => eprintln!("no figures drawn: {e}"),
+            Err(e) => note!("no figures drawn: {e}"),
         }
     }
     Ok(())

@@ -16,6 +16,19 @@ macro_rules! note {
     }};
 }
 
+/// `println!` for the closing lines of a command whose work is done by then (a finished
+/// run's table, a prepared sample's line): the work's files are complete whether or not the
+/// line can be shown, so a stdout that refuses it (`>/dev/full`, a closed pipe) gets a
+/// warning on stderr instead of failing the command.
+macro_rules! tell {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        if let Err(e) = writeln!(std::io::stdout(), $($arg)*) {
+            note!("warning: could not write to stdout: {e} (the command's work is done)");
+        }
+    }};
+}
+
 pub mod archive;
 pub mod bands;
 pub mod bench;
@@ -98,7 +111,8 @@ pub enum Command {
     Info(info::Args),
 }
 
-/// What `cdlab version` prints: the version, then the build's git commit, wgpu version,
+/// What `cdlab version` prints: the version, then the build's git commit ("-dirty" after
+/// it when the sources it was built from had uncommitted changes), wgpu version,
 /// target, profile and compiler (`unknown` for what the build could not find out, e.g. the
 /// commit of a build outside a git checkout), one `key: value` line each.
 pub fn build_info() -> String {
@@ -133,23 +147,60 @@ pub fn main() -> i32 {
     }));
     match std::panic::catch_unwind(run_command) {
         Ok(code) => code,
-        Err(payload) if is_print_failure(payload.as_ref()) => 1,
+        Err(payload) if is_print_failure(payload.as_ref()) => {
+            // The hook kept the panic's text back; without it the exit code 1 came with
+            // nothing on stderr (`cdlab report DIR >/dev/full`).
+            note!("error: {}", panic_text(payload.as_ref()));
+            1
+        }
         Err(payload) => std::panic::resume_unwind(payload),
+    }
+}
+
+/// Whether `command` does long work whose progress, printed on the way, must never stop it
+/// (docs/reliability.md, "Progress never stops a run or a sweep"): a run, a resume, a
+/// sample's preparation or a sweep. Those write nothing their work depends on to stdout or
+/// stderr, and drop a line that cannot be written. Every other command prints what it
+/// exists for, and a closed pipe (`cdlab report DIR | head`) ends it quietly.
+fn keeps_running_on_closed_pipes(command: &Command) -> bool {
+    match command {
+        Command::Biaxial(_) | Command::Prepare(_) => true,
+        Command::Sweep(args) => args.file.as_os_str() != "collect",
+        _ => false,
+    }
+}
+
+/// Makes a write into a closed pipe fail with EPIPE instead of ending the process:
+/// `src/main.rs` gives SIGPIPE its default action, which killed a run or a sweep whose
+/// progress went into `| head` (exit code 141) between two checkpoints.
+fn ignore_closed_pipes() {
+    #[cfg(unix)]
+    // SAFETY: called before the command starts any thread; SIG_IGN is a valid disposition.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_IGN);
     }
 }
 
 /// Whether a panic is the print macros' "failed printing to stdout/stderr".
 fn is_print_failure(payload: &(dyn std::any::Any + Send)) -> bool {
-    let text = payload
+    panic_text(payload).starts_with("failed printing to std")
+}
+
+/// A panic's message ("failed printing to stdout: No space left on device (os error
+/// 28)"), or "" when it has none.
+fn panic_text(payload: &(dyn std::any::Any + Send)) -> &str {
+    payload
         .downcast_ref::<String>()
         .map(String::as_str)
         .or_else(|| payload.downcast_ref::<&str>().copied())
-        .unwrap_or("");
-    text.starts_with("failed printing to std")
+        .unwrap_or("")
 }
 
 fn run_command() -> i32 {
     let cli = Cli::parse();
+    if keeps_running_on_closed_pipes(&cli.command) {
+        ignore_closed_pipes();
+    }
     let result: crate::Result<()> = match cli.command {
         Command::Biaxial(args) => biaxial::run(&args),
         Command::Fc2d(args) => fc2d::run(&args),

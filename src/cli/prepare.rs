@@ -63,7 +63,7 @@ pub fn run(args: &Args) -> Result<()> {
     // Signals keep their default action: a sample has no checkpoint to stop at.
     let p = run::prepare(&config, &args.output, &mut progress, &run::Cancel::with_signals())?;
     let (w, h) = (p.width_m, p.height_m);
-    println!(
+    tell!(
         "prepared sample written to {}: {} disks, {:.2} m x {:.2} m (height/width {:.2}), packing fraction {:.3}, \
          compaction {} at t = {:.2} s, wall time {:.1} s",
         p.path.display(),

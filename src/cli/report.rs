@@ -38,10 +38,28 @@ pub(super) fn collect_dirs(dirs: &[PathBuf], need_one: bool) -> Result<Collected
         return Err(Error::Campaign {
             path: dirs.first().cloned().unwrap_or_default(),
             tests: Vec::new(),
-            message: format!("no finished test (summary.json) below {dirs:?}"),
+            message: format!(
+                "no finished test (summary.json) below {dirs:?}{}",
+                reasons(&missing)
+            ),
         });
     }
     Ok((points, missing))
+}
+
+/// Why the runs found are not finished tests, one line each (the first ten): a single test
+/// directory whose summary fails its checksum said only "no finished test" before, while
+/// the same test in a campaign was listed with the reason.
+fn reasons(missing: &[(PathBuf, String)]) -> String {
+    const SHOWN: usize = 10;
+    let mut text = String::new();
+    for (dir, why) in missing.iter().take(SHOWN) {
+        text += &format!("\n  {}: {why}", dir.display());
+    }
+    if missing.len() > SHOWN {
+        text += &format!("\n  and {} more", missing.len() - SHOWN);
+    }
+    text
 }
 
 /// What [`collect_dirs`] finds: the finished tests, and each other run with the reason.

@@ -62,6 +62,40 @@ pub struct Overrides {
     pub out: Option<PathBuf>,
 }
 
+/// The first line of a configuration file with a checksum ([`with_checksum`]), before the
+/// eight hexadecimal digits of the CRC-32.
+pub const CHECKSUM_PREFIX: &str = "# checksum: crc32:";
+
+/// `toml` with a first line holding the CRC-32 of the rest, which
+/// [`Config::load_archived`] checks: what `cdlab archive` writes as an archived test's
+/// configuration, the only copy it keeps. The line is a TOML comment, so the file stays a
+/// configuration file for `--config`.
+pub fn with_checksum(toml: &str) -> String {
+    format!(
+        "{CHECKSUM_PREFIX}{:08x} (of the lines below; cdlab refuses this file as an archived \
+         test's once they change)\n{toml}",
+        crc32fast::hash(toml.as_bytes())
+    )
+}
+
+/// A TOML error in the file `path` (text `text`) as the user sees the file: the line and
+/// the key where the error is, in plain words. The configuration files and the sweep files
+/// share it; the sweep's said "line 0" before the real line.
+pub(crate) fn toml_error(text: &str, e: &toml::de::Error, path: &Path) -> Error {
+    // toml reports a byte span; users want a line number.
+    let start = e.span().map(|s| s.start.min(text.len()));
+    let line = start.map_or(0, |s| text[..s].matches('\n').count() + 1);
+    let message = match start.and_then(|s| key_at(text, s)) {
+        Some(key) => format!("`{key}`: {}", plain_words(e.message())),
+        None => plain_words(e.message()),
+    };
+    Error::Parse {
+        path: path.to_path_buf(),
+        line,
+        message,
+    }
+}
+
 /// The dotted key (`test.sigma3`) of the `key = value` line holding byte `at` of `text`,
 /// with the `[section]` above it: toml's messages about a value do not name its key, and a
 /// user looks for the key, not the line.
@@ -148,21 +182,69 @@ impl Config {
         Self::parse(&text, path)
     }
 
-    fn parse(text: &str, path: &Path) -> Result<Self> {
-        let config: Config = toml::from_str(text).map_err(|e| {
-            // toml reports a byte span; users want a line number.
-            let start = e.span().map(|s| s.start.min(text.len()));
-            let line = start.map_or(0, |s| text[..s].matches('\n').count() + 1);
-            let message = match start.and_then(|s| key_at(text, s)) {
-                Some(key) => format!("`{key}`: {}", plain_words(e.message())),
-                None => plain_words(e.message()),
-            };
-            Error::Parse {
-                path: path.to_path_buf(),
-                line,
-                message,
-            }
+    /// Reads the configuration that `cdlab archive` wrote into an archived test
+    /// ([`with_checksum`]): its checksum is checked first, so that a changed digit (150
+    /// disks read as 250, which the sweep then took as the test's settings) or a cut is an
+    /// error naming the file, not another test. A file without the checksum line (archives
+    /// written before it existed, such as the shipped `assets/results/campaign5000`) is
+    /// read unchecked. Every error names the file: a missing one says what it is, and a
+    /// value out of range ("invalid parameter `sample.r_min` = 0") says where it was read.
+    pub fn load_archived(path: &Path) -> Result<Self> {
+        // An error of the file itself, for every caller (the Python package's `FileError`
+        // with its path).
+        let damaged = |why: String| Error::Io {
+            path: path.to_path_buf(),
+            source: std::io::Error::new(std::io::ErrorKind::InvalidData, why),
+        };
+        let text = read_capped(path, MAX_CONFIG_BYTES, "a configuration file").map_err(|e| match e {
+            Error::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => damaged(
+                "missing: an archived test (no record) keeps its configuration in this file; \
+                 archive the test again from its run directory"
+                    .into(),
+            ),
+            e => e,
         })?;
+        let checked = text.starts_with(CHECKSUM_PREFIX);
+        let in_file = |e: Error| match e {
+            // Lines of the file, the checksum line included.
+            Error::Parse { path, line, message } if checked && line > 0 => Error::Parse {
+                path,
+                line: line + 1,
+                message,
+            },
+            Error::Invalid {
+                field,
+                value,
+                allowed,
+            } => Error::Invalid {
+                field,
+                value,
+                allowed: format!("{allowed} (read from {})", path.display()),
+            },
+            e => e,
+        };
+        let body = match text.strip_prefix(CHECKSUM_PREFIX) {
+            Some(rest) => {
+                let (line, body) = rest.split_once('\n').unwrap_or((rest, ""));
+                let recorded = line.get(..8).and_then(|h| u32::from_str_radix(h, 16).ok());
+                let computed = crc32fast::hash(body.as_bytes());
+                if recorded != Some(computed) {
+                    return Err(damaged(format!(
+                        "damaged: the CRC-32 of its content is {computed:08x}, its checksum line \
+                         says {}: changed or cut after it was written; archive the test again \
+                         from its run directory",
+                        line.get(..8).unwrap_or(line)
+                    )));
+                }
+                body
+            }
+            None => text.as_str(),
+        };
+        Self::parse(body, path).map_err(in_file)
+    }
+
+    fn parse(text: &str, path: &Path) -> Result<Self> {
+        let config: Config = toml::from_str(text).map_err(|e| toml_error(text, &e, path))?;
         config.validate()?;
         Ok(config)
     }

@@ -55,6 +55,14 @@ fn machine_memory() -> Option<u64> {
     kib.checked_mul(1024)
 }
 
+/// The most disks a sample may hold on this machine: [`MAX_DISKS`], or fewer where the
+/// memory does not hold that many at [`BYTES_PER_DISK`].
+pub fn max_disks_here() -> usize {
+    machine_memory().map_or(MAX_DISKS, |total| {
+        MAX_DISKS.min(usize::try_from(total / BYTES_PER_DISK).unwrap_or(usize::MAX))
+    })
+}
+
 /// Refuses a disk count beyond [`MAX_DISKS`] or beyond what this machine's memory holds at
 /// [`BYTES_PER_DISK`], before anything is allocated for the disks.
 pub fn check_disk_count(field: &str, disks: usize) -> Result<()> {

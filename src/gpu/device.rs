@@ -212,9 +212,13 @@ pub fn open() -> Result<GpuDevice> {
         .ok_or_else(|| Error::NoAdapter(NO_ADAPTER.to_string()))?;
     let info = adapter.get_info();
     if info.device_type == wgpu::DeviceType::Cpu {
-        eprintln!(
+        // A warning that cannot be shown (stderr closed or full) must not stop the work.
+        use std::io::Write as _;
+        let _ = writeln!(
+            std::io::stderr(),
             "warning: no hardware GPU adapter; using the software adapter {} ({:?}): expect it to be slow",
-            info.name, info.backend
+            info.name,
+            info.backend
         );
     }
     // The adapter's own limits: the buffer sizes are checked against them with a message

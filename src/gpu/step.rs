@@ -879,11 +879,15 @@ impl GpuBackend {
         let cut = f[self.sim.f_deep as usize + 1].to_bits() as u64;
         if cut > 0 && self.counters.deep_sweeps_cut == 0 {
             // Once per backend, as the adapter warning of gpu::device::open.
-            eprintln!(
+            // A warning that cannot be shown (stderr closed or full) must not stop the work.
+            use std::io::Write as _;
+            let _ = writeln!(
+                std::io::stderr(),
                 "warning: the software GPU adapter's loop limit cut the local updates of deep \
                  contacts short ({cut} sweeps left out over the last {} steps); fewer deep \
                  contacts (a smaller time step) or solver.deep_sweeps below {} avoid it",
-                red.steps, self.params.solver.deep_sweeps
+                red.steps,
+                self.params.solver.deep_sweeps
             );
         }
         self.counters.deep_sweeps_cut += cut;

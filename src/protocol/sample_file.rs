@@ -118,9 +118,58 @@ pub fn decode_sample(bytes: &[u8], path: &Path) -> Result<PreparedSample> {
 }
 
 /// Reads a sample written by [`write_sample`], checking its integrity first.
+///
+/// Only a regular file no larger than a sample of the most disks this machine can run
+/// ([`max_sample_bytes`]) is read: `--sample /dev/zero` or a huge sparse file was read
+/// whole into memory until the machine ran out of it.
 pub fn read_sample(path: &Path) -> Result<PreparedSample> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    use std::io::Read;
+    let fail = |problem: SampleProblem| Error::BadSample {
+        path: path.to_path_buf(),
+        problem,
+    };
+    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    // Judged on the file opened, not the name: it cannot change in between.
+    let meta = file.metadata().map_err(|e| Error::io(path, e))?;
+    if !meta.is_file() {
+        return Err(fail(SampleProblem::NotAFile(crate::fsio::file_kind(
+            &meta.file_type(),
+        ))));
+    }
+    let limit = max_sample_bytes();
+    if meta.len() > limit {
+        return Err(fail(SampleProblem::TooLarge {
+            len: meta.len(),
+            limit,
+        }));
+    }
+    let mut bytes = Vec::new();
+    // A file that grows while it is read stops at the limit too (then fails its length).
+    file.take(limit + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::io(path, e))?;
+    if bytes.len() as u64 > limit {
+        return Err(fail(SampleProblem::TooLarge {
+            len: bytes.len() as u64,
+            limit,
+        }));
+    }
     decode_sample(&bytes, path)
+}
+
+/// Bytes a sample file of one disk takes at most: its 15 values of 8 bytes in the
+/// checkpoint layout (`checkpoint::encode`), and a reference position (2 more).
+const SAMPLE_BYTES_PER_DISK: u64 = 17 * 8;
+
+/// Bytes of a sample file beyond its disks, generously: the header, the protocol state's
+/// JSON, the walls and the scene's values take a few kilobytes.
+const SAMPLE_FIXED_BYTES: u64 = 1 << 20;
+
+/// The largest sample file worth reading: one of the most disks this machine can run
+/// ([`crate::config::validate::max_disks_here`]); a larger one would be refused for its
+/// disk count once read.
+pub fn max_sample_bytes() -> u64 {
+    SAMPLE_FIXED_BYTES + crate::config::validate::max_disks_here() as u64 * SAMPLE_BYTES_PER_DISK
 }
 
 /// An exclusive claim on the preparation of one sample file, shared by processes (the

@@ -334,9 +334,13 @@ fn mcap_path(path: &Path) -> PathBuf {
     }
 }
 
-/// A directory that `cdlab archive` wrote: no record, the archived configuration.
-fn is_archived(dir: &Path) -> bool {
-    dir.is_dir() && !dir.join(MCAP_FILE).exists() && dir.join(ARCHIVED_CONFIG_FILE).exists()
+/// A directory that `cdlab archive` wrote: no record, the archived configuration or the
+/// thinned series (only an archive writes one: an archived test whose configuration was
+/// lost is still one, and says so, rather than "run.mcap: No such file").
+pub fn is_archived(dir: &Path) -> bool {
+    dir.is_dir()
+        && !dir.join(MCAP_FILE).exists()
+        && (dir.join(ARCHIVED_CONFIG_FILE).exists() || dir.join(THINNED_SERIES_FILE).exists())
 }
 
 /// Reads the time series of a run (`path` as for [`read_run`]) from its record, or of an
@@ -355,7 +359,7 @@ pub fn read_series(path: impl AsRef<Path>) -> Result<(Vec<SeriesRow>, Result<Con
     let text = std::fs::read_to_string(&file).map_err(|e| Error::io(&file, e))?;
     let rows = super::series::parse_csv(&text)
         .map_err(|e| Error::io(&file, std::io::Error::new(std::io::ErrorKind::InvalidData, e)))?;
-    Ok((rows, Config::load(dir.join(ARCHIVED_CONFIG_FILE))))
+    Ok((rows, Config::load_archived(&dir.join(ARCHIVED_CONFIG_FILE))))
 }
 
 /// Reads only the configuration of a run (`path` as for [`read_run`]). The recorder writes
@@ -368,7 +372,7 @@ pub fn read_series(path: impl AsRef<Path>) -> Result<(Vec<SeriesRow>, Result<Con
 pub fn read_config(path: impl AsRef<Path>) -> Result<Config> {
     let dir = path.as_ref();
     if is_archived(dir) {
-        return Config::load(dir.join(ARCHIVED_CONFIG_FILE));
+        return Config::load_archived(&dir.join(ARCHIVED_CONFIG_FILE));
     }
     RunRecord {
         config_json: read_head(dir)?.config_json,

@@ -109,7 +109,7 @@ fn value_fault(value: &serde_json::Value, run_id: Option<&str>) -> Option<String
 
 /// Reads the `summary.json` of the test in `dir` and checks that it stands: it parses, its
 /// checksum matches its content, and it names the record beside it, if there is one (an
-/// archived test has none). The one check of a finished test that `cdlab report`, `cdlab
+/// archived test has none, and its `config.toml` must pass its own checksum). The one check of a finished test that `cdlab report`, `cdlab
 /// sweep` and `cdlab archive` share, so that none takes as finished a test another
 /// refuses. The error ([`RunFault::Damaged`]) names the file and says how to repair it.
 pub fn read_checked_summary(dir: &Path) -> Result<serde_json::Value> {
@@ -138,10 +138,17 @@ pub fn read_checked_summary(dir: &Path) -> Result<serde_json::Value> {
     } else {
         None
     };
-    match value_fault(&value, run_id.as_deref()) {
-        Some(why) => Err(damaged(why)),
-        None => Ok(value),
+    if let Some(why) = value_fault(&value, run_id.as_deref()) {
+        return Err(damaged(why));
     }
+    // An archived test is its summary and its configuration: a damaged configuration
+    // (checked by its checksum) is a damaged test, though its summary stands. Before, the
+    // sweep compared its settings with a configuration changed on disk (150 disks read as
+    // 250) and skipped it as finished, and the report counted it.
+    if crate::record::is_archived(dir) {
+        crate::record::read_config(dir)?;
+    }
+    Ok(value)
 }
 
 /// A summary that cannot be put into JSON: the error of writing `dir`'s `summary.json`.
