@@ -1,6 +1,6 @@
 //! Build information for `cdlab version`: the git commit the binary was built from (when
-//! built in a git checkout; "-dirty" after it when its sources had uncommitted changes), the wgpu version of Cargo.lock, the target, the profile and
-//! the compiler.
+//! built in a git checkout; "-dirty" after it when its sources had uncommitted changes),
+//! the wgpu version of Cargo.lock, the target, the profile and the compiler.
 //! Everything is optional: a build from a source archive without git or Cargo.lock says
 //! "unknown" rather than failing.
 
