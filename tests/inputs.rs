@@ -512,3 +512,25 @@ fn outputs_that_are_not_regular_files_are_refused() {
     assert_eq!(std::fs::read(&victim).unwrap(), b"not cdlab's");
     let _ = std::fs::remove_dir_all(&base);
 }
+
+/// `--resume` continues a run with the settings it was recorded with: a flag that would
+/// change them, `--force` included, is refused naming it instead of being ignored (the
+/// probe of issue 36 found `--resume DIR --force` silently ignoring `--force`).
+#[test]
+fn resume_refuses_the_flags_it_would_ignore() {
+    for flag in [&["--force"][..], &["--disks", "200"], &["--out", "elsewhere"]] {
+        let mut args = vec!["biaxial", "--resume", "no-such-run"];
+        args.extend_from_slice(flag);
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+            .args(&args)
+            .output()
+            .expect("cdlab runs");
+        let text = String::from_utf8_lossy(&out.stderr);
+        // A usage error (clap's exit status 2), before the directory is looked at.
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {text}");
+        assert!(
+            text.contains(flag[0]) && text.contains("cannot be used with"),
+            "{flag:?}: {text}"
+        );
+    }
+}

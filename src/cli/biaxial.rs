@@ -41,8 +41,12 @@ pub struct Args {
     /// Replace the files of an existing output directory.
     #[arg(long)]
     pub force: bool,
-    /// Continue the run recorded in this directory from its last checkpoint.
-    #[arg(long, conflicts_with_all = ["config", "disks", "mu", "sigma3", "strain", "seed", "out", "sample"])]
+    /// Continue the run recorded in this directory from its last checkpoint (with the
+    /// settings it was recorded with: no other setting, nor --force, applies).
+    #[arg(
+        long,
+        conflicts_with_all = ["config", "disks", "mu", "sigma3", "strain", "seed", "out", "sample", "force"]
+    )]
     pub resume: Option<PathBuf>,
     /// Start from a sample prepared by `cdlab prepare` (skips deposition and compaction).
     #[arg(long)]
