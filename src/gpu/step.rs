@@ -56,6 +56,26 @@ const PROBE_FROM: u32 = 20;
 /// Bytes of one step's row in the history: the status words.
 const ROW_BYTES: u64 = 4 * status::WORDS as u64;
 
+/// Where a window's results lie in its history buffer: the steps' rows, then the float
+/// accumulators kept for the reductions, the walls, and the timed steps' timestamps.
+#[derive(Clone, Copy, Debug)]
+struct HistoryLayout {
+    /// Steps of the window.
+    steps: u32,
+    /// Offset of the float accumulators (after the rows).
+    final_at: u64,
+    /// Bytes of the float accumulators.
+    keep: u64,
+    /// Bytes of the wall records.
+    walls_bytes: u64,
+    /// Steps timed (the first ones), four timestamps each.
+    timed: u32,
+    /// Offset of the timestamps (8-byte aligned).
+    times_at: u64,
+    /// Bytes of the whole history (a multiple of 8: the rows and records are whole words).
+    end: u64,
+}
+
 /// A block of solver iterations closed by one convergence test.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct Block {
@@ -457,52 +477,38 @@ impl GpuBackend {
         self.gpu
             .queue
             .write_buffer(&self.bufs.floats, 4 * self.sim.f_deep as u64, &[0u8; 8]);
+        let blocks = self.blocks_for(self.iters_hint);
         let rec = Recorded {
             rounds: self.rounds_hint.clamp(1, self.cap.rounds),
             colors: self.colors_hint.min(self.cap.colors),
-            blocks: self.blocks_for(self.iters_hint),
-            full: 0,
+            blocks,
+            full: self.full_blocks(blocks),
         };
-        let rec = Recorded {
-            full: self.full_blocks(rec.blocks),
-            ..rec
-        };
-        let keep = 4 * self.bufs.layout.floats_keep as u64;
-        let walls_bytes = (nw * size_of::<GpuWall>()) as u64;
-        let final_at = steps as u64 * ROW_BYTES;
-        let timed = if self.timing.is_some() {
-            steps.min(super::backend::TIMED_STEPS)
-        } else {
-            0
-        };
-        let times_at = (final_at + keep + walls_bytes).next_multiple_of(8);
-        let end = times_at + 8 * 4 * timed as u64;
+        let at = self.history_layout(steps);
         if let Some(t) = self.window_end.take() {
             self.counters.between_ns += t.elapsed().as_nanos() as u64;
         }
         self.counters.windows += 1;
-        let history = self.history(end);
+        let history = self.history(at.end);
         self.ensure_backup();
         let recording = std::time::Instant::now();
-        let (logs, submitted) =
-            self.record_window(steps, rec, timed, &history, loading, final_at, times_at)?;
-        self.counters.submissions += submitted;
+        let logs = self.record_window(rec, at, &history, loading)?;
+        // One command buffer per step, and one for a run of no steps.
+        self.counters.submissions += logs.len() as u64;
         self.counters.record_ns += recording.elapsed().as_nanos() as u64;
-        // `end` is a multiple of 8 (the timestamps' offset is aligned, the rows and records
-        // are whole words).
         let waiting = std::time::Instant::now();
-        let bytes = self.map_read(&history, end)?;
+        let bytes = self.map_read(&history, at.end)?;
         self.counters.wait_ns += waiting.elapsed().as_nanos() as u64;
         self.window_end = Some(std::time::Instant::now());
-        if timed > 0 {
-            let t: &[u64] = bytemuck::cast_slice(&bytes[times_at as usize..end as usize]);
+        if at.timed > 0 {
+            let t: &[u64] = bytemuck::cast_slice(&bytes[at.times_at as usize..at.end as usize]);
             let period = self.gpu.queue.get_timestamp_period() as f64;
             let ns = |a: u64, b: u64| (b.saturating_sub(a) as f64 * period) as u64;
             for q in t.chunks_exact(4) {
                 self.counters.device_step_ns += ns(q[0], q[3]);
                 self.counters.device_solve_ns += ns(q[1], q[2]);
             }
-            self.counters.timed_steps += timed as u64;
+            self.counters.timed_steps += at.timed as u64;
         }
         let rows: Vec<Row> = (0..steps as usize)
             .map(|s| {
@@ -593,30 +599,55 @@ impl GpuBackend {
         self.scene.time += steps as f64 * self.params.dt;
         self.scene.step += steps as u64;
         red.colors_mean = colors as f64 / red.steps.max(1) as f64;
-        let tail = &bytes[final_at as usize..];
+        let tail = &bytes[at.final_at as usize..];
         self.finish_reductions(red, loading, tail).map(Some)
+    }
+
+    /// The history's layout for a window of `steps` steps.
+    fn history_layout(&self, steps: u32) -> HistoryLayout {
+        let keep = 4 * self.bufs.layout.floats_keep as u64;
+        let walls_bytes = (self.scene.walls.len() * size_of::<GpuWall>()) as u64;
+        let final_at = steps as u64 * ROW_BYTES;
+        let timed = if self.timing.is_some() {
+            steps.min(super::backend::TIMED_STEPS)
+        } else {
+            0
+        };
+        let times_at = (final_at + keep + walls_bytes).next_multiple_of(8);
+        HistoryLayout {
+            steps,
+            final_at,
+            keep,
+            walls_bytes,
+            timed,
+            times_at,
+            end: times_at + 8 * 4 * timed as u64,
+        }
     }
 
     /// Records the window's command buffers, one per step, and submits them in order; with
     /// several recording threads ([`GpuBackend::recording_threads`]) the steps are recorded
     /// side by side (each is its own encoder, and none depends on another's recording) and
     /// submitted as they come in order, so that the device starts on the first step while
-    /// the later ones are still being recorded. Returns the steps' dispatch logs and the
-    /// submissions made.
-    #[allow(clippy::too_many_arguments)]
+    /// the later ones are still being recorded. Returns the dispatch logs of the command
+    /// buffers submitted, in order.
     fn record_window(
         &self,
-        steps: u32,
         rec: Recorded,
-        timed: u32,
+        at: HistoryLayout,
         history: &wgpu::Buffer,
         loading: &Loading,
-        final_at: u64,
-        times_at: u64,
-    ) -> Result<(Vec<Vec<Logged>>, u64)> {
+    ) -> Result<Vec<Vec<Logged>>> {
+        let HistoryLayout {
+            steps,
+            final_at,
+            keep,
+            walls_bytes,
+            timed,
+            times_at,
+            ..
+        } = at;
         let n = steps.max(1);
-        let keep = 4 * self.bufs.layout.floats_keep as u64;
-        let walls_bytes = (self.scene.walls.len() * size_of::<GpuWall>()) as u64;
         // A run of no steps still reduces the state as it stands: one command buffer holding
         // the reductions alone.
         let record = |s: u32| -> (wgpu::CommandBuffer, Vec<Logged>) {
@@ -666,7 +697,7 @@ impl GpuBackend {
                 logs.push(log);
                 submit(cmd)?;
             }
-            return Ok((logs, n as u64));
+            return Ok(logs);
         }
         std::thread::scope(|scope| -> Result<()> {
             let (tx, rx) = std::sync::mpsc::channel();
@@ -693,7 +724,7 @@ impl GpuBackend {
             }
             Ok(())
         })?;
-        Ok((logs, n as u64))
+        Ok(logs)
     }
 
     /// What a step's row asks of the window: larger capacities, or more coloring rounds,
