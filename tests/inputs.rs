@@ -18,6 +18,12 @@ fn scratch(name: &str) -> PathBuf {
 /// A process a signal ended has no exit code: a failed allocation aborts (SIGABRT), which
 /// is what these tests must never see.
 fn exits_with_error(args: &[&str]) -> String {
+    exits_with(args, 1)
+}
+
+/// Runs cdlab with `args`, expecting exit status `code` (1 for an error, 2 for clap's
+/// usage errors) and no panic; returns stdout and stderr.
+fn exits_with(args: &[&str], code: i32) -> String {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
         .args(args)
         .output()
@@ -27,7 +33,11 @@ fn exits_with_error(args: &[&str]) -> String {
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
     );
-    assert_eq!(out.status.code(), Some(1), "{args:?} must fail cleanly: {text}");
+    assert_eq!(
+        out.status.code(),
+        Some(code),
+        "{args:?} must fail cleanly: {text}"
+    );
     assert!(!text.contains("panicked"), "{args:?}: {text}");
     text
 }
@@ -521,13 +531,8 @@ fn resume_refuses_the_flags_it_would_ignore() {
     for flag in [&["--force"][..], &["--disks", "200"], &["--out", "elsewhere"]] {
         let mut args = vec!["biaxial", "--resume", "no-such-run"];
         args.extend_from_slice(flag);
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
-            .args(&args)
-            .output()
-            .expect("cdlab runs");
-        let text = String::from_utf8_lossy(&out.stderr);
         // A usage error (clap's exit status 2), before the directory is looked at.
-        assert_eq!(out.status.code(), Some(2), "{args:?}: {text}");
+        let text = exits_with(&args, 2);
         assert!(
             text.contains(flag[0]) && text.contains("cannot be used with"),
             "{flag:?}: {text}"
