@@ -93,6 +93,45 @@ fn biaxial_run_records_resumes_and_refuses_to_overwrite() {
     let _ = std::fs::remove_dir_all(&base);
 }
 
+/// A preparation shows its compaction's progress: each equilibrium check's kinetic ratio
+/// against its threshold, the wall's force balance, and the time left (an estimate once
+/// the ratio decays, always the bound of the phase's time cap), then the phase's end.
+#[test]
+fn a_preparation_shows_its_compaction_and_the_time_left() {
+    let base = scratch("prepare_progress");
+    let cfg = small_config(&base);
+    let sample = base.join("sample.bin");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
+        .args([
+            "prepare",
+            "--config",
+            cfg.to_str().unwrap(),
+            "-o",
+            sample.to_str().unwrap(),
+        ])
+        .env("CDLAB_PROGRESS_EVERY", "0")
+        .output()
+        .expect("cdlab runs");
+    let text = String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    let checks: Vec<&str> = text
+        .lines()
+        .filter(|l| l.contains("kinetic ratio") && l.contains("(ends below 1e-7)"))
+        .collect();
+    assert!(checks.len() >= 2, "one line per check of 200 steps: {text}");
+    assert!(checks.iter().all(|l| l.contains("wall force off by")), "{text}");
+    // From the second check on, a rate of wall time per simulated second turns the phase's
+    // time cap into a bound on the time left.
+    assert!(
+        checks[1..]
+            .iter()
+            .all(|l| l.contains("left") && l.contains("the 60 s cap")),
+        "{text}"
+    );
+    assert!(text.contains("compaction ended at t ="), "{text}");
+    let _ = std::fs::remove_dir_all(&base);
+}
+
 #[test]
 fn a_prepared_sample_is_reused_by_a_test() {
     let base = scratch("prepare");
@@ -106,6 +145,8 @@ fn a_prepared_sample_is_reused_by_a_test() {
         sample.to_str().unwrap(),
     ]);
     assert!(ok && text.contains("prepared sample written"), "{text}");
+    // The final line gives the compacted sample's coordination beside its packing fraction.
+    assert!(text.contains("coordination"), "{text}");
     let (ok, text) = cdlab(&[
         "prepare",
         "--config",

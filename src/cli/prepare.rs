@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use crate::error::{Error, Result, RunFault};
-use crate::run::{self, Event};
+use crate::run;
 
 /// Options of `cdlab prepare`.
 #[derive(clap::Args, Debug)]
@@ -48,30 +48,22 @@ pub fn run(args: &Args) -> Result<()> {
         backend: args.backend.clone(),
         ..Default::default()
     })?;
-    let mut progress = |e: &Event| {
-        if let Event::Deposited { disks, report: r } = e {
-            note!(
-                "deposited {disks} disks in {:.2} s: packing fraction {:.3}, coordination {:.2}, D10 {:.2} m, D60 {:.2} m",
-                r.seconds,
-                r.packing_fraction,
-                r.coordination,
-                r.d10_m,
-                r.d60_m
-            );
-        }
-    };
+    // The deposition, the compaction's equilibrium checks with the time left, its end.
+    let mut progress = super::run::Progress::Own.display();
+    progress.start();
     // Signals keep their default action: a sample has no checkpoint to stop at.
     let p = run::prepare(&config, &args.output, &mut progress, &run::Cancel::with_signals())?;
     let (w, h) = (p.width_m, p.height_m);
     tell!(
         "prepared sample written to {}: {} disks, {:.2} m x {:.2} m (height/width {:.2}), packing fraction {:.3}, \
-         compaction {} at t = {:.2} s, wall time {:.1} s",
+         coordination {:.2}, compaction {} at t = {:.2} s, wall time {:.1} s",
         p.path.display(),
         p.scene.disks.len(),
         w,
         h,
         h / w,
         p.packing_fraction(),
+        p.coordination,
         if p.compaction.settled {
             "settled"
         } else {

@@ -50,6 +50,8 @@ impl Progress {
             last_line: Instant::now(),
             compression_start: None,
             started: false,
+            settle: SettleTrack::default(),
+            origin: Instant::now(),
         }
     }
 }
@@ -64,6 +66,33 @@ pub struct Display {
     compression_start: Option<(f64, f64)>,
     /// Whether the steps (or the replay of a resumed record) have begun.
     started: bool,
+    /// The equilibrium checks of the current preparation phase.
+    settle: SettleTrack,
+    /// When the display was made: the clock of the preparation lines.
+    origin: Instant,
+}
+
+/// What a display keeps of a preparation phase to estimate its time left.
+#[derive(Debug, Default)]
+struct SettleTrack {
+    phase: Option<crate::protocol::Phase>,
+    /// `(phase time s, kinetic ratio)` of each check.
+    checks: Vec<(f64, f64)>,
+    /// `(wall-clock s since the display started, phase time s)` of each check: the rate
+    /// that turns simulated time left into wall time.
+    clock: Vec<(f64, f64)>,
+    /// Iterations per step of the last row.
+    iterations: f64,
+}
+
+impl SettleTrack {
+    /// Wall seconds per simulated second over the last [`crate::run::SETTLE_FIT_CHECKS`]
+    /// checks; none before two.
+    fn wall_per_sim(&self) -> Option<f64> {
+        let recent = &self.clock[self.clock.len().saturating_sub(crate::run::SETTLE_FIT_CHECKS + 1)..];
+        let (a, b) = (recent.first()?, recent.last()?);
+        (b.1 > a.1).then(|| (b.0 - a.0) / (b.1 - a.1))
+    }
 }
 
 impl Display {
@@ -91,7 +120,7 @@ impl Display {
     pub(super) fn lines(&self) -> Option<(String, f64)> {
         match &self.mode {
             _ if self.bar.is_some() => None,
-            Progress::Own => Some((String::new(), 5.0)),
+            Progress::Own => Some((String::new(), own_line_interval())),
             Progress::Campaign { label, every_s, .. } => Some((format!("{label}: "), *every_s)),
             Progress::Quiet => None,
         }
@@ -117,6 +146,7 @@ impl Display {
             row.volumetric_strain,
             row.iterations
         );
+        self.settle.iterations = row.iterations;
         if let Some(b) = &self.bar {
             if row.phase == "compression" {
                 b.set_position((1000.0 * row.strain_axial / strain_end).min(1000.0) as u64);
@@ -125,6 +155,10 @@ impl Display {
         } else if let Some((label, every)) = self.lines() {
             if row.phase == "compression" && self.compression_start.is_none() {
                 self.compression_start = Some((row.wall_s, row.strain_axial));
+            }
+            // A preparation phase's lines come with its equilibrium checks (`settling`).
+            if row.phase != "compression" {
+                return;
             }
             if self.last_line.elapsed().as_secs_f64() >= every {
                 let left = self
@@ -136,6 +170,73 @@ impl Display {
             }
         }
     }
+}
+
+impl Display {
+    /// Shows a preparation phase's equilibrium check: where its criteria stand, and the
+    /// time left as [`crate::run::settle_time_left`] estimates it, bounded by the phase's
+    /// time cap.
+    pub(super) fn settling(&mut self, c: &crate::protocol::Settling) {
+        if self.settle.phase != Some(c.phase) {
+            self.settle = SettleTrack {
+                phase: Some(c.phase),
+                iterations: self.settle.iterations,
+                ..Default::default()
+            };
+        }
+        let now = self.last_line_origin();
+        self.settle.checks.push((c.phase_time_s, c.kinetic_ratio));
+        self.settle.clock.push((now, c.phase_time_s));
+        let (estimate, cap) =
+            crate::run::settle_time_left(&self.settle.checks, c.kinetic_threshold, c.max_time_s);
+        let left = match (self.settle.wall_per_sim(), estimate) {
+            (Some(rate), Some(e)) => format!(
+                "  about {} left (at most {}: the {:.0} s cap)",
+                duration(e * rate),
+                duration(cap * rate),
+                c.max_time_s
+            ),
+            (Some(rate), None) => format!(
+                "  at most {} left (the {:.0} s cap)",
+                duration(cap * rate),
+                c.max_time_s
+            ),
+            (None, _) => String::new(),
+        };
+        let msg = format!(
+            "{:<11} t {:8.3} s  kinetic ratio {:.1e} (ends below {:.0e})  wall force off by {:.2}% (below {:.2}%)  iterations/step {:6.1}",
+            c.phase.name(),
+            c.time_s,
+            c.kinetic_ratio,
+            c.kinetic_threshold,
+            100.0 * c.imbalance,
+            100.0 * c.imbalance_limit,
+            self.settle.iterations
+        );
+        if let Some(b) = &self.bar {
+            b.set_message(format!("{msg}{left}"));
+        } else if let Some((label, every)) = self.lines()
+            && self.last_line.elapsed().as_secs_f64() >= every
+        {
+            note!("{label}[{now:7.1} s] {msg}{left}");
+            self.last_line = Instant::now();
+        }
+    }
+
+    /// Wall-clock seconds since the display started.
+    fn last_line_origin(&self) -> f64 {
+        self.origin.elapsed().as_secs_f64()
+    }
+}
+
+/// Seconds between two plain progress lines of a command run on its own:
+/// `CDLAB_PROGRESS_EVERY` when it holds a number >= 0, else 5 (docs/outputs.md, "Progress").
+fn own_line_interval() -> f64 {
+    std::env::var("CDLAB_PROGRESS_EVERY")
+        .ok()
+        .and_then(|v| v.trim().parse::<f64>().ok())
+        .filter(|s| *s >= 0.0 && s.is_finite())
+        .unwrap_or(5.0)
 }
 
 /// A duration in the unit that reads best: seconds, minutes or hours.

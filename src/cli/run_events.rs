@@ -60,6 +60,7 @@ impl crate::run::Progress for Display {
                 self.start();
             }
             Event::Row { row, strain_end } => self.row(row, *strain_end),
+            Event::Settling(check) => self.settling(check),
             Event::OverlapBound { row, within_half } if !matches!(self.mode, Progress::Quiet) => {
                 let label = self.lines().map_or(String::new(), |(l, _)| l);
                 self.say(overlap_warning(&label, row, *within_half));

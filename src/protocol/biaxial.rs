@@ -397,6 +397,16 @@ impl<B: Backend> Lab<B> {
             Phase::Compaction => eq.compaction_kinetic_ratio,
             _ => eq.kinetic_ratio,
         };
+        obs.settling(&super::Settling {
+            phase: self.state.phase,
+            time_s: red.time,
+            phase_time_s: red.time - self.state.phase_start,
+            kinetic_ratio: kinetic,
+            kinetic_threshold: threshold,
+            imbalance,
+            imbalance_limit: eq.force_imbalance,
+            max_time_s: eq.max_time,
+        })?;
         let settled = kinetic < threshold && imbalance < eq.force_imbalance;
         let timeout = red.time - self.state.phase_start >= eq.max_time;
         if settled || timeout {

@@ -281,6 +281,33 @@ pub trait Observer {
     fn activity(&mut self, _phase: Phase, _text: &str) -> Result<()> {
         Ok(())
     }
+    /// A preparation phase's equilibrium check, at the end of each window
+    /// ([`Equilibrium::window`]); ignored unless the observer shows progress.
+    fn settling(&mut self, _check: &Settling) -> Result<()> {
+        Ok(())
+    }
+}
+
+/// One equilibrium check of a preparation phase (compaction or confinement): where its two
+/// criteria stand against their thresholds, and how long the phase may still last.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settling {
+    /// The phase checked.
+    pub phase: Phase,
+    /// Simulated time (s).
+    pub time_s: f64,
+    /// Simulated time since the phase began (s).
+    pub phase_time_s: f64,
+    /// Kinetic ratio `K / (sigma A)` (dimensionless) and the threshold it must go below.
+    pub kinetic_ratio: f64,
+    /// See `kinetic_ratio`.
+    pub kinetic_threshold: f64,
+    /// Relative force imbalance of the loaded wall (dimensionless) and its bound.
+    pub imbalance: f64,
+    /// See `imbalance`.
+    pub imbalance_limit: f64,
+    /// Simulated-time cap of the phase ([`Equilibrium::max_time`], s).
+    pub max_time_s: f64,
 }
 
 /// An observer that keeps everything in memory (tests, reports).

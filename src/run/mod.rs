@@ -75,7 +75,7 @@ use crate::error::{Error, Result};
 use crate::measure::SeriesRow;
 use crate::measure::summary::Summary;
 use crate::protocol::prepare::DepositionReport;
-use crate::protocol::{Phase, PhaseEnd};
+use crate::protocol::{Phase, PhaseEnd, Settling};
 
 /// What a run reports while it goes, in the order it happens. Borrowed: a receiver that
 /// keeps something copies it.
@@ -153,6 +153,10 @@ pub enum Event<'a> {
         /// bound, if one was: how fast it then grew tells a small step from slow sinking.
         within_half: Option<(u64, f64)>,
     },
+    /// A preparation phase's equilibrium check, after each window of its steps: the
+    /// kinetic ratio and force imbalance against their thresholds ([`settle_time_left`]
+    /// estimates the time left from a series of them).
+    Settling(&'a Settling),
     /// A phase ended (settled or at its time cap; the compression at its end strain).
     PhaseEnd(&'a PhaseEnd),
     /// No more steps run (the test ended, failed or was stopped): a display can close.
@@ -225,9 +229,76 @@ pub fn time_left(w0: f64, e0: f64, wall: f64, strain: f64, end: f64) -> Option<f
     (done > 1e-4 && spent > 0.0).then(|| (end - strain).max(0.0) * spent / done)
 }
 
+/// Checks of a preparation phase that [`settle_time_left`] fits: the last this many, so
+/// that the estimate follows the phase's recent decay rather than its violent start.
+pub const SETTLE_FIT_CHECKS: usize = 10;
+
+/// Simulated seconds a preparation phase has left, from its equilibrium checks
+/// `(phase time s, kinetic ratio)` in order: `(estimate, at most)`. The estimate extends
+/// the exponential decay of the kinetic ratio fitted over the last [`SETTLE_FIT_CHECKS`]
+/// checks (least squares on its logarithm) down to `threshold`; none while the ratio is
+/// not decaying (by 5% or more over those checks) or fewer than three checks have come, and 0 once it is below (the force
+/// balance may still hold the phase). The bound is the time to the phase's cap
+/// `max_time_s`, which ends it in any case. A frictionless compaction's ratio fluctuates
+/// near its threshold once the packing is dense (docs/protocol.md, "Equilibrium"), so the
+/// estimate is a trend, not a promise; the bound is one.
+pub fn settle_time_left(checks: &[(f64, f64)], threshold: f64, max_time_s: f64) -> (Option<f64>, f64) {
+    let Some(&(now, last)) = checks.last() else {
+        return (None, max_time_s);
+    };
+    let cap = (max_time_s - now).max(0.0);
+    if last < threshold {
+        return (Some(0.0), cap);
+    }
+    let pts: Vec<(f64, f64)> = checks[checks.len().saturating_sub(SETTLE_FIT_CHECKS)..]
+        .iter()
+        .filter(|p| p.1 > 0.0 && p.1.is_finite())
+        .map(|&(t, k)| (t, k.ln()))
+        .collect();
+    if pts.len() < 3 {
+        return (None, cap);
+    }
+    let n = pts.len() as f64;
+    let (mt, ml) = pts.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0 / n, a.1 + p.1 / n));
+    let (sxy, sxx) = pts.iter().fold((0.0, 0.0), |a, p| {
+        (a.0 + (p.0 - mt) * (p.1 - ml), a.1 + (p.0 - mt) * (p.0 - mt))
+    });
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    let span = pts[pts.len() - 1].0 - pts[0].0;
+    // A trend of less than 5% over the fitted checks is no decay (nor a rounding error).
+    if !(slope.is_finite() && slope * span < -0.05) {
+        return (None, cap);
+    }
+    // From the fitted value now, which the fluctuations of one check move less than the last.
+    let fitted = ml + slope * (now - mt);
+    let left = ((fitted - threshold.ln()) / -slope).max(0.0);
+    (Some(left.min(cap)), cap)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A ratio falling tenfold per simulated second from 1e-5 reaches 1e-7 two seconds
+    /// after it reads 1e-5; a flat or rising ratio gives no estimate but the cap's bound;
+    /// one below the threshold leaves nothing to wait for on its side; the estimate never
+    /// passes the cap.
+    #[test]
+    fn settle_time_left_extends_the_decay_to_the_threshold() {
+        let decay: Vec<(f64, f64)> = (0..12)
+            .map(|k| (0.1 * k as f64, 1e-5 * 10f64.powf(1.1 - 0.1 * k as f64)))
+            .collect();
+        let (est, cap) = settle_time_left(&decay, 1e-7, 60.0);
+        assert!((est.unwrap() - 2.0).abs() < 1e-9, "{est:?}");
+        assert!((cap - 58.9).abs() < 1e-9);
+        let flat: Vec<(f64, f64)> = (0..12).map(|k| (0.1 * k as f64, 3e-7)).collect();
+        assert_eq!(settle_time_left(&flat, 1e-7, 60.0).0, None);
+        let below = [(1.0, 1e-6), (1.1, 5e-7), (1.2, 5e-8)];
+        assert_eq!(settle_time_left(&below, 1e-7, 60.0).0, Some(0.0));
+        let (est, cap) = settle_time_left(&decay, 1e-30, 2.0);
+        assert_eq!(est, Some(cap));
+        assert_eq!(settle_time_left(&decay[..2], 1e-7, 60.0).0, None);
+    }
 
     /// The estimate extrapolates the mean rate of this part: 0.01 of strain in 100 s leaves
     /// 800 s for the remaining 0.08; none before the strain has moved, none past the end.

@@ -123,6 +123,11 @@ impl Observer for Recording<'_> {
         Ok(())
     }
 
+    fn settling(&mut self, check: &crate::protocol::Settling) -> Result<()> {
+        self.progress.event(&Event::Settling(check));
+        Ok(())
+    }
+
     fn snapshot(
         &mut self,
         strain: f64,

@@ -26,6 +26,9 @@ pub struct Prepared {
     pub width_m: f64,
     /// See `width_m`.
     pub height_m: f64,
+    /// Mean number of force-carrying contacts per disk at the end of the compaction,
+    /// rattlers left out (the series' `coordination`).
+    pub coordination: f64,
     /// Wall-clock seconds of the preparation.
     pub wall_s: f64,
 }
@@ -67,13 +70,19 @@ pub fn prepare(
     });
     let backend = open_backend(config, scene.clone(), params.step)?;
     let mut lab = Lab::new(backend, params, &scene, false)?;
-    let mut obs = Collect::default();
+    let mut obs = Preparing {
+        seen: Collect::default(),
+        progress,
+        t0,
+    };
     while lab.state.phase == Phase::Compaction {
         lab.advance(&mut obs)?;
         if let Some(signal) = cancel.requested() {
             return Err(Error::Interrupted { signal, step: 0 });
         }
     }
+    obs.progress.event(&Event::StepsEnded);
+    let obs = obs.seen;
     let compaction = obs.ends.last().cloned().ok_or_else(|| Error::Numerical {
         step: obs.rows.last().map_or(0, |r| r.step),
         message: "the compaction ended without reporting its end".into(),
@@ -87,8 +96,55 @@ pub fn prepare(
         compaction,
         width_m: last.map_or(0.0, |r| r.width_m),
         height_m: last.map_or(0.0, |r| r.height_m),
+        coordination: last.map_or(0.0, |r| r.coordination),
         wall_s: t0.elapsed().as_secs_f64(),
     })
+}
+
+/// The observer of a preparation: keeps what [`prepare`] reports and shows the rows and
+/// the equilibrium checks as they come (the compaction of a large sample takes minutes).
+struct Preparing<'a> {
+    seen: Collect,
+    progress: &'a mut dyn Progress,
+    t0: Instant,
+}
+
+impl crate::protocol::Observer for Preparing<'_> {
+    fn series(&mut self, row: &crate::measure::SeriesRow) -> Result<()> {
+        let row = crate::measure::SeriesRow {
+            wall_s: self.t0.elapsed().as_secs_f64(),
+            ..row.clone()
+        };
+        self.progress.event(&Event::Row {
+            row: &row,
+            strain_end: 0.0,
+        });
+        self.seen.series(&row)
+    }
+    fn phase_end(&mut self, end: &PhaseEnd) -> Result<()> {
+        self.progress.event(&Event::PhaseEnd(end));
+        self.seen.phase_end(end)
+    }
+    fn snapshot(
+        &mut self,
+        strain: f64,
+        scene: &Scene,
+        contacts: &[crate::backend::ContactRecord],
+        reference: &[glam::DVec2],
+    ) -> Result<()> {
+        self.seen.snapshot(strain, scene, contacts, reference)
+    }
+    fn checkpoint(&mut self, step: u64, bytes: &[u8]) -> Result<()> {
+        self.seen.checkpoint(step, bytes)
+    }
+    fn activity(&mut self, phase: Phase, text: &str) -> Result<()> {
+        self.progress.event(&Event::Activity { phase, text });
+        Ok(())
+    }
+    fn settling(&mut self, check: &crate::protocol::Settling) -> Result<()> {
+        self.progress.event(&Event::Settling(check));
+        Ok(())
+    }
 }
 
 /// Reads a sample written by [`prepare`] (or `cdlab prepare`), checking that its scene
