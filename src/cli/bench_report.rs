@@ -75,6 +75,22 @@ pub fn markdown(cases: &[Case], tol: f64, warmup: u32, steps: u32) -> String {
             }
         }
     }
+    let cpu: Vec<(&Case, &crate::run::bench::CpuPhases)> = cases
+        .iter()
+        .filter_map(|c| c.cpu_phases.as_ref().map(|p| (c, p)))
+        .collect();
+    if let Some((_, first)) = cpu.first() {
+        s.push_str("\nWhere a CPU step's time goes (ms/step); the fixed part is everything but the sweeps, per disk against the first CPU case (a step that scales keeps it near x1):\n\n");
+        s.push_str("| disks | method | detect | contacts | solver setup | sweeps | deep contacts | store | integrate | fixed | fixed per disk (ns) | fixed per disk against the first |\n");
+        s.push_str("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n");
+        for (c, p) in &cpu {
+            s.push_str(&format!(
+                "| {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.1} | x{:.2} |\n",
+                c.disks, c.method, p.detect_ms, p.contacts_ms, p.setup_ms, p.sweeps_ms, p.deep_ms, p.store_ms, p.integrate_ms, p.fixed_ms,
+                p.fixed_ns_per_disk, p.fixed_ns_per_disk / first.fixed_ns_per_disk
+            ));
+        }
+    }
     s.push_str("\nThe fixed dispatches per step are the dispatches with work left after one per color per solver iteration and one convergence test per check: the same figure at every size and iteration count means each iteration costs exactly one dispatch per color. Empty dispatches launch no workgroup: the blocks of iterations recorded past the solve's end and the colors recorded beyond those holding contacts (the margins the host records without waiting for the device). Waits/window: the blocking reads of the device per window of steps (one series row of a test).\n");
     s
 }

@@ -52,6 +52,52 @@ pub struct StepStats {
     pub step_seconds: f64,
 }
 
+/// Wall time of a CPU step's phases (s), summed over the steps counted (`steps`): what
+/// `cdlab bench` reports as the fixed part of a step (everything but `sweeps`) and how it
+/// grows with the sample (docs/benchmarks.md, "Sample size").
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct PhaseTimes {
+    /// Steps counted.
+    pub steps: u64,
+    /// Contact detection: the kept pair list (rebuilt on the grid when stale) and the
+    /// contact records.
+    pub detect: f64,
+    /// Start-of-step and free velocities, the contacts' law offsets and warm start, the
+    /// overlap check.
+    pub contacts: f64,
+    /// The solver's setup: rows, parking, coloring, color order, vector packing.
+    pub setup: f64,
+    /// The solver's iterations (a whole solve for methods other than Gauss-Seidel).
+    pub sweeps: f64,
+    /// Deep contacts: finding them and their local updates.
+    pub deep: f64,
+    /// The impulses written back to the contacts.
+    pub store: f64,
+    /// Finite-velocity check, integration, warm-start list and wall impulses.
+    pub integrate: f64,
+}
+
+impl PhaseTimes {
+    /// Everything but the sweeps (s).
+    pub fn fixed(&self) -> f64 {
+        self.detect + self.contacts + self.setup + self.deep + self.store + self.integrate
+    }
+
+    /// The times since `earlier` (a copy taken from the same engine).
+    pub fn since(&self, earlier: &PhaseTimes) -> PhaseTimes {
+        PhaseTimes {
+            steps: self.steps - earlier.steps,
+            detect: self.detect - earlier.detect,
+            contacts: self.contacts - earlier.contacts,
+            setup: self.setup - earlier.setup,
+            sweeps: self.sweeps - earlier.sweeps,
+            deep: self.deep - earlier.deep,
+            store: self.store - earlier.store,
+            integrate: self.integrate - earlier.integrate,
+        }
+    }
+}
+
 /// The CPU backend's stepper. It owns the contact list between steps (warm start) and the
 /// scratch buffers, so a step allocates nothing once sizes settle.
 #[derive(Clone, Debug)]
@@ -68,6 +114,8 @@ pub struct CpuEngine {
     wall_impulse: Vec<DVec2>,
     /// The contact problem of the last step, kept when capture is on ([`Self::capture`]).
     captured: Option<Box<Captured>>,
+    /// Where the steps' time went, summed since the engine was made.
+    times: PhaseTimes,
 }
 
 impl CpuEngine {
@@ -85,6 +133,7 @@ impl CpuEngine {
             work: sweep::Workspace::default(),
             wall_impulse: Vec::new(),
             captured: None,
+            times: PhaseTimes::default(),
         })
     }
 
@@ -119,6 +168,11 @@ impl CpuEngine {
         self.previous.sort_unstable_by_key(|e| e.0);
     }
 
+    /// Where the steps' time went, summed over every step of this engine.
+    pub fn phase_times(&self) -> PhaseTimes {
+        self.times
+    }
+
     /// Forgets the warm-start impulses (e.g. after the scene was edited by hand).
     pub fn reset_warm_start(&mut self) {
         self.previous.clear();
@@ -142,11 +196,13 @@ impl CpuEngine {
         let (dt, theta) = (p.dt, p.theta);
         let t0 = std::time::Instant::now();
         follow_walls(scene);
+        let t_detect = std::time::Instant::now();
         // A skin of twice the alert distance: the pair list is rebuilt after a disk has moved
         // one alert distance, every few hundred steps at the test's velocities.
         self.neighbours
             .detect(scene, p.alert, 2.0 * p.alert, &mut self.contacts)
             .map_err(|e| at_step(e, scene.step))?;
+        let t_contacts = std::time::Instant::now();
         self.velocities(scene);
         let worst = self.prepare_contacts(scene);
         let max_overlap = self.check_overlap(worst, scene)?;
@@ -163,12 +219,23 @@ impl CpuEngine {
             &mut self.gv,
             &mut self.work,
         );
-        let solve_seconds = t_solve.elapsed().as_secs_f64();
+        let t_integrate = std::time::Instant::now();
+        let solve_seconds = (t_integrate - t_solve).as_secs_f64();
         self.check_finite(scene)?;
         self.integrate(scene, dt, theta);
         self.remember_impulses(scene.disks.len(), scene.walls.len());
         scene.time += dt;
         scene.step += 1;
+        let w = self.work.times();
+        let t = &mut self.times;
+        t.steps += 1;
+        t.detect += (t_contacts - t_detect).as_secs_f64();
+        t.contacts += (t_solve - t_contacts).as_secs_f64();
+        t.setup += w.setup;
+        t.deep += w.deep;
+        t.store += w.store;
+        t.sweeps += solve_seconds - w.setup - w.deep - w.store;
+        t.integrate += t_integrate.elapsed().as_secs_f64();
         Ok(StepStats {
             solve,
             contacts: self.contacts.len(),

@@ -77,6 +77,50 @@ pub struct Case {
     pub host_peak_mib: f64,
     /// Device buffers (MiB; 0 on the CPU).
     pub device_mib: f64,
+    /// CPU: where a step's time went, per step ([`CpuPhases`]); none on the GPU.
+    pub cpu_phases: Option<CpuPhases>,
+}
+
+/// Wall time of a CPU step's phases, per measured step (ms), from
+/// [`crate::engine::PhaseTimes`].
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct CpuPhases {
+    /// Contact detection (pair list and records).
+    pub detect_ms: f64,
+    /// Velocities, law offsets, warm start, overlap check.
+    pub contacts_ms: f64,
+    /// Solver setup: rows, parking, coloring, order, packing.
+    pub setup_ms: f64,
+    /// Solver iterations.
+    pub sweeps_ms: f64,
+    /// Deep contacts.
+    pub deep_ms: f64,
+    /// Impulses written back.
+    pub store_ms: f64,
+    /// Integration, warm-start list, wall impulses.
+    pub integrate_ms: f64,
+    /// Everything but the sweeps: the step's fixed part.
+    pub fixed_ms: f64,
+    /// The fixed part per disk (ns): flat when it scales linearly with the sample.
+    pub fixed_ns_per_disk: f64,
+}
+
+impl CpuPhases {
+    /// The phases of `t` per step, for a sample of `disks` disks.
+    pub fn of(t: &crate::engine::PhaseTimes, disks: usize) -> CpuPhases {
+        let per = |s: f64| s * 1e3 / t.steps.max(1) as f64;
+        CpuPhases {
+            detect_ms: per(t.detect),
+            contacts_ms: per(t.contacts),
+            setup_ms: per(t.setup),
+            sweeps_ms: per(t.sweeps),
+            deep_ms: per(t.deep),
+            store_ms: per(t.store),
+            integrate_ms: per(t.integrate),
+            fixed_ms: per(t.fixed()),
+            fixed_ns_per_disk: per(t.fixed()) * 1e6 / disks.max(1) as f64,
+        }
+    }
 }
 
 /// A confined dense sample under shear: the deposit of `n` disks, walls closed, the top
@@ -104,6 +148,7 @@ struct Probe<B> {
     device_mib: fn(&B) -> f64,
     check_every: fn(&B) -> u32,
     record_threads: fn(&B) -> u32,
+    phases: fn(&B) -> Option<crate::engine::PhaseTimes>,
 }
 
 /// The steps of a window of `window` steps: `steps` steps in windows of `window`, as a test
@@ -130,10 +175,15 @@ fn run_windows<B: Backend>(backend: &mut B, steps: u32, window: u32) -> Result<(
 fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, run: Run) -> Result<Case> {
     run_windows(backend, run.warmup, run.window)?;
     let before = (probe.counters)(backend);
+    let phases_before = (probe.phases)(backend);
     let t0 = Instant::now();
     let (done, iterations_sum, colors_mean, candidates) = run_windows(backend, run.steps, run.window)?;
     let secs = t0.elapsed().as_secs_f64();
     let after = (probe.counters)(backend);
+    let cpu_phases = match (phases_before, (probe.phases)(backend)) {
+        (Some(a), Some(b)) => Some(CpuPhases::of(&b.since(&a), n)),
+        _ => None,
+    };
     let every = (probe.check_every)(backend);
     let record_threads = (probe.record_threads)(backend);
     let steps = done.max(1) as f64;
@@ -201,6 +251,7 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, run: Run) ->
         traffic_mb_per_step: traffic,
         host_peak_mib: host_peak_mib(),
         device_mib: (probe.device_mib)(backend),
+        cpu_phases,
     })
 }
 
@@ -228,6 +279,7 @@ pub fn measure_cpu(scene: Scene, params: StepParams, n: usize, run: Run) -> Resu
         device_mib: |_: &CpuBackend| 0.0,
         check_every: |c: &CpuBackend| c.params().solver.check_interval(false),
         record_threads: |_: &CpuBackend| 0,
+        phases: |c: &CpuBackend| Some(c.engine().phase_times()),
     };
     measure(&mut CpuBackend::new(scene, params)?, &probe, n, run)
 }
@@ -243,6 +295,7 @@ pub fn measure_gpu(scene: Scene, params: StepParams, n: usize, run: Run) -> Resu
         device_mib: |g: &GpuBackend| g.device_bytes() as f64 / (1024.0 * 1024.0),
         check_every: |g: &GpuBackend| g.conv_every,
         record_threads: |g: &GpuBackend| g.recording_threads(),
+        phases: |_: &GpuBackend| None,
     };
     let mut g = GpuBackend::new(scene, params)?;
     g.record_threads = run.record_threads;

@@ -3,6 +3,8 @@
 //! gives deep contacts their local updates and stores the impulses (docs/method.md,
 //! "Nonlinear Gauss-Seidel").
 
+use std::time::Instant;
+
 use glam::DVec3;
 
 use super::color::{Coloring, Node, color};
@@ -53,6 +55,24 @@ pub struct Workspace {
     parked: Vec<Row>,
     /// The velocity test's copy of the last iterate.
     iterate: Vec<DVec3>,
+    /// Where the last solve's time went ([`SolveTimes`]).
+    pub(super) times: SolveTimes,
+}
+
+/// Wall time of the parts of one Gauss-Seidel solve (s): the fixed parts (`setup`: rows,
+/// parking, coloring, color order and vector packing; `store`: unpacking and the impulses
+/// written back) beside the iterations (`sweeps`) and the deep contacts' updates (`deep`).
+/// Other methods count their whole solve as `sweeps`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SolveTimes {
+    /// Rows, parking, coloring, color order, vector packing.
+    pub setup: f64,
+    /// The iterations.
+    pub sweeps: f64,
+    /// The deep contacts: finding them and their local updates.
+    pub deep: f64,
+    /// Unpacking and writing the impulses back to the contacts.
+    pub store: f64,
 }
 
 impl Workspace {
@@ -61,8 +81,14 @@ impl Workspace {
         &self.coloring
     }
 
+    /// Where the last solve's time went.
+    pub fn times(&self) -> SolveTimes {
+        self.times
+    }
+
     /// Forgets the coloring of the last solve, as a solve by another method must.
     pub(super) fn clear_coloring(&mut self) {
+        self.times = SolveTimes::default();
         self.coloring.ranges.clear();
         self.coloring.order.clear();
         self.coloring.serial_last = false;
@@ -79,6 +105,7 @@ pub(super) fn solve(
     gv: &mut [DVec3],
     work: &mut Workspace,
 ) -> SolveStats {
+    let t_setup = Instant::now();
     work.clear_coloring();
     let n_bodies = gv.len();
     rows::build(contacts, n_bodies, &mut work.rows, &mut work.props);
@@ -138,6 +165,7 @@ pub(super) fn solve(
         ..Default::default()
     };
     let threads = params.team_size();
+    let t_sweeps = Instant::now();
     // SAFETY: no sweep runs yet.
     let start = unsafe { std::slice::from_raw_parts(ctx.gv, n_bodies) };
     let mut velocity = VelocityTest::new(params, start, &mut work.iterate);
@@ -169,9 +197,11 @@ pub(super) fn solve(
             }
         }
     }
+    let t_deep = Instant::now();
     if quads {
         unpack_quads(rows, ranges, proper_colors);
     }
+    let t_unpacked = Instant::now();
     let order = colored.then_some(&work.coloring.order[..]);
     let active = parking.then_some(&work.active[..]);
     if params.deep_updates() {
@@ -192,7 +222,14 @@ pub(super) fn solve(
             }
         }
     }
+    let t_store = Instant::now();
     store(rows, order, active, contacts);
+    work.times = SolveTimes {
+        setup: (t_sweeps - t_setup).as_secs_f64(),
+        sweeps: (t_deep - t_sweeps).as_secs_f64(),
+        deep: (t_store - t_unpacked).as_secs_f64(),
+        store: (t_unpacked - t_deep).as_secs_f64() + t_store.elapsed().as_secs_f64(),
+    };
     if parking && work.parked.iter().any(|r| opening(r, gv) < 0.0) {
         // A parked contact would close: solve again with every contact, from the
         // impulses and velocities reached, so that none is missed.
@@ -200,7 +237,13 @@ pub(super) fn solve(
             open_skip: 0.0,
             ..*params
         };
+        let first = work.times;
         let again = solve(&every, contacts, gv, work);
+        let t = &mut work.times;
+        t.setup += first.setup;
+        t.sweeps += first.sweeps;
+        t.deep += first.deep;
+        t.store += first.store;
         return SolveStats {
             iterations: stats.iterations + again.iterations,
             unparked: true,

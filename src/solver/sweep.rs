@@ -13,7 +13,7 @@ use super::space::BodySpace;
 use super::{Method, SolveStats, SolverParams, anderson, apgd, gauss_seidel, jacobi};
 use crate::contact::Contact;
 
-pub use super::gauss_seidel::Workspace;
+pub use super::gauss_seidel::{SolveTimes, Workspace};
 pub use super::lanes::colored_lanes;
 
 /// Solves the contact problem: plain Gauss-Seidel sweeps the contacts in their order,
