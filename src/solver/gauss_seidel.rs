@@ -12,7 +12,7 @@ use super::convergence::VelocityTest;
 use super::ctx::Ctx;
 use super::lanes::{avx, proper_colors, sweep_color_chunk};
 use super::quads::{pack_quads, unpack_quads};
-use super::rows::{self, BodyProps, FULL, Row, contact_of, opening, park, store};
+use super::rows::{self, BodyProps, FULL, Row, opening, park, store};
 use super::update::{CHUNK, sweep_chunk, update};
 use super::{Method, SolveStats, SolverParams, team};
 use crate::contact::Contact;
@@ -57,6 +57,48 @@ pub struct Workspace {
     iterate: Vec<DVec3>,
     /// Where the last solve's time went ([`SolveTimes`]).
     pub(super) times: SolveTimes,
+    /// Contacts deeper than the deep-update threshold, in contact order (`rows::build`).
+    deep: Vec<u32>,
+    /// The place of each swept contact in the color order, when there are deep contacts.
+    inverse: Vec<u32>,
+}
+
+/// The swept rows of the deep contacts `candidates` (contact indices, ascending) that carry
+/// a normal impulse, in sweep order: the rows whose contact is deeper than the threshold.
+/// Found through the candidates rather than by a pass over every row, which read each
+/// row's contact in color order, out of the cache at 50,000 disks (docs/benchmarks.md,
+/// "Sample size").
+fn deep_rows(
+    candidates: &[u32],
+    rows: &[Row],
+    order: Option<&[u32]>,
+    active: Option<&[u32]>,
+    inverse: &mut Vec<u32>,
+) -> Vec<usize> {
+    if candidates.is_empty() {
+        return Vec::new();
+    }
+    if let Some(o) = order {
+        inverse.clear();
+        inverse.resize(o.len(), 0);
+        for (m, &k) in o.iter().enumerate() {
+            inverse[k as usize] = m as u32;
+        }
+    }
+    let mut deep: Vec<usize> = candidates
+        .iter()
+        .filter_map(|&c| {
+            // Parked contacts have no row; `active` lists the swept ones in contact order.
+            let k = match active {
+                Some(a) => a.binary_search(&c).ok()?,
+                None => c as usize,
+            };
+            Some(if order.is_some() { inverse[k] as usize } else { k })
+        })
+        .filter(|&m| rows[m].rn > 0.0)
+        .collect();
+    deep.sort_unstable();
+    deep
 }
 
 /// Wall time of the parts of one Gauss-Seidel solve (s): the fixed parts (`setup`: rows,
@@ -108,7 +150,19 @@ pub(super) fn solve(
     let t_setup = Instant::now();
     work.clear_coloring();
     let n_bodies = gv.len();
-    rows::build(contacts, n_bodies, &mut work.rows, &mut work.props);
+    let deep_gap = if params.deep_updates() {
+        params.deep_gap
+    } else {
+        f64::INFINITY
+    };
+    rows::build(
+        contacts,
+        n_bodies,
+        deep_gap,
+        &mut work.rows,
+        &mut work.props,
+        &mut work.deep,
+    );
     let parking = params.open_skip > 0.0;
     if parking {
         park(
@@ -205,12 +259,7 @@ pub(super) fn solve(
     let order = colored.then_some(&work.coloring.order[..]);
     let active = parking.then_some(&work.active[..]);
     if params.deep_updates() {
-        let deep: Vec<usize> = (0..rows.len())
-            .filter(|&m| {
-                let r = &rows[m];
-                r.j != FULL && r.rn > 0.0 && contacts[contact_of(m, order, active)].gap < -params.deep_gap
-            })
-            .collect();
+        let deep = deep_rows(&work.deep, rows, order, active, &mut work.inverse);
         stats.deep = deep.len() as u32;
         let ctx = Ctx { relax: 1.0, ..ctx };
         for _ in 0..params.deep_sweeps {

@@ -48,8 +48,17 @@ fn inverse(w: f64) -> f64 {
 }
 
 /// The rows of the contacts, in their order, and the table of body properties they refer
-/// to.
-pub(super) fn build(contacts: &[Contact], n_bodies: usize, rows: &mut Vec<Row>, props: &mut Vec<BodyProps>) {
+/// to; `deep` lists the contacts with a diagonal block that overlap by more than
+/// `deep_gap` (m), in order.
+pub(super) fn build(
+    contacts: &[Contact],
+    n_bodies: usize,
+    deep_gap: f64,
+    rows: &mut Vec<Row>,
+    props: &mut Vec<BodyProps>,
+    deep: &mut Vec<u32>,
+) {
+    deep.clear();
     props.clear();
     props.resize(n_bodies, BodyProps::default());
     rows.clear();
@@ -66,6 +75,9 @@ pub(super) fn build(contacts: &[Contact], n_bodies: usize, rows: &mut Vec<Row>, 
                 j: FULL,
                 ..Default::default()
             };
+        }
+        if c.gap < -deep_gap {
+            deep.push(k as u32);
         }
         // Every contact of a body sees the same inverse mass, r / I and lever (detection
         // takes them from the body), so later contacts only rewrite the same values.
