@@ -12,7 +12,7 @@ use super::convergence::VelocityTest;
 use super::ctx::Ctx;
 use super::lanes::{avx, proper_colors, sweep_color_chunk};
 use super::quads::{pack_quads, unpack_quads};
-use super::rows::{self, BodyProps, FULL, Row, opening, park, store};
+use super::rows::{self, BodyProps, FULL, Row, opening, store};
 use super::update::{CHUNK, sweep_chunk, update};
 use super::{Method, SolveStats, SolverParams, team};
 use crate::contact::Contact;
@@ -155,6 +155,13 @@ pub(super) fn solve(
     } else {
         f64::INFINITY
     };
+    let parking = params.open_skip > 0.0;
+    let parked = parking.then_some(rows::Parking {
+        gv,
+        open_skip: params.open_skip,
+        active: &mut work.active,
+        parked: &mut work.parked,
+    });
     rows::build(
         contacts,
         n_bodies,
@@ -162,17 +169,8 @@ pub(super) fn solve(
         &mut work.rows,
         &mut work.props,
         &mut work.deep,
+        parked,
     );
-    let parking = params.open_skip > 0.0;
-    if parking {
-        park(
-            &mut work.rows,
-            gv,
-            params.open_skip,
-            &mut work.active,
-            &mut work.parked,
-        );
-    }
     let whole = [0, work.rows.len() as u32];
     let colored = params.method == Method::ColoredGs;
     if colored {

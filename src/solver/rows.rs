@@ -47,9 +47,21 @@ fn inverse(w: f64) -> f64 {
     if w > 0.0 { 1.0 / w } else { 0.0 }
 }
 
-/// The rows of the contacts, in their order, and the table of body properties they refer
-/// to; `deep` lists the contacts with a diagonal block that overlap by more than
-/// `deep_gap` (m), in order.
+/// Where [`build`] leaves out the open rows that
+/// [`SolverParams::open_skip`](super::SolverParams::open_skip) keeps out of the sweeps: a
+/// candidate without impulse whose `U_n + bias_n` at the velocities `gv` exceeds
+/// `open_skip` goes to `parked`, and `active` lists the contact index of every row kept.
+pub(super) struct Parking<'a> {
+    pub(super) gv: &'a [DVec3],
+    pub(super) open_skip: f64,
+    pub(super) active: &'a mut Vec<u32>,
+    pub(super) parked: &'a mut Vec<Row>,
+}
+
+/// The rows of the contacts, in their order (less the parked ones with `parking`), and the
+/// table of body properties they refer to; `deep` lists the contacts with a diagonal block
+/// that overlap by more than `deep_gap` (m), in order. One pass over the contacts: at
+/// 50,000 disks each pass over the rows or the contacts leaves the cache.
 pub(super) fn build(
     contacts: &[Contact],
     n_bodies: usize,
@@ -57,56 +69,85 @@ pub(super) fn build(
     rows: &mut Vec<Row>,
     props: &mut Vec<BodyProps>,
     deep: &mut Vec<u32>,
+    mut parking: Option<Parking>,
 ) {
     deep.clear();
     props.clear();
     props.resize(n_bodies, BodyProps::default());
     rows.clear();
-    rows.extend(contacts.iter().enumerate().map(|(k, c)| {
-        // The sweeps index the velocities without bounds checks: this pass over every
-        // contact is where the indices are checked.
-        assert!(
-            (c.i as usize) < n_bodies && (c.j as usize) < n_bodies,
-            "contact with a body index beyond the velocities"
-        );
-        if c.ma != 0.0 || c.wnt != 0.0 {
-            return Row {
-                i: k as u32,
-                j: FULL,
-                ..Default::default()
-            };
+    if let Some(p) = parking.as_mut() {
+        p.active.clear();
+        p.parked.clear();
+    }
+    for (k, c) in contacts.iter().enumerate() {
+        let r = row(k, c, n_bodies, deep_gap, props, deep);
+        match parking.as_mut() {
+            Some(p) if r.j != FULL && r.rn == 0.0 && r.rt == 0.0 && opening(&r, p.gv) > p.open_skip => {
+                p.parked.push(r)
+            }
+            Some(p) => {
+                p.active.push(k as u32);
+                rows.push(r);
+            }
+            None => rows.push(r),
         }
-        if c.gap < -deep_gap {
-            deep.push(k as u32);
-        }
-        // Every contact of a body sees the same inverse mass, r / I and lever (detection
-        // takes them from the body), so later contacts only rewrite the same values.
-        props[c.i as usize] = BodyProps {
-            inv_mass: c.mi,
-            k: c.ki,
-            lever: c.ri,
-            movable: if c.moves_i() { 1.0 } else { 0.0 },
+    }
+}
+
+/// The row of contact `k` (and its bodies' properties, and `k` in `deep` when deeper than
+/// `deep_gap`).
+#[inline]
+fn row(
+    k: usize,
+    c: &Contact,
+    n_bodies: usize,
+    deep_gap: f64,
+    props: &mut [BodyProps],
+    deep: &mut Vec<u32>,
+) -> Row {
+    // The sweeps index the velocities without bounds checks: this pass over every
+    // contact is where the indices are checked.
+    assert!(
+        (c.i as usize) < n_bodies && (c.j as usize) < n_bodies,
+        "contact with a body index beyond the velocities"
+    );
+    if c.ma != 0.0 || c.wnt != 0.0 {
+        return Row {
+            i: k as u32,
+            j: FULL,
+            ..Default::default()
         };
-        props[c.j as usize] = BodyProps {
-            inv_mass: c.mj,
-            k: c.kj,
-            lever: c.rj,
-            movable: if c.moves_j() { 1.0 } else { 0.0 },
-        };
-        Row {
-            i: c.i,
-            j: c.j,
-            nx: c.n.x,
-            ny: c.n.y,
-            inv_wnn: inverse(c.wnn),
-            inv_wtt: inverse(c.wtt),
-            mu: c.mu,
-            bias_n: c.bias_n,
-            bias_t: c.bias_t,
-            rn: c.rn,
-            rt: c.rt,
-        }
-    }));
+    }
+    if c.gap < -deep_gap {
+        deep.push(k as u32);
+    }
+    // Every contact of a body sees the same inverse mass, r / I and lever (detection
+    // takes them from the body), so later contacts only rewrite the same values.
+    props[c.i as usize] = BodyProps {
+        inv_mass: c.mi,
+        k: c.ki,
+        lever: c.ri,
+        movable: if c.moves_i() { 1.0 } else { 0.0 },
+    };
+    props[c.j as usize] = BodyProps {
+        inv_mass: c.mj,
+        k: c.kj,
+        lever: c.rj,
+        movable: if c.moves_j() { 1.0 } else { 0.0 },
+    };
+    Row {
+        i: c.i,
+        j: c.j,
+        nx: c.n.x,
+        ny: c.n.y,
+        inv_wnn: inverse(c.wnn),
+        inv_wtt: inverse(c.wtt),
+        mu: c.mu,
+        bias_n: c.bias_n,
+        bias_t: c.bias_t,
+        rn: c.rn,
+        rt: c.rt,
+    }
 }
 
 /// Copies the impulses of the rows back into their contacts: row `m` is row `order[m]` (or
@@ -134,30 +175,4 @@ pub(super) fn contact_of(m: usize, order: Option<&[u32]>, active: Option<&[u32]>
 pub(super) fn opening(r: &Row, gv: &[DVec3]) -> f64 {
     let (vi, vj) = (gv[r.i as usize], gv[r.j as usize]);
     (vi.x - vj.x) * r.nx + (vi.y - vj.y) * r.ny + r.bias_n
-}
-
-/// Moves out of `rows` the open rows that
-/// [`SolverParams::open_skip`](super::SolverParams::open_skip) leaves out of the sweeps
-/// (into `parked`), and lists in `active` the contact index of every row kept.
-pub(super) fn park(
-    rows: &mut Vec<Row>,
-    gv: &[DVec3],
-    open_skip: f64,
-    active: &mut Vec<u32>,
-    parked: &mut Vec<Row>,
-) {
-    active.clear();
-    parked.clear();
-    let mut kept = 0;
-    for m in 0..rows.len() {
-        let r = rows[m];
-        if r.j != FULL && r.rn == 0.0 && r.rt == 0.0 && opening(&r, gv) > open_skip {
-            parked.push(r);
-        } else {
-            rows[kept] = r;
-            active.push(m as u32);
-            kept += 1;
-        }
-    }
-    rows.truncate(kept);
 }
