@@ -101,19 +101,17 @@ fn a_preparation_shows_its_compaction_and_the_time_left() {
     let base = scratch("prepare_progress");
     let cfg = small_config(&base);
     let sample = base.join("sample.bin");
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
-        .args([
+    let (ok, text) = common::cdlab_with_env(
+        &[
             "prepare",
             "--config",
             cfg.to_str().unwrap(),
             "-o",
             sample.to_str().unwrap(),
-        ])
-        .env("CDLAB_PROGRESS_EVERY", "0")
-        .output()
-        .expect("cdlab runs");
-    let text = String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{text}");
+        ],
+        &[("CDLAB_PROGRESS_EVERY", "0")],
+    );
+    assert!(ok, "{text}");
     let checks: Vec<&str> = text
         .lines()
         .filter(|l| l.contains("kinetic ratio") && l.contains("(ends below 1e-7)"))

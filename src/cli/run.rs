@@ -51,7 +51,6 @@ impl Progress {
             compression_start: None,
             started: false,
             settle: SettleTrack::default(),
-            origin: Instant::now(),
         }
     }
 }
@@ -68,8 +67,6 @@ pub struct Display {
     started: bool,
     /// The equilibrium checks of the current preparation phase.
     settle: SettleTrack,
-    /// When the display was made: the clock of the preparation lines.
-    origin: Instant,
 }
 
 /// What a display keeps of a preparation phase to estimate its time left.
@@ -78,11 +75,14 @@ struct SettleTrack {
     phase: Option<crate::protocol::Phase>,
     /// `(phase time s, kinetic ratio)` of each check.
     checks: Vec<(f64, f64)>,
-    /// `(wall-clock s since the display started, phase time s)` of each check: the rate
-    /// that turns simulated time left into wall time.
+    /// `(wall-clock s, phase time s)` of each check: the rate that turns simulated time
+    /// left into wall time.
     clock: Vec<(f64, f64)>,
-    /// Iterations per step of the last row.
+    /// Iterations per step and wall-clock seconds of the last row (each check follows its
+    /// window's row).
     iterations: f64,
+    /// See `iterations`.
+    wall_s: f64,
 }
 
 impl SettleTrack {
@@ -147,6 +147,7 @@ impl Display {
             row.iterations
         );
         self.settle.iterations = row.iterations;
+        self.settle.wall_s = row.wall_s;
         if let Some(b) = &self.bar {
             if row.phase == "compression" {
                 b.set_position((1000.0 * row.strain_axial / strain_end).min(1000.0) as u64);
@@ -181,10 +182,11 @@ impl Display {
             self.settle = SettleTrack {
                 phase: Some(c.phase),
                 iterations: self.settle.iterations,
+                wall_s: self.settle.wall_s,
                 ..Default::default()
             };
         }
-        let now = self.last_line_origin();
+        let now = self.settle.wall_s;
         self.settle.checks.push((c.phase_time_s, c.kinetic_ratio));
         self.settle.clock.push((now, c.phase_time_s));
         let (estimate, cap) =
@@ -221,11 +223,6 @@ impl Display {
             note!("{label}[{now:7.1} s] {msg}{left}");
             self.last_line = Instant::now();
         }
-    }
-
-    /// Wall-clock seconds since the display started.
-    fn last_line_origin(&self) -> f64 {
-        self.origin.elapsed().as_secs_f64()
     }
 }
 

@@ -237,8 +237,8 @@ pub const SETTLE_FIT_CHECKS: usize = 10;
 /// `(phase time s, kinetic ratio)` in order: `(estimate, at most)`. The estimate extends
 /// the exponential decay of the kinetic ratio fitted over the last [`SETTLE_FIT_CHECKS`]
 /// checks (least squares on its logarithm) down to `threshold`; none while the ratio is
-/// not decaying (by 5% or more over those checks) or fewer than three checks have come, and 0 once it is below (the force
-/// balance may still hold the phase). The bound is the time to the phase's cap
+/// not decaying (by 5% or more over those checks) or fewer than three checks have come,
+/// and 0 once it is below (the force balance may still hold the phase). The bound is the time to the phase's cap
 /// `max_time_s`, which ends it in any case. A frictionless compaction's ratio fluctuates
 /// near its threshold once the packing is dense (docs/protocol.md, "Equilibrium"), so the
 /// estimate is a trend, not a promise; the bound is one.

@@ -170,8 +170,14 @@ pub fn angular_momentum(s: &Scene) -> f64 {
 
 /// Runs the `cdlab` binary; returns success and stdout + stderr.
 pub fn cdlab(args: &[&str]) -> (bool, String) {
+    cdlab_with_env(args, &[])
+}
+
+/// [`cdlab`] with environment variables set for the command.
+pub fn cdlab_with_env(args: &[&str], env: &[(&str, &str)]) -> (bool, String) {
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_cdlab"))
         .args(args)
+        .envs(env.iter().copied())
         .output()
         .expect("cdlab runs");
     let text = format!(
