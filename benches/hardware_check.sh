@@ -23,10 +23,14 @@
 #   CDLAB_HW_CPU_THREADS  threads of the 5000-disk CPU test, which runs beside the GPU one
 #                         (the cores less 4: the GPU test's host thread needs one)
 #   CDLAB_HW_STRAIN       end strain of the 5000-disk tests (0.02)
-#   CDLAB_HW_TEST_S       limit of each 5000-disk test (150)
+#   CDLAB_HW_TEST_S       limit of each 5000-disk test (150; 0 leaves both out)
 #   CDLAB_HW_CPU_TEST     0 leaves out the 5000-disk test on the CPU (1)
 #   CDLAB_HW_LARGE_S      wall time given to the 50,000-disk GPU test (90)
 #   CDLAB_HW_LARGE_DISKS  its size (50000)
+#   CDLAB_HW_LARGE_SAMPLE a prepared sample the large test starts from instead (its size
+#                         is the sample's; without one the test deposits and compacts)
+#   CDLAB_HW_LARGE_CPU    1 runs the large test on the CPU too, beside the GPU's, on
+#                         CDLAB_HW_CPU_THREADS threads (0)
 # The whole check takes about 8 minutes on a data-centre GPU with its defaults.
 set -uo pipefail
 if [ $# -lt 2 ]; then
@@ -89,18 +93,27 @@ if [ -n "${CDLAB_HW_BASELINE:-}" ]; then
 fi
 
 from=()
-if [ -n "$SAMPLE" ]; then from=(--sample "$SAMPLE"); else from=(--disks 5000); fi
-# The two 5000-disk tests run side by side: the GPU test's host thread and the CPU test's
-# team share the cores (CPU_THREADS for the CPU test).
+if [ -n "$SAMPLE" ]; then from=(--sample "$(realpath "$SAMPLE")"); else from=(--disks 5000); fi
+# The CPU's tests run beside the GPU's: the GPU test's host threads and the CPU test's team
+# share the cores (CPU_THREADS for the CPU test).
 "$BIN" config --print-default | sed "s/^threads = 0/threads = $CPU_THREADS/" >"$OUT/cpu_test.toml"
-if [ "${CDLAB_HW_CPU_TEST:-1}" != 0 ]; then
-    part test5000_cpu "$TEST_S" "$BIN" biaxial --config "$OUT/cpu_test.toml" "${from[@]}" \
-        --strain "$STRAIN" --backend cpu --out "$OUT/test5000_cpu" --force --no-figures &
+if [ "$TEST_S" != 0 ]; then
+    if [ "${CDLAB_HW_CPU_TEST:-1}" != 0 ]; then
+        part test5000_cpu "$TEST_S" "$BIN" biaxial --config "$OUT/cpu_test.toml" "${from[@]}" \
+            --strain "$STRAIN" --backend cpu --out "$OUT/test5000_cpu" --force --no-figures &
+    fi
+    part test5000_gpu "$TEST_S" "$BIN" biaxial "${from[@]}" --strain "$STRAIN" --backend gpu \
+        --out "$OUT/test5000_gpu" --force --no-figures
+    wait
 fi
-part test5000_gpu "$TEST_S" "$BIN" biaxial "${from[@]}" --strain "$STRAIN" --backend gpu \
-    --out "$OUT/test5000_gpu" --force --no-figures
-wait
-part test_large_gpu "$LARGE_S" "$BIN" biaxial --disks "$LARGE_DISKS" --backend gpu \
+large=(--disks "$LARGE_DISKS")
+if [ -n "${CDLAB_HW_LARGE_SAMPLE:-}" ]; then large=(--sample "$(realpath "$CDLAB_HW_LARGE_SAMPLE")"); fi
+if [ "${CDLAB_HW_LARGE_CPU:-0}" != 0 ]; then
+    part test_large_cpu "$LARGE_S" "$BIN" biaxial --config "$OUT/cpu_test.toml" "${large[@]}" \
+        --backend cpu --out "$OUT/test_large_cpu" --force --no-figures &
+fi
+part test_large_gpu "$LARGE_S" "$BIN" biaxial "${large[@]}" --backend gpu \
     --out "$OUT/test_large_gpu" --force --no-figures
+wait
 
 python3 "$HERE/hardware_report.py" "$OUT"
