@@ -205,8 +205,13 @@ impl Display {
             ),
             (None, _) => String::new(),
         };
+        // The creep is the other way to settle, once enough checks have come to measure it.
+        let creep = match c.creep {
+            Some(r) if c.creep_limit > 0.0 => format!("  creep {r:.1e}/s (or below {:.0e}/s)", c.creep_limit),
+            _ => String::new(),
+        };
         let msg = format!(
-            "{:<11} t {:8.3} s  kinetic ratio {:.1e} (ends below {:.0e})  wall force off by {:.2}% (below {:.2}%)  iterations/step {:6.1}",
+            "{:<11} t {:8.3} s  kinetic ratio {:.1e} (ends below {:.0e}){creep}  wall force off by {:.2}% (below {:.2}%)  iterations/step {:6.1}",
             c.phase.name(),
             c.time_s,
             c.kinetic_ratio,

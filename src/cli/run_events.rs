@@ -66,7 +66,7 @@ impl crate::run::Progress for Display {
                 self.say(overlap_warning(&label, row, *within_half));
             }
             Event::PhaseEnd(end) if !quiet => self.say(format!(
-                "{} ended at t = {:.3} s (step {}): {}, kinetic ratio {:.2e}, force imbalance {:.2e}",
+                "{} ended at t = {:.3} s (step {}): {}, kinetic ratio {:.2e}, force imbalance {:.2e}{}",
                 end.phase.name(),
                 end.time_s,
                 end.step,
@@ -76,7 +76,9 @@ impl crate::run::Progress for Display {
                     (_, false) => "NOT settled (time cap reached)",
                 },
                 end.kinetic_ratio,
-                end.force_imbalance
+                end.force_imbalance,
+                end.creep_rate
+                    .map_or(String::new(), |r| format!(", creep {r:.2e}/s"))
             )),
             Event::Activity { phase, text } if !quiet => self.say(format!("{}: {text}", phase.name())),
             Event::StepsEnded => {

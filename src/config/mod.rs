@@ -383,6 +383,7 @@ impl Config {
                 compaction_kinetic_ratio: e.compaction_kinetic_ratio,
                 runaway_kinetic_ratio: e.runaway_kinetic_ratio,
                 force_imbalance: e.force_imbalance,
+                creep_rate: e.creep_rate,
                 window: e.hold_steps.clamp(1, u32::MAX as u64) as u32,
                 max_time: e.max_time.si(),
             },

@@ -238,6 +238,9 @@ pub struct Equilibrium {
     pub compaction_kinetic_ratio: f64,
     /// Threshold on |F_contacts - F_target| / F_target of the loaded wall.
     pub force_imbalance: f64,
+    /// The sample's creep (relative change of height and width per second of simulated
+    /// time) below which a phase settles whatever its kinetic ratio (1/s; 0: off).
+    pub creep_rate: f64,
     /// Steps per check window: both criteria are evaluated at the end of each window.
     pub hold_steps: u64,
     /// Simulated-time cap of a phase (s).
@@ -253,6 +256,7 @@ impl Default for Equilibrium {
             kinetic_ratio: 1e-8,
             compaction_kinetic_ratio: 1e-7,
             force_imbalance: 0.01,
+            creep_rate: crate::protocol::default_creep_rate(),
             hold_steps: 200,
             max_time: Duration(60.0),
             runaway_kinetic_ratio: crate::protocol::default_runaway_kinetic_ratio(),

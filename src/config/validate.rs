@@ -282,6 +282,7 @@ impl Config {
         check_positive("equilibrium.runaway_kinetic_ratio", e.runaway_kinetic_ratio)?;
         check_positive("equilibrium.compaction_kinetic_ratio", e.compaction_kinetic_ratio)?;
         check_positive("equilibrium.force_imbalance", e.force_imbalance)?;
+        check_non_negative("equilibrium.creep_rate", e.creep_rate)?;
         check_at_least("equilibrium.hold_steps", e.hold_steps, 1, "a number of steps")?;
         check_positive("equilibrium.max_time", e.max_time.0)?;
 

@@ -42,4 +42,8 @@ pub struct PhaseEnd {
     pub kinetic_ratio: f64,
     /// Force imbalance at the end (dimensionless).
     pub force_imbalance: f64,
+    /// The sample's creep at the end (1/s; docs/protocol.md, "Equilibrium"), when measured:
+    /// a phase settles on it, or on its kinetic ratio.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub creep_rate: Option<f64>,
 }

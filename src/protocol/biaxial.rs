@@ -205,7 +205,7 @@ impl<B: Backend> Lab<B> {
                 let row = row.with_micro(&red.micro);
                 obs.series(&row)?;
                 self.state.loading.wall_forces = vec![(walls::RIGHT, applied)];
-                if self.settle(&red, p.sigma_c, applied, pushed, obs)? {
+                if self.settle(&red, p.sigma_c, applied, pushed, [h, row.width_m], obs)? {
                     self.snapshot(0.0, obs)?;
                     self.enter_confinement()?;
                 }
@@ -217,7 +217,8 @@ impl<B: Backend> Lab<B> {
                 obs.series(&row)?;
                 let pushed = red.wall_force[walls::TOP].y;
                 self.state.loading.wall_forces = vec![(walls::TOP, applied)];
-                if self.settle(&red, p.sigma3, applied, pushed, obs)? {
+                let shape = [self.state.gauge.height(&red), w];
+                if self.settle(&red, p.sigma3, applied, pushed, shape, obs)? {
                     // The state the compression starts from: axial strain 0.
                     self.snapshot(0.0, obs)?;
                     self.enter_compression(&red)?;
@@ -380,14 +381,15 @@ impl<B: Backend> Lab<B> {
         self.state.gauge.row(red, self.state.phase.name(), sigma3, v)
     }
 
-    /// Checks the equilibrium criteria after a window; ends the phase when they hold or
-    /// when the phase has lasted `max_time`.
+    /// Checks the equilibrium criteria after a window, given the sample's height and width
+    /// (m); ends the phase when they hold or when the phase has lasted `max_time`.
     fn settle(
         &mut self,
         red: &Reductions,
         sigma: f64,
         applied: f64,
         pushed: f64,
+        [height, width]: [f64; 2],
         obs: &mut dyn Observer,
     ) -> Result<bool> {
         let eq = self.state.params.equilibrium;
@@ -397,6 +399,12 @@ impl<B: Backend> Lab<B> {
             Phase::Compaction => eq.compaction_kinetic_ratio,
             _ => eq.kinetic_ratio,
         };
+        let shape = &mut self.state.shape;
+        shape.push([red.time, height, width]);
+        if shape.len() > 2 * super::CREEP_WINDOWS {
+            shape.remove(0);
+        }
+        let creep = super::creep_rate(shape);
         obs.settling(&super::Settling {
             phase: self.state.phase,
             time_s: red.time,
@@ -405,9 +413,12 @@ impl<B: Backend> Lab<B> {
             kinetic_threshold: threshold,
             imbalance,
             imbalance_limit: eq.force_imbalance,
+            creep,
+            creep_limit: eq.creep_rate,
             max_time_s: eq.max_time,
         })?;
-        let settled = kinetic < threshold && imbalance < eq.force_imbalance;
+        let still = creep.is_some_and(|c| c < eq.creep_rate);
+        let settled = (kinetic < threshold || still) && imbalance < eq.force_imbalance;
         let timeout = red.time - self.state.phase_start >= eq.max_time;
         if settled || timeout {
             self.end_phase(red, settled, imbalance, kinetic, obs)?;
@@ -431,7 +442,9 @@ impl<B: Backend> Lab<B> {
             settled,
             kinetic_ratio: kinetic,
             force_imbalance: imbalance,
+            creep_rate: super::creep_rate(&self.state.shape),
         };
+        self.state.shape.clear();
         obs.phase_end(&end)?;
         if let Some(text) = self.backend.activity() {
             obs.activity(end.phase, &text)?;

@@ -43,6 +43,15 @@ pub struct Equilibrium {
     /// the force applied to it, `|F_contacts - F_applied| / F_applied`, averaged over a check
     /// window (dimensionless).
     pub force_imbalance: f64,
+    /// The sample's creep below which a phase counts as settled whatever its kinetic ratio
+    /// (1/s; 0: the kinetic ratio alone): the relative change of its height and of its
+    /// width per second of simulated time, between the means over the last
+    /// [`CREEP_WINDOWS`] check windows and the [`CREEP_WINDOWS`] before ([`creep_rate`]).
+    /// At the solver's tolerance the kinetic ratio of a packing at rest fluctuates about a
+    /// floor near its threshold, which it crosses only by chance (docs/protocol.md,
+    /// "Equilibrium"). Checkpoints written before it existed read 0.
+    #[serde(default)]
+    pub creep_rate: f64,
     /// Steps per check window: both criteria are evaluated at the end of each window, the
     /// force averaged over it.
     pub window: u32,
@@ -69,6 +78,40 @@ pub fn default_strip_refresh_every() -> u32 {
 /// disks passed 1e-2 on their way to kinetic energies a thousand times larger.
 pub fn default_runaway_kinetic_ratio() -> f64 {
     1e-2
+}
+
+/// Check windows averaged on each side of the creep comparison ([`creep_rate`]).
+pub const CREEP_WINDOWS: usize = 5;
+
+/// The sample's creep from its shape at the last checks of a phase, `(time (s), height (m),
+/// width (m))` each: the larger of the relative rates of change of height and width (1/s)
+/// between the means over the last [`CREEP_WINDOWS`] checks and the [`CREEP_WINDOWS`]
+/// before, the times averaged alike. `None` before `2 * CREEP_WINDOWS` checks. Means, not
+/// single checks: a force-driven wall jitters by about 1e-5 of the height from one window
+/// to the next at rest.
+pub fn creep_rate(shape: &[[f64; 3]]) -> Option<f64> {
+    if shape.len() < 2 * CREEP_WINDOWS {
+        return None;
+    }
+    let last = &shape[shape.len() - 2 * CREEP_WINDOWS..];
+    let mean = |part: &[[f64; 3]], k: usize| part.iter().map(|s| s[k]).sum::<f64>() / part.len() as f64;
+    let (before, recent) = last.split_at(CREEP_WINDOWS);
+    let dt = mean(recent, 0) - mean(before, 0);
+    let rate = |k: usize| {
+        let now = mean(recent, k);
+        ((now - mean(before, k)) / now / dt).abs()
+    };
+    let (rh, rw) = (rate(1), rate(2));
+    // NaN (a degenerate shape) is no creep measured, never a settled phase; f64::max
+    // would drop it.
+    (rh.is_finite() && rw.is_finite()).then_some(rh.max(rw))
+}
+
+/// Default of [`Equilibrium::creep_rate`] in a new configuration: 1e-5 per second, which
+/// over a whole compression of the 5000-disk test (about 43 s) adds up to 4e-4 of height or
+/// width, under a tenth of the test's volumetric strain at its peak.
+pub fn default_creep_rate() -> f64 {
+    1e-5
 }
 
 /// Default of [`Equilibrium::compaction_kinetic_ratio`] (also for checkpoints written
@@ -189,6 +232,7 @@ impl ProtocolParams {
                 compaction_kinetic_ratio: default_compaction_kinetic_ratio(),
                 runaway_kinetic_ratio: default_runaway_kinetic_ratio(),
                 force_imbalance: 0.01,
+                creep_rate: default_creep_rate(),
                 window: 200,
                 max_time: 60.0,
             },
@@ -244,6 +288,7 @@ impl ProtocolParams {
         )?;
         crate::error::check_non_negative("compaction.friction", self.mu_compaction)?;
         check_positive("equilibrium.force_imbalance", self.equilibrium.force_imbalance)?;
+        crate::error::check_non_negative("equilibrium.creep_rate", self.equilibrium.creep_rate)?;
         check_positive("equilibrium.max_time", self.equilibrium.max_time)?;
         if self.equilibrium.window == 0 || self.series_every == 0 || self.checkpoint_every == 0 {
             return Err(Error::invalid(
@@ -306,6 +351,11 @@ pub struct Settling {
     pub imbalance: f64,
     /// See `imbalance`.
     pub imbalance_limit: f64,
+    /// The sample's creep ([`creep_rate`], 1/s), once enough checks have come, and the
+    /// bound below which it settles the phase (0: the kinetic ratio alone).
+    pub creep: Option<f64>,
+    /// See `creep`.
+    pub creep_limit: f64,
     /// Simulated-time cap of the phase ([`Equilibrium::max_time`], s).
     pub max_time_s: f64,
 }
@@ -393,6 +443,10 @@ pub struct LabState {
     /// kept (the summary then derives them from the rows).
     #[serde(default)]
     pub derived: Option<crate::measure::derived::DerivedCurve>,
+    /// The sample's `(time (s), height (m), width (m))` at the current preparation phase's
+    /// checks, the last `2 * CREEP_WINDOWS` of them ([`creep_rate`]).
+    #[serde(default)]
+    pub shape: Vec<[f64; 3]>,
 }
 
 impl LabState {
@@ -420,6 +474,7 @@ impl LabState {
             strain: None,
             block_sums: None,
             derived: None,
+            shape: Vec::new(),
         }
     }
 }
@@ -434,4 +489,30 @@ pub mod walls {
     pub const LEFT: usize = 2;
     /// Right wall (inward normal -x), pushes during compaction, removed at confinement.
     pub const RIGHT: usize = 3;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A width shrinking by 1e-4 of itself per second reads as a creep of 1e-4/s, whatever
+    /// the jitter of single checks (here 1e-5 of the height, alternating, which the means
+    /// over five checks cancel); a sample at rest reads 0; fewer than ten checks read none.
+    #[test]
+    fn creep_is_the_relative_rate_of_the_mean_shape() {
+        let shape: Vec<[f64; 3]> = (0..10)
+            .map(|k| {
+                let t = 0.1 * k as f64;
+                let jitter = if k % 2 == 0 { 1e-5 } else { -1e-5 };
+                [t, 200.0 * (1.0 + jitter), 80.0 * (1.0 - 1e-4 * t)]
+            })
+            .collect();
+        let c = creep_rate(&shape).unwrap();
+        assert!((c - 1e-4).abs() < 2e-7, "{c}");
+        let rest: Vec<[f64; 3]> = (0..12).map(|k| [0.1 * k as f64, 200.0, 80.0]).collect();
+        assert_eq!(creep_rate(&rest), Some(0.0));
+        assert_eq!(creep_rate(&shape[..9]), None);
+        let broken: Vec<[f64; 3]> = (0..10).map(|k| [0.1 * k as f64, f64::NAN, 80.0]).collect();
+        assert_eq!(creep_rate(&broken), None);
+    }
 }
