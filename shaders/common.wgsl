@@ -8,75 +8,13 @@
 // host whenever a capacity grows): this keeps the layout at 6 storage buffers, under the
 // WebGPU default of 8 per stage.
 
-// The constants shared with Rust; each is checked against its Rust source by
-// tests/gpu_layout.rs (table: cdlab::gpu::wgsl_constants in src/gpu/mod.rs).
-const WG: u32 = 64u;                // threads per workgroup of per-item kernels (gpu::WG)
-const NOT_GLUED: u32 = 0xffffffffu; // model::NOT_GLUED
-const KIND_FREE: u32 = 0u;          // model::BodyKind
-const KIND_KINEMATIC: u32 = 1u;
-const PREV_STRIDE: u32 = 4u;        // words per warm-start record (buffers::PREV_STRIDE)
-
-// Status words (ints[o_status + k]) read back once per step after detection and coloring
-// (buffers::status).
-const ST_CONTACTS: u32 = 0u;      // contacts found (may exceed the capacity)
-const ST_SLOTS_NEED: u32 = 1u;    // largest per-disk contact count (may exceed k_slots)
-const ST_COLORS: u32 = 3u;        // colors used
-const ST_OVERLAP: u32 = 4u;       // largest overlap, f32 bits (positive floats sort as u32)
-const ST_ROUNDS: u32 = 5u;        // coloring rounds
-const ST_LEFT: u32 = 7u;          // contacts left uncolored after the recorded rounds
-const ST_ARGS: u32 = 8u;          // indirect dispatch size of per-contact kernels (3 words)
-const ST_DEEP: u32 = 11u;         // contacts marked for local updates (solve.wgsl, deep_mark)
-const ST_NONEMPTY: u32 = 2u;      // colors holding contacts (solve.wgsl, solve_args)
-const ST_BIG: u32 = 16u;          // colors of more than WG contacts, a dispatch each
-const ST_TAIL: u32 = 17u;         // smaller colors, swept together (sweep_tail)
-const ST_BAD: u32 = 6u;           // non-finite convergence sums met (conv_check)
-const ST_ITERS: u32 = 12u;        // solver iterations run this step (conv_check)
-const ST_CONVERGED: u32 = 13u;    // 1 when the solve met its tolerance or velocity test
-const ST_RESIDUAL: u32 = 14u;     // relative change of the last test, f32 bits
-const ST_LIVE: u32 = 15u;         // 1 while the solve goes on
-const ST_WORDS: u32 = 20u;        // status words (a step's row in the history)
-
-// Entries (3 words) of the solve's dispatch arguments at ints[o_disp] (buffers::disp).
-const DISP_CONTACTS: u32 = 0u;       // per-contact kernels of the step
-const DISP_LIVE_CONTACTS: u32 = 1u;  // per-contact kernels of the solve (0 once it ended)
-const DISP_LIVE_BODIES: u32 = 2u;    // per-body kernels of the solve
-const DISP_LIVE_ONE: u32 = 3u;       // one workgroup while the solve goes on
-const DISP_COLOR0: u32 = 4u;         // color c's sweep is entry DISP_COLOR0 + c
-
-// Slots of the float regions the host reads back (buffers::float_slot): floats[f_red + FR_*]
-// (reduce.wgsl), floats[f_grid + FG_*] (grid.wgsl), floats[f_conv + FC_*] (solve.wgsl).
-const FR_MEAN_RN: u32 = 0u;             // mean R_n of the loaded contacts
-const FR_ROLLING: u32 = 1u;             // rolling contacts (u32 bits)
-const FR_SLIDING: u32 = 2u;             // sliding contacts (u32 bits)
-const FR_ZERO_FORCE: u32 = 3u;          // zero-force contacts (u32 bits)
-const FR_CONNECTED: u32 = 4u;           // free disks with >= 2 force-carrying contacts (u32 bits)
-const FR_FREE: u32 = 5u;                // free disks (u32 bits)
-const FR_OVERLAP_COUNT: u32 = 6u;       // overlapping contacts
-const FR_OVERLAP_SUM: u32 = 7u;         // their overlap sum
-const FR_OVERLAP_MAX: u32 = 8u;         // largest overlap
-const FR_KINETIC: u32 = 9u;             // kinetic energy
-const FR_STRIP_X_LEFT: u32 = 10u;       // x sum of the left strip
-const FR_STRIP_X_RIGHT: u32 = 11u;      // x sum of the right strip
-const FR_STRIP_N_LEFT: u32 = 12u;       // disks of the left strip
-const FR_STRIP_N_RIGHT: u32 = 13u;      // disks of the right strip
-const FR_TRANSLATIONAL: u32 = 14u;      // translational kinetic energy
-const FR_CONNECTED_ENERGY: u32 = 15u;   // that of the connected disks
-const FR_MICRO: u32 = 16u;              // micromechanical counts (reduce.wgsl, micro_sums)
-const FR_MICRO_SUMS: u32 = 36u;         // micromechanical sums, after the counts
-const FR_MICRO_COUNTS: u32 = 20u;       // the counts: force-carrying, strong, 18 bins
-const FR_MICRO_SUM_COUNT: u32 = 19u;    // the sums
-const FR_EDGE_LEFT: u32 = 56u;          // sum of the left outline (reduce.wgsl, outline_sum)
-const FR_EDGE_RIGHT: u32 = 57u;         // sum of the right outline
-const FR_EDGE_COUNT: u32 = 58u;         // heights where both are set (u32 bits)
-const OUTLINE_BINS: u32 = 65536u;       // heights of the outline, at most (buffers::OUTLINE_BINS)
-const FG_ORIGIN_X: u32 = 0u;            // grid origin x
-const FG_ORIGIN_Y: u32 = 1u;            // grid origin y
-const FG_CELL: u32 = 2u;                // cell size
-const FG_NX: u32 = 3u;                  // cells along x (u32 bits)
-const FG_NY: u32 = 4u;                  // cells along y (u32 bits)
-const FC_D2: u32 = 0u;                  // sum |dR|^2 of the last iteration
-const FC_R2: u32 = 1u;                  // sum |R|^2
-const FC_DV: u32 = 2u;                  // largest velocity change since save_iterate
+// The constants shared with Rust are not declared here: the host puts them in front of
+// this file, generated from their Rust source (cdlab::gpu::wgsl_prelude in src/gpu/mod.rs).
+// They are the body kinds (KIND_*), the status words ST_* (ints[o_status + ST_*], read back
+// after detection and coloring; buffers::status), the entries DISP_* (3 words each) of the
+// solve's dispatch arguments at ints[o_disp] (buffers::disp), and the slots of the float
+// regions the host reads back (buffers::float_slot): floats[f_red + FR_*] (reduce.wgsl),
+// floats[f_grid + FG_*] (grid.wgsl), floats[f_conv + FC_*] (solve.wgsl).
 
 // Internal to the shaders.
 const UNSET: u32 = 0xffffffffu;

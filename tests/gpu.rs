@@ -36,8 +36,9 @@ fn every_shader_parses_and_validates() {
     for path in entries {
         let own = std::fs::read_to_string(&path).expect("shader");
         let name = path.file_name().unwrap().to_string_lossy().to_string();
+        // common.wgsl needs the generated constants in front of it, as every phase does.
         let source = if name == "common.wgsl" {
-            own
+            format!("{}{own}", cdlab::gpu::wgsl_prelude())
         } else {
             cdlab::gpu::compose(&own)
         };

@@ -8,7 +8,7 @@ use std::mem::offset_of;
 
 use cdlab::gpu::buffers::{GpuArgs, GpuContact, GpuDisk, GpuWall, SimParams};
 use cdlab::gpu::pipeline::{BINDINGS, Kernel};
-use cdlab::gpu::{COMMON_WGSL, SHADERS, compose, wgsl_constants};
+use cdlab::gpu::{COMMON_WGSL, SHADERS, compose, wgsl_constants, wgsl_prelude};
 use naga::{Scalar, ScalarKind, TypeInner};
 
 /// One field of a Rust record: name, byte offset, byte size, scalar type of its elements.
@@ -353,7 +353,7 @@ fn the_comparison_catches_a_moved_field_and_a_wrong_size() {
         "inv_mass: f32, is_active: u32, force: u32,",
     );
     assert_ne!(source, COMMON_WGSL, "the WGSL `Wall` declaration was not found");
-    let module = parse("altered common.wgsl", &source);
+    let module = parse("altered common.wgsl", &format!("{}{source}", wgsl_prelude()));
     let walls = records().into_iter().find(|r| r.0 == "Wall").unwrap();
     let bad = compare(&module, walls.0, walls.1, walls.2, &walls.3);
     let text = bad.join("\n");
@@ -427,10 +427,12 @@ fn every_binding_matches_the_shaders_declaration() {
     }
 }
 
+/// The generated prelude declares every shared constant with its Rust value, as a `u32`
+/// literal naga reads back, in every composed shader.
 #[test]
 fn the_shared_constants_have_the_rust_values() {
     for (name, _, module) in modules() {
-        for (cname, value) in wgsl_constants() {
+        for (cname, value, _) in wgsl_constants() {
             let c = module
                 .constants
                 .iter()
@@ -451,8 +453,8 @@ fn the_shared_constants_have_the_rust_values() {
 #[test]
 fn no_shader_spells_a_status_word_or_kernel_width_as_a_literal() {
     // Status words are named (ST_*), so that the host's indices (`status::*`) are the only
-    // spelling; the per-item kernels use the host's WG; the shared constants are declared
-    // once, in common.wgsl, where the test above checks them.
+    // spelling; the per-item kernels use the host's WG; the shared constants come from the
+    // generated prelude alone (gpu::wgsl_prelude), declared in no shader file.
     for (name, src) in SHADERS.iter().chain([&("common.wgsl", COMMON_WGSL)]) {
         for (n, line) in src.lines().enumerate() {
             let code = line.split("//").next().unwrap_or("");
@@ -469,14 +471,12 @@ fn no_shader_spells_a_status_word_or_kernel_width_as_a_literal() {
                 "{name}:{}: use WG: {line}",
                 n + 1
             );
-            if *name != "common.wgsl" {
-                for (cname, _) in wgsl_constants() {
-                    assert!(
-                        !code.contains(&format!("const {cname}:")),
-                        "{name}:{}: {cname} belongs in common.wgsl",
-                        n + 1
-                    );
-                }
+            for (cname, _, _) in wgsl_constants() {
+                assert!(
+                    !code.contains(&format!("const {cname}:")),
+                    "{name}:{}: {cname} comes from gpu::wgsl_prelude, generated from Rust",
+                    n + 1
+                );
             }
         }
     }
