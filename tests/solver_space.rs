@@ -124,15 +124,15 @@ fn one_disk_resting_on_the_floor_needs_its_weight_times_dt() {
 #[test]
 fn gauss_seidel_through_the_space_repeats_the_fc2d_solver() {
     let path =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/fc2d/fc2d_granularflowonwall_00667_00000.dat");
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/fc2d/fc2d_granularflowonwall_02020_00213.dat");
     let p = fc2d::read(&path).unwrap();
     let opts = SolveOptions {
         tol: 1e-5,
-        max_iter: 1000,
+        max_iter: 2000,
         check_every: 10,
     };
     let reference = fc2d::solve(&p, &opts);
-    assert!(reference.converged);
+    assert!(reference.converged && reference.iterations > 100);
     let mut s = fc2d::Space::new(&p);
     for _ in 0..reference.iterations {
         for c in 0..s.len() {

@@ -123,7 +123,8 @@ pub fn velocities(p: &Problem, r: &[f64]) -> Vec<f64> {
 
 /// Siconos's error: for each contact `z = r - (u_n + mu |u_t|, u_t)`, the squared distance
 /// between `r` and the projection of `z` on the cone, summed, square-rooted, and divided by
-/// the largest of |r|, |u|, |q| (no guard: an all-zero problem solved exactly gives 0).
+/// |q|, the norm Siconos's fc2d Gauss-Seidel passes to its error (not divided when |q| is
+/// below the machine epsilon, as there).
 pub fn siconos_error(p: &Problem, r: &[f64]) -> f64 {
     let u = velocities(p, r);
     let mut sum = 0.0;
@@ -132,8 +133,12 @@ pub fn siconos_error(p: &Problem, r: &[f64]) -> f64 {
         let (pn, pt) = project_cone(rn - (un + mu * ut.abs()), rt - ut, mu);
         sum += (rn - pn).powi(2) + (rt - pt).powi(2);
     }
-    let scale = norm(r).max(norm(&u)).max(norm(&p.q));
-    if sum == 0.0 { 0.0 } else { sum.sqrt() / scale }
+    let q = norm(&p.q);
+    if q > f64::EPSILON {
+        sum.sqrt() / q
+    } else {
+        sum.sqrt()
+    }
 }
 
 /// Nonlinear Gauss-Seidel from `r = 0`, keeping `u = W r + q` up to date column by column.
