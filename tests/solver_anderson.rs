@@ -131,8 +131,8 @@ fn to_siconos_1e_5(p: &fc2d::Problem, depth: usize) -> (u32, u32, Vec<f64>) {
 #[test]
 fn both_siconos_problems_reach_an_error_of_1e_5_in_fewer_sweeps_than_gauss_seidel() {
     for name in [
-        "fc2d_granularflowonwall_00667_00000.dat",
         "fc2d_granularflowonwall_02020_00213.dat",
+        "fc2d_granularflowonwall_07002_00801.dat",
     ] {
         let p = fc2d_problem(name);
         let (sweeps, rebuilds, r) = to_siconos_1e_5(&p, 5);
@@ -145,10 +145,10 @@ fn both_siconos_problems_reach_an_error_of_1e_5_in_fewer_sweeps_than_gauss_seide
             "{name}: anderson-gs {sweeps} sweeps + {rebuilds} rebuilds (u = W r + q), gauss-seidel {gs} sweeps"
         );
         // A rebuild is one product with W, about the cost of a sweep: count both. On the
-        // 2020-contact problem Gauss-Seidel needs about 800 sweeps (tests/fc2d.rs) and the
-        // mixing a tenth of them; on the 667-contact one about 20, where there is little
-        // to gain, so the bound only asks that mixing costs no more.
-        let bound = if p.nc > 1000 { gs / 3 } else { gs };
+        // 2020-contact problem Gauss-Seidel needs 806 sweeps (tests/fc2d.rs) and the mixing
+        // 164 products; on the 7002-contact one 1021 and 657. (The 667-contact problem is
+        // at rest: r = 0 solves it.)
+        let bound = if p.nc < 5000 { gs / 3 } else { gs * 3 / 4 };
         assert!(
             sweeps + rebuilds <= bound,
             "{name}: {sweeps} + {rebuilds} against gauss-seidel {gs}"
@@ -297,7 +297,7 @@ fn the_same_problem_solved_twice_gives_identical_bits() {
     for (x, y) in a.gv.iter().zip(&b.gv) {
         assert_eq!(x.to_array().map(f64::to_bits), y.to_array().map(f64::to_bits));
     }
-    let p = fc2d_problem("fc2d_granularflowonwall_00667_00000.dat");
+    let p = fc2d_problem("fc2d_granularflowonwall_02020_00213.dat");
     assert_eq!(to_siconos_1e_5(&p, 5), to_siconos_1e_5(&p, 5));
 }
 
