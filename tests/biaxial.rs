@@ -362,3 +362,66 @@ fn a_still_packing_settles_on_its_creep() {
         "{e:?}"
     );
 }
+
+/// Every solver method runs a short test at the built-in settings (docs/method.md's methods
+/// otherwise meet only single steps or the fc2d problems in the suite): from one compacted
+/// 600-disk sample, confinement and compression to strain
+/// 0.005 with each method. Each must end, keep the largest overlap under the lab's bound of
+/// 1% of r_min, and follow colored Gauss-Seidel's sigma1 within 5% on average over the
+/// compression: the methods stop at the same tolerance on different iterates, while a
+/// method that solved another problem moves it by more (halving the contact friction lowers
+/// the 1000-disk peak by 20%, assets/results/strength_bands.csv).
+#[test]
+fn every_solver_method_runs_a_short_test() {
+    use cdlab::solver::Method;
+    let mut config = cdlab::config::Config::default();
+    config.sample.disks = 600;
+    let mut p = config.protocol();
+    p.strain_end = 0.005;
+    p.strip_thickness = 4.0;
+    let (scene, _) = prepare::deposit_scene(&p).expect("deposit");
+    let backend = CpuBackend::new(scene.clone(), p.step).expect("backend");
+    let mut lab = Lab::new(backend, p.clone(), &scene, false).expect("lab");
+    let mut obs = Collect::default();
+    while lab.state.phase == Phase::Compaction {
+        lab.advance(&mut obs).expect("compaction");
+    }
+    let compacted = lab.backend.scene().expect("scene");
+    let mean_sigma1 = |method: Method| {
+        let mut q = p.clone();
+        q.step.solver.method = method;
+        if q.step.solver.validate().is_err() {
+            // Methods without local updates of deep contacts refuse them by name.
+            q.step.solver.deep_gap = 0.0;
+            q.step.solver.deep_sweeps = 0;
+        }
+        let backend = CpuBackend::new(compacted.clone(), q.step).expect("backend");
+        let mut lab = Lab::new(backend, q, &compacted, true).expect("lab");
+        let mut obs = Collect::default();
+        lab.run(&mut obs).unwrap_or_else(|e| panic!("{method:?}: {e}"));
+        let rows: Vec<_> = obs.rows.iter().filter(|r| r.phase == "compression").collect();
+        assert!(!rows.is_empty(), "{method:?}: no compression");
+        let last = rows.last().unwrap();
+        assert!(
+            last.strain_axial >= 0.005 - 1e-9,
+            "{method:?} ended at {}",
+            last.strain_axial
+        );
+        let overlap = rows.iter().map(|r| r.overlap_max_rel).fold(0.0, f64::max);
+        assert!(overlap < 0.01, "{method:?}: largest overlap {overlap} of r_min");
+        let mean = rows.iter().map(|r| r.sigma1_pa).sum::<f64>() / rows.len() as f64;
+        eprintln!(
+            "{method:?}: mean sigma1 {:.3} MPa, largest overlap {overlap:.4}",
+            mean / 1e6
+        );
+        mean
+    };
+    let reference = mean_sigma1(Method::ColoredGs);
+    for method in [Method::Gs, Method::Jacobi, Method::AndersonGs, Method::Apgd] {
+        let m = mean_sigma1(method);
+        assert!(
+            (m - reference).abs() < 0.05 * reference,
+            "{method:?}: mean sigma1 {m} Pa against colored Gauss-Seidel's {reference} Pa"
+        );
+    }
+}
