@@ -23,10 +23,14 @@ fn small() -> ProtocolParams {
 }
 
 fn run_small() -> Collect {
-    let p = small();
-    let (scene, _) = prepare::deposit_scene(&p).expect("deposit");
+    run_with(&small())
+}
+
+/// A whole test with `p`, from its deposit, on the CPU.
+fn run_with(p: &ProtocolParams) -> Collect {
+    let (scene, _) = prepare::deposit_scene(p).expect("deposit");
     let backend = CpuBackend::new(scene.clone(), p.step).expect("backend");
-    let mut lab = Lab::new(backend, p, &scene, false).expect("lab");
+    let mut lab = Lab::new(backend, p.clone(), &scene, false).expect("lab");
     let mut obs = Collect::default();
     lab.run(&mut obs).expect("run");
     obs
@@ -330,15 +334,7 @@ fn a_still_packing_settles_on_its_creep() {
     p.equilibrium.kinetic_ratio = 1e-30;
     p.equilibrium.compaction_kinetic_ratio = 1e-30;
     p.equilibrium.max_time = 30.0;
-    let run = |p: &ProtocolParams| {
-        let (scene, _) = prepare::deposit_scene(p).expect("deposit");
-        let backend = CpuBackend::new(scene.clone(), p.step).expect("backend");
-        let mut lab = Lab::new(backend, p.clone(), &scene, false).expect("lab");
-        let mut obs = Collect::default();
-        lab.run(&mut obs).expect("run");
-        obs
-    };
-    let obs = run(&p);
+    let obs = run_with(&p);
     let window_s = p.equilibrium.window as f64 * p.step.dt;
     let mut start = 0.0;
     for e in &obs.ends[..2] {
@@ -354,7 +350,7 @@ fn a_still_packing_settles_on_its_creep() {
     }
     p.equilibrium.creep_rate = 0.0;
     p.equilibrium.max_time = 2.0;
-    let capped = run(&p);
+    let capped = run_with(&p);
     let e = &capped.ends[0];
     // The cap is checked at the end of each window.
     assert!(
@@ -365,9 +361,8 @@ fn a_still_packing_settles_on_its_creep() {
 
 /// Every solver method runs a short test at the built-in settings (docs/method.md's methods
 /// otherwise meet only single steps or the fc2d problems in the suite): from one compacted
-/// 600-disk sample, confinement and compression to strain
-/// 0.005 with each method. Each must end, keep the largest overlap under the lab's bound of
-/// 1% of r_min, and follow colored Gauss-Seidel's sigma1 within 5% on average over the
+/// 600-disk sample, confinement and compression to strain 0.005 with each method. Each
+/// must end, keep the largest overlap under the lab's bound of 1% of r_min, and follow colored Gauss-Seidel's sigma1 within 5% on average over the
 /// compression: the methods stop at the same tolerance on different iterates, while a
 /// method that solved another problem moves it by more (halving the contact friction lowers
 /// the 1000-disk peak by 20%, assets/results/strength_bands.csv).

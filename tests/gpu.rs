@@ -36,12 +36,9 @@ fn every_shader_parses_and_validates() {
     for path in entries {
         let own = std::fs::read_to_string(&path).expect("shader");
         let name = path.file_name().unwrap().to_string_lossy().to_string();
-        // common.wgsl needs the generated constants in front of it, as every phase does.
-        let source = if name == "common.wgsl" {
-            format!("{}{own}", cdlab::gpu::wgsl_prelude())
-        } else {
-            cdlab::gpu::compose(&own)
-        };
+        // common.wgsl is composed with no phase after it: it needs the generated constants
+        // in front of it, as every phase does.
+        let source = cdlab::gpu::compose(if name == "common.wgsl" { "" } else { &own });
         let module = naga::front::wgsl::parse_str(&source)
             .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&source)));
         naga::valid::Validator::new(
