@@ -10,9 +10,8 @@
 
 use std::path::{Path, PathBuf};
 
-use cdlab::config::Overrides;
-use cdlab::interrupt::Cancel;
-use cdlab::run::{self, Event};
+use cdlab::run::{self, Event, Existing};
+use cdlab::{Backend, Cancel, Overrides};
 
 /// What the example measured, read back from the finished run's record.
 pub struct Measured {
@@ -40,7 +39,7 @@ pub fn run_example(dir: &Path) -> cdlab::Result<Measured> {
             disks: Some(300),
             strain: Some(0.003),
             sigma3: Some(run::sigma3("1 MPa", "sigma3")?),
-            backend: Some("cpu".into()),
+            backend: Some(Backend::Cpu),
             out: Some(dir.to_path_buf()),
             ..Default::default()
         },
@@ -68,7 +67,7 @@ pub fn run_example(dir: &Path) -> cdlab::Result<Measured> {
     // A token another thread could set to stop the test at its next checkpoint; no signal
     // handler is installed, so Ctrl-C keeps its usual meaning.
     let cancel = Cancel::new();
-    let outcome = run::start(&config, None, true, &mut progress, &cancel)?;
+    let outcome = run::start(&config, None, Existing::Replace, &mut progress, &cancel)?;
 
     // Everything below comes from the files the run left, not from memory.
     let finished = run::open(&outcome.dir)?;

@@ -4,7 +4,10 @@ use std::path::PathBuf;
 
 /// Errors reported by cdlab. None of them is a panic: bad input, numerical blow-ups and
 /// missing adapters all come back here with a message that says what to change.
+///
+/// Matches on it need a wildcard arm: variants may be added.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum Error {
     /// A parameter outside its allowed range (names the field, the value and the range).
     #[error("invalid parameter `{field}` = {value}: {allowed}")]
@@ -225,6 +228,7 @@ pub enum Error {
 
 /// Why a recorded snapshot cannot be analysed or drawn ([`Error::Snapshot`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum SnapshotFault {
     /// The test holds no snapshot (an archived test kept without `--keep-last-snapshot`).
     NoSnapshot,
@@ -240,6 +244,7 @@ pub enum SnapshotFault {
 
 /// Why a run directory or file cannot be used as asked ([`Error::Run`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum RunFault {
     /// No run directory, or no record in it.
     NoRun,
@@ -263,6 +268,7 @@ pub enum RunFault {
 
 /// What makes a prepared-sample file unusable ([`Error::BadSample`]).
 #[derive(Clone, Debug, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum SampleProblem {
     /// A format that holds no checksum (`version`), which cannot be checked for damage.
     OldFormat {

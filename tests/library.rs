@@ -33,7 +33,7 @@ fn a_cancelled_test_resumes_to_the_uninterrupted_result() {
 
     base.output.dir = root.join("whole");
     let whole =
-        run::start(&base, Some(scene.clone()), false, &mut Silent, &Cancel::new()).expect("whole run");
+        run::start(&base, Some(scene.clone()), run::Existing::Refuse, &mut Silent, &Cancel::new()).expect("whole run");
     assert_eq!((whole.resumed_from, whole.summary_only), (None, false));
 
     let mut cut = base.clone();
@@ -48,7 +48,7 @@ fn a_cancelled_test_resumes_to_the_uninterrupted_result() {
             }
         }
     };
-    let stopped = run::start(&cut, Some(scene), false, &mut stop_at_compression, &cancel);
+    let stopped = run::start(&cut, Some(scene), run::Existing::Refuse, &mut stop_at_compression, &cancel);
     let step = match stopped {
         Err(Error::Interrupted { signal, step }) => {
             assert_eq!(signal, CANCELLED);
@@ -71,7 +71,7 @@ fn a_cancelled_test_resumes_to_the_uninterrupted_result() {
 
     let again = run::resume(&cut.output.dir, None, &mut Silent, &Cancel::new());
     assert_eq!(fault(again), RunFault::Complete);
-    let occupied = run::start(&cut, None, false, &mut Silent, &Cancel::new());
+    let occupied = run::start(&cut, None, run::Existing::Refuse, &mut Silent, &Cancel::new());
     assert_eq!(fault(occupied), RunFault::Occupied);
     let none = run::resume(&root.join("nothing here"), None, &mut Silent, &Cancel::new());
     assert_eq!(fault(none), RunFault::NoRun);

@@ -221,6 +221,8 @@ fn py_err(py: Python<'_>, e: Error) -> PyErr {
         | Error::Drawing(_)
         | Error::BandAnalysis(_)
         | Error::Other(_) => (CdlabError::new_err(msg), vec![]),
+        // The library's errors are non-exhaustive: a kind added later is still a CdlabError.
+        _ => (CdlabError::new_err(msg), vec![]),
     };
     set_attrs(py, err, attrs)
 }
@@ -680,7 +682,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("cdlab-py-terms-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         std::fs::write(dir.join("x"), b"").unwrap();
-        let occupied = cdlab::run::check_out_dir(&dir, false).unwrap_err().to_string();
+        let occupied = cdlab::run::check_out_dir(&dir, cdlab::run::Existing::Refuse).unwrap_err().to_string();
         let _ = std::fs::remove_dir_all(&dir);
         assert!(occupied.contains("--force"), "{occupied}");
         let d = dir.display().to_string();

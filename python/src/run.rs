@@ -52,14 +52,14 @@ fn configure(
     backend: Option<String>,
 ) -> cdlab::Result<Config> {
     let overrides = Overrides {
-        backend,
+        backend: backend.as_deref().map(str::parse).transpose()?,
         out,
         ..Default::default()
     };
     match json {
         Some(j) => {
             let mut c = config_from_json(j)?;
-            c.apply(&overrides)?;
+            c.apply(&overrides);
             c.validate()?;
             Ok(c)
         }
@@ -186,7 +186,12 @@ pub fn run_test(
     let mut bridge = Bridge::new(progress);
     let result = py.detach(|| {
         let cancel = bridge.cancel.clone();
-        run::start(&config, scene, force, &mut bridge, &cancel).map(|o| o.dir)
+        let existing = if force {
+            run::Existing::Replace
+        } else {
+            run::Existing::Refuse
+        };
+        run::start(&config, scene, existing, &mut bridge, &cancel).map(|o| o.dir)
     });
     conclude(py, bridge, result, &out)
 }
@@ -200,10 +205,15 @@ pub fn resume_run(
     backend: Option<String>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<String> {
+    let backend = backend
+        .as_deref()
+        .map(str::parse)
+        .transpose()
+        .map_err(|e| py_err(py, e))?;
     let mut bridge = Bridge::new(progress);
     let result = py.detach(|| {
         let cancel = bridge.cancel.clone();
-        run::resume(&path, backend.as_deref(), &mut bridge, &cancel).map(|o| o.dir)
+        run::resume(&path, backend, &mut bridge, &cancel).map(|o| o.dir)
     });
     conclude(py, bridge, result, &path)
 }

@@ -298,7 +298,7 @@ fn run_point(
     }
     watch.event(&Event::Starting { point: p, state });
     let outcome = if state == State::Resumable {
-        run::run_resume(&p.dir, Some("cpu"), progress, cancel)?
+        run::run_resume(&p.dir, Some(crate::config::Backend::Cpu), progress, cancel)?
     } else {
         config.validate()?;
         // The sample is prepared with the base configuration's settings, whichever test

@@ -74,10 +74,16 @@ pub fn configuration(args: &Args) -> Result<Config> {
             sigma3,
             strain: args.strain,
             seed: args.seed,
-            backend: args.backend.clone(),
+            backend: backend(args.backend.as_deref())?,
             out: args.out.clone(),
         },
     )
+}
+
+/// The backend named by `--backend`, parsed (a wrong name is an error naming
+/// `solver.backend`, as in a file).
+pub fn backend(name: Option<&str>) -> Result<Option<crate::config::Backend>> {
+    name.map(str::parse).transpose()
 }
 
 /// Runs `cdlab biaxial`.
@@ -92,7 +98,8 @@ pub fn run(args: &Args) -> Result<()> {
     let (dir, outcome) = match &args.resume {
         Some(dir) => (
             dir.clone(),
-            run::resume(dir, args.backend.as_deref(), &mut display, &cancel),
+            backend(args.backend.as_deref())
+                .and_then(|b| run::resume(dir, b, &mut display, &cancel)),
         ),
         None => {
             let mut config = configuration(args)?;
@@ -108,7 +115,17 @@ pub fn run(args: &Args) -> Result<()> {
             let dir = config.output.dir.clone();
             (
                 dir,
-                run::start(&config, sample, args.force, &mut display, &cancel),
+                run::start(
+                    &config,
+                    sample,
+                    if args.force {
+                        run::Existing::Replace
+                    } else {
+                        run::Existing::Refuse
+                    },
+                    &mut display,
+                    &cancel,
+                ),
             )
         }
     };
@@ -163,7 +180,7 @@ pub fn run_fresh(
 
 /// [`run::run_resume`] shown as `progress` says, stopped by a signal when the command
 /// installed the handler.
-pub fn run_resume(dir: &Path, backend: Option<&str>, progress: &Progress) -> Result<Summary> {
+pub fn run_resume(dir: &Path, backend: Option<crate::config::Backend>, progress: &Progress) -> Result<Summary> {
     let outcome = run::run_resume(dir, backend, &mut progress.display(), &Cancel::with_signals())?;
     Ok(outcome.summary)
 }

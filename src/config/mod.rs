@@ -56,8 +56,8 @@ pub struct Overrides {
     pub strain: Option<f64>,
     /// `sample.seed`.
     pub seed: Option<u64>,
-    /// `solver.backend`: "cpu", "gpu" or "auto".
-    pub backend: Option<String>,
+    /// `solver.backend`.
+    pub backend: Option<Backend>,
     /// `output.dir`.
     pub out: Option<PathBuf>,
 }
@@ -295,9 +295,9 @@ impl Config {
             .map_err(|e| Error::Other(format!("cannot write the configuration as TOML: {e}")))
     }
 
-    /// Replaces the values given on the command line. Only the backend name can fail here;
-    /// ranges are checked by [`Config::validate`], which the caller runs afterwards.
-    pub fn apply(&mut self, o: &Overrides) -> Result<()> {
+    /// Replaces the values given on the command line. Nothing fails here; ranges are
+    /// checked by [`Config::validate`], which the caller runs afterwards.
+    pub fn apply(&mut self, o: &Overrides) {
         if let Some(d) = o.disks {
             self.sample.disks = d;
         }
@@ -313,13 +313,12 @@ impl Config {
         if let Some(seed) = o.seed {
             self.sample.seed = seed;
         }
-        if let Some(b) = &o.backend {
-            self.solver.backend = b.parse()?;
+        if let Some(b) = o.backend {
+            self.solver.backend = b;
         }
         if let Some(dir) = &o.out {
             self.output.dir = dir.clone();
         }
-        Ok(())
     }
 }
 

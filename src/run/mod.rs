@@ -17,14 +17,14 @@
 //! command line does.
 //!
 //! ```no_run
-//! use cdlab::config::Overrides;
+//! use cdlab::config::{Backend, Overrides};
 //! use cdlab::interrupt::Cancel;
 //! use cdlab::run::{self, Event};
 //!
 //! let config = run::configure(None, &Overrides {
 //!     disks: Some(300),
 //!     strain: Some(0.002),
-//!     backend: Some("cpu".into()),
+//!     backend: Some(Backend::Cpu),
 //!     out: Some("runs/tiny".into()),
 //!     ..Default::default()
 //! })?;
@@ -34,7 +34,7 @@
 //!         rows += 1;
 //!     }
 //! };
-//! let outcome = run::start(&config, None, true, &mut progress, &Cancel::new())?;
+//! let outcome = run::start(&config, None, run::Existing::Replace, &mut progress, &Cancel::new())?;
 //! println!("peak sigma1 {:.3} MPa after {rows} rows", outcome.summary.sigma1_peak_mpa);
 //! let finished = run::open(&outcome.dir)?;
 //! println!("{} snapshots", finished.record.snapshots.len());
@@ -67,7 +67,9 @@ pub use summary::{
     SUMMARY_FILE, Summarized, read_checked_summary, rebuild_summary, summarize, summary_fault, summary_of,
     write_summary,
 };
-pub use test::{RESULT_FILES, check_out_dir, clear_results, resume, run_fresh, run_resume, start};
+pub use test::{Existing, RESULT_FILES, check_out_dir, resume, start};
+#[doc(hidden)]
+pub use test::{clear_results, run_fresh, run_resume};
 
 use crate::config::units::{Dimension, parse_with_unit};
 use crate::config::{Config, Overrides, Pressure};
@@ -207,7 +209,7 @@ pub fn configure(file: Option<&Path>, overrides: &Overrides) -> Result<Config> {
         Some(p) => Config::load(p)?,
         None => Config::default(),
     };
-    config.apply(overrides)?;
+    config.apply(overrides);
     config.validate()?;
     Ok(config)
 }

@@ -7,7 +7,7 @@ use std::time::Instant;
 use super::summary::{rebuild_summary, summary_fault};
 use super::{Cancel, Event, Progress, Recording, RunOutcome, open_backend, summary_of, write_summary};
 use crate::backend::Backend;
-use crate::config::Config;
+use crate::config::{self, Config};
 use crate::error::{Error, Result, RunFault};
 use crate::model::Scene;
 use crate::protocol::biaxial::Lab;
@@ -20,21 +20,32 @@ use crate::record::{
 /// The files in a run directory that hold a finished test's results.
 pub const RESULT_FILES: [&str; 2] = ["summary.json", "summary.txt"];
 
+/// What [`start`] does with an output directory that already holds files.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Existing {
+    /// Refuses it ([`RunFault::Occupied`]): a finished test is never lost by mistake.
+    #[default]
+    Refuse,
+    /// Removes the run's files there first (the old results before the old record).
+    Replace,
+}
+
 /// Runs a new test into `config.output.dir`: takes the directory's lock, refuses a
-/// directory that already holds files unless `replace` ([`RunFault::Occupied`]), removes
+/// directory that already holds files unless `existing` is [`Existing::Replace`]
+/// ([`RunFault::Occupied`]), removes
 /// the old results, then runs from a deposition or from a compacted `sample`
 /// ([`run_fresh`]). A test stopped by `cancel` returns [`Error::Interrupted`] with the step
 /// of the checkpoint its record ends at ([`resume`] continues it).
 pub fn start(
     config: &Config,
     sample: Option<Scene>,
-    replace: bool,
+    existing: Existing,
     progress: &mut dyn Progress,
     cancel: &Cancel,
 ) -> Result<RunOutcome> {
     let dir = config.output.dir.clone();
     let _lock = RunLock::acquire(&dir)?;
-    check_out_dir(&dir, replace)?;
+    check_out_dir(&dir, existing)?;
     // Gone before the new record replaces the old one: a replaced run killed at any point
     // never leaves the old test's results looking like its own.
     clear_results(&dir)?;
@@ -42,11 +53,10 @@ pub fn start(
 }
 
 /// Continues the run recorded in `dir` from its last intact checkpoint, holding the
-/// directory's lock, on the backend the record names or on `backend` (cpu, gpu, auto)
-/// ([`run_resume`]).
+/// directory's lock, on the backend the record names or on `backend` ([`run_resume`]).
 pub fn resume(
     dir: &Path,
-    backend: Option<&str>,
+    backend: Option<config::Backend>,
     progress: &mut dyn Progress,
     cancel: &Cancel,
 ) -> Result<RunOutcome> {
@@ -76,11 +86,11 @@ const OUTPUT_FILES: [&str; 7] = [
 /// Refuses an output directory that already holds files, unless `replace`, and one where
 /// a file the run would replace exists as something else than a regular file (a link, a
 /// FIFO, a device: [`atomic::check_replaceable`]), before anything there is removed.
-pub fn check_out_dir(dir: &Path, replace: bool) -> Result<()> {
+pub fn check_out_dir(dir: &Path, existing: Existing) -> Result<()> {
     for name in RESULT_FILES.iter().chain(&OUTPUT_FILES) {
         atomic::check_replaceable(&dir.join(name))?;
     }
-    if dir.exists() && !replace {
+    if dir.exists() && existing == Existing::Refuse {
         // The lock file of this process (or of an ended run) is not a result.
         let busy = std::fs::read_dir(dir)
             .map_err(|e| Error::io(dir, e))?
@@ -180,7 +190,7 @@ pub fn run_fresh(
 /// an error saying the run is complete ([`RunFault::Complete`]).
 pub fn run_resume(
     dir: &Path,
-    backend: Option<&str>,
+    backend: Option<config::Backend>,
     progress: &mut dyn Progress,
     cancel: &Cancel,
 ) -> Result<RunOutcome> {
@@ -193,7 +203,7 @@ pub fn run_resume(
         message: format!("{}: {e}", file.display()),
     })?;
     if let Some(b) = backend {
-        config.solver.backend = b.parse()?;
+        config.solver.backend = b;
     }
     let Some((step, bytes)) = rec.last_checkpoint.clone() else {
         let why = rec
