@@ -98,9 +98,15 @@ fn run_test(mu: f64, seed: u64) -> Summary {
     config.test.mu = mu;
     config.test.sigma3 = Pressure(8e6);
     config.output.dir = dir.join("test");
-    let summary = run::start(&config, Some(scene), run::Existing::Refuse, &mut Silent, &Cancel::new())
-        .expect("test")
-        .summary;
+    let summary = run::start(
+        &config,
+        Some(scene),
+        run::Existing::Refuse,
+        &mut Silent,
+        &Cancel::new(),
+    )
+    .expect("test")
+    .summary;
     let _ = std::fs::remove_dir_all(&dir);
     summary
 }

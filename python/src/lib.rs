@@ -682,7 +682,9 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("cdlab-py-terms-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         std::fs::write(dir.join("x"), b"").unwrap();
-        let occupied = cdlab::run::check_out_dir(&dir, cdlab::run::Existing::Refuse).unwrap_err().to_string();
+        let occupied = cdlab::run::check_out_dir(&dir, cdlab::run::Existing::Refuse)
+            .unwrap_err()
+            .to_string();
         let _ = std::fs::remove_dir_all(&dir);
         assert!(occupied.contains("--force"), "{occupied}");
         let d = dir.display().to_string();

@@ -98,8 +98,7 @@ pub fn run(args: &Args) -> Result<()> {
     let (dir, outcome) = match &args.resume {
         Some(dir) => (
             dir.clone(),
-            backend(args.backend.as_deref())
-                .and_then(|b| run::resume(dir, b, &mut display, &cancel)),
+            backend(args.backend.as_deref()).and_then(|b| run::resume(dir, b, &mut display, &cancel)),
         ),
         None => {
             let mut config = configuration(args)?;
@@ -180,7 +179,11 @@ pub fn run_fresh(
 
 /// [`run::run_resume`] shown as `progress` says, stopped by a signal when the command
 /// installed the handler.
-pub fn run_resume(dir: &Path, backend: Option<crate::config::Backend>, progress: &Progress) -> Result<Summary> {
+pub fn run_resume(
+    dir: &Path,
+    backend: Option<crate::config::Backend>,
+    progress: &Progress,
+) -> Result<Summary> {
     let outcome = run::run_resume(dir, backend, &mut progress.display(), &Cancel::with_signals())?;
     Ok(outcome.summary)
 }
