@@ -22,7 +22,6 @@ use cdlab::analysis::fit::{invert, solve_linear};
 use cdlab::backend::{Backend, Loading};
 use cdlab::engine::StepParams;
 use cdlab::gpu::GpuBackend;
-use cdlab::protocol::ProtocolParams;
 use cdlab::run::bench::sheared_sample;
 use cdlab::solver::Method;
 
@@ -77,7 +76,7 @@ fn env_list(name: &str, default: &str) -> Vec<usize> {
 }
 
 fn params(method: Method) -> StepParams {
-    let mut p = ProtocolParams::paper_defaults(50).step;
+    let mut p = cdlab::Config::with_disks(50).protocol().step;
     p.solver.method = method;
     // Never converged: every step runs exactly max_iter iterations.
     p.solver.tol = 1e-30;

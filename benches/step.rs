@@ -40,7 +40,7 @@ fn params(method: Method) -> StepParams {
 /// A 5000-disk deposit, walls closed, the top wall pressing at 1 MPa, settled for 400 steps
 /// with friction 0.3: a dense confined packing.
 fn confined(n: usize) -> Scene {
-    let pp = cdlab::protocol::ProtocolParams::paper_defaults(n);
+    let pp = cdlab::Config::with_disks(n).protocol();
     let (mut scene, _) = prepare::deposit_scene(&pp).expect("deposit");
     scene.material.mu_disk = 0.3;
     scene.material.mu_wall = 0.3;

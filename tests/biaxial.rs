@@ -8,7 +8,7 @@ use cdlab::protocol::checkpoint::decode;
 use cdlab::protocol::{Collect, Observer, Phase, ProtocolParams, prepare, walls};
 
 fn small() -> ProtocolParams {
-    let mut p = ProtocolParams::paper_defaults(600);
+    let mut p = cdlab::Config::with_disks(600).protocol();
     // Shorter than the paper's 10%: a dense sample peaks and starts dilating within 2-3%.
     p.strain_end = 0.03;
     // The paper's 7.5 m strips are for an 86 m wide sample; this one is about 27 m wide.
@@ -259,7 +259,7 @@ fn strips_follow_the_sides_and_carry_exactly_sigma3_times_height() {
 /// the claims are on 1%-strain windows, with margins taken from that noise.
 #[test]
 fn a_long_compression_softens_to_a_plateau() {
-    let mut p = ProtocolParams::paper_defaults(600);
+    let mut p = cdlab::Config::with_disks(600).protocol();
     p.strip_thickness = 4.0;
     p.strain_end = 0.12;
     p.step.solver.tol = 1e-3;

@@ -11,7 +11,7 @@ use cdlab::protocol::biaxial::Lab;
 use cdlab::protocol::{Collect, Phase, ProtocolParams, prepare};
 
 fn params() -> ProtocolParams {
-    let mut p = ProtocolParams::paper_defaults(300);
+    let mut p = cdlab::Config::with_disks(300).protocol();
     p.strip_thickness = 3.0;
     p.strain_end = 0.006;
     p.series_every = 20;

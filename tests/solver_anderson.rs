@@ -9,7 +9,7 @@ use std::path::Path;
 use cdlab::engine::CpuEngine;
 use cdlab::fc2d;
 use cdlab::model::{Scene, WallDrive};
-use cdlab::protocol::{ProtocolParams, prepare, walls};
+use cdlab::protocol::{prepare, walls};
 use cdlab::solver::anderson::{self, Options};
 use cdlab::solver::captured::Captured;
 use cdlab::solver::space::{ContactSpace, local_residual};
@@ -160,7 +160,7 @@ fn both_siconos_problems_reach_an_error_of_1e_5_in_fewer_sweeps_than_gauss_seide
 /// the top wall pressing at 1 MPa, stepped `steps` times by Gauss-Seidel with the last
 /// step's problem captured.
 fn packed(n: usize, steps: usize) -> (Scene, Captured) {
-    let pp = ProtocolParams::paper_defaults(n);
+    let pp = cdlab::Config::with_disks(n).protocol();
     let (mut s, _) = prepare::deposit_scene(&pp).unwrap();
     s.material.mu_disk = 0.3;
     s.material.mu_wall = 0.3;

@@ -649,7 +649,7 @@ fn a_signal_stops_a_sweep_that_the_same_command_resumes() {
 #[cfg(unix)]
 #[test]
 fn an_archive_that_overlaps_its_sources_is_refused() {
-    use cdlab::protocol::{LabState, ProtocolParams, checkpoint};
+    use cdlab::protocol::{LabState, checkpoint};
     let base = std::env::temp_dir().join(format!("cdlab-archive-overlap-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&base);
     let campaign = base.join("campaign");
@@ -663,7 +663,7 @@ fn an_archive_that_overlaps_its_sources_is_refused() {
             .unwrap();
     }
     let state = LabState::new(
-        ProtocolParams::paper_defaults(4),
+        cdlab::Config::with_disks(4).protocol(),
         Default::default(),
         Default::default(),
         0.0,

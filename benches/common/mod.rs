@@ -33,7 +33,7 @@ pub fn continued(dir: &std::ffi::OsStr, threads: usize) -> Result<Checkpoint, Bo
     ck.state.params.snapshot_every = 0.0;
     ck.state.params.step.solver.threads = threads;
     if let Some(ms) = env::<f64>("CDLAB_DT") {
-        ck.state.params.step.dt = ms * 1e-3;
+        ck.state.params.step.set_dt(ms * 1e-3);
     }
     if let Some(mu) = env::<f64>("CDLAB_MU") {
         ck.scene.material.mu_disk = mu;

@@ -120,7 +120,8 @@ pub trait Backend {
     fn name(&self) -> String;
     /// The time stepping parameters in force.
     fn params(&self) -> StepParams;
-    /// Changes the time stepping parameters (validated).
+    /// Changes the time stepping parameters (validated). A new time step must come with
+    /// the tolerances derived from it: set it with [`StepParams::set_dt`].
     fn set_params(&mut self, params: StepParams) -> Result<()>;
     /// Replaces the state (an upload on a device). Warm-start impulses are kept when the
     /// bodies are the same.

@@ -7,7 +7,6 @@ use std::path::PathBuf;
 
 use super::bench_report::{line, markdown};
 use crate::error::{Error, Result};
-use crate::protocol::ProtocolParams;
 use crate::run::bench::{measure_cpu, measure_gpu, sheared_sample};
 
 /// Options of `cdlab bench`.
@@ -80,7 +79,7 @@ pub fn run(args: &Args) -> Result<()> {
     if args.check_every.is_empty() {
         return Err(Error::invalid("--check-every", "", "give at least one interval"));
     }
-    let mut params = ProtocolParams::paper_defaults(50).step;
+    let mut params = crate::config::Config::with_disks(50).protocol().step;
     params.solver.tol = args.tol;
     params.validate()?;
     let run = crate::run::bench::Run {

@@ -323,6 +323,14 @@ impl Config {
 }
 
 impl Config {
+    /// The default configuration with `disks` disks: what the benches, `cdlab bench` and
+    /// the tests start from.
+    pub fn with_disks(disks: usize) -> Config {
+        let mut config = Config::default();
+        config.sample.disks = disks;
+        config
+    }
+
     /// The protocol parameters of this configuration, in SI units.
     pub fn protocol(&self) -> crate::protocol::ProtocolParams {
         use crate::engine::StepParams;

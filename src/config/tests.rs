@@ -217,20 +217,24 @@ fn an_unset_deep_overlap_follows_the_method() {
     }
 }
 
-/// The library's paper parameters (used by the benches and `cdlab bench`) run the same
-/// local updates of deep contacts as the built-in configuration.
+/// The default configuration is the one source of the protocol's defaults: its hard stop
+/// on overlaps is `solver.overlap_limit` (0.05) of `r_min`, as the reference says, in the
+/// protocol the benches and `cdlab bench` run too. (They used a second table that stopped
+/// at 0.05 m, 0.1 `r_min`.)
 #[test]
-fn paper_defaults_update_deep_contacts_as_the_configuration_does() {
-    let c = Config::default();
-    let from_config = c.protocol().step.solver;
-    let paper = crate::protocol::ProtocolParams::paper_defaults(c.sample.disks)
-        .step
-        .solver;
-    assert!(from_config.deep_gap > 0.0);
+fn the_default_protocol_follows_the_configuration() {
+    let p = Config::with_disks(600).protocol();
+    assert_eq!(p.disks, 600);
+    assert_eq!(p.step.overlap_limit, 0.05 * p.r_min);
+    assert_eq!(p.step.alert, 0.1 * p.r_min);
     assert_eq!(
-        (paper.deep_gap, paper.deep_sweeps),
-        (from_config.deep_gap, from_config.deep_sweeps)
+        p.step.solver.deep_gap,
+        crate::solver::default_deep_overlap_rel() * p.r_min
     );
+    let mut c = Config::with_disks(600);
+    assert_eq!(c.sample.disks, 600);
+    c.sample.disks = Config::default().sample.disks;
+    assert_eq!(c, Config::default());
 }
 
 /// A value of the wrong type in text a program made (the Python package's dicts) names its
@@ -268,5 +272,26 @@ fn a_value_of_the_wrong_type_names_its_key_in_plain_words() {
             assert!(m.contains("sample.disks") && !m.contains("usize"), "{m}");
         }
         other => panic!("{other:?}"),
+    }
+}
+
+/// A time step set on the protocol's parameters carries the velocity tolerances made from
+/// it along, as the configuration derives them for that step.
+#[test]
+fn a_new_time_step_derives_its_velocity_tolerances() {
+    let mut c = Config::default();
+    let mut step = c.protocol().step;
+    step.set_dt(2.5e-4);
+    c.solver.dt = Duration(2.5e-4);
+    let want = c.protocol().step;
+    assert_eq!(step.dt, want.dt);
+    for (got, want) in [
+        (step.solver.velocity_tol, want.solver.velocity_tol),
+        (step.solver.open_skip, want.solver.open_skip),
+    ] {
+        assert!(
+            want > 0.0 && ((got - want) / want).abs() < 1e-12,
+            "{got} against {want}"
+        );
     }
 }

@@ -27,6 +27,20 @@ pub struct StepParams {
 }
 
 impl StepParams {
+    /// Sets the time step and derives again the solver's tolerances that are velocities
+    /// made from it: the configuration gives [`SolverParams::velocity_tol`] and
+    /// [`SolverParams::open_skip`] as lengths per step (fractions of `r_min`) and divides
+    /// them by `dt`, so a new `dt` keeps the lengths and changes the velocities. Assigning
+    /// `dt` alone would keep velocities meant for the old step.
+    pub fn set_dt(&mut self, dt: f64) {
+        let scale = self.dt / dt;
+        if scale.is_finite() {
+            self.solver.velocity_tol *= scale;
+            self.solver.open_skip *= scale;
+        }
+        self.dt = dt;
+    }
+
     /// Rejects dt <= 0, theta outside [0.5, 1], negative distances and bad solver settings.
     pub fn validate(&self) -> Result<()> {
         check_positive("solver.dt", self.dt)?;

@@ -366,7 +366,7 @@ mod tests {
     /// length given for a cut checkpoint (the cut is where the bytes ran out).
     #[test]
     fn errors_carry_the_offset_where_decoding_stopped() {
-        let params = crate::protocol::ProtocolParams::paper_defaults(4);
+        let params = crate::config::Config::with_disks(4).protocol();
         let mut scene = Scene::default();
         for k in 0..4 {
             scene
@@ -407,7 +407,7 @@ mod tests {
     #[test]
     fn every_decoded_value_is_checked() {
         use crate::model::Wall;
-        let params = crate::protocol::ProtocolParams::paper_defaults(4);
+        let params = crate::config::Config::with_disks(4).protocol();
         let mut scene = Scene::default();
         for k in 0..4 {
             scene

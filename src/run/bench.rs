@@ -12,7 +12,7 @@ use crate::engine::StepParams;
 use crate::error::Result;
 use crate::gpu::backend::GpuBackend;
 use crate::model::{Scene, WallDrive};
-use crate::protocol::{ProtocolParams, prepare, walls};
+use crate::protocol::{prepare, walls};
 
 /// One measured case (`bench.json`).
 #[derive(Clone, Debug, serde::Serialize)]
@@ -126,7 +126,7 @@ impl CpuPhases {
 /// A confined dense sample under shear: the deposit of `n` disks, walls closed, the top
 /// wall moving down at 0.5 m/s, friction 0.3, no gravity.
 pub fn sheared_sample(n: usize) -> Result<Scene> {
-    let (mut s, _) = prepare::deposit_scene(&ProtocolParams::paper_defaults(n))?;
+    let (mut s, _) = prepare::deposit_scene(&crate::config::Config::with_disks(n).protocol())?;
     s.material.mu_disk = 0.3;
     s.material.mu_wall = 0.3;
     s.walls[walls::RIGHT].drive = WallDrive::Kinematic;

@@ -40,7 +40,7 @@ pub fn tight(method: Method) -> StepParams {
 /// The built-in step parameters (those of the default configuration, as a run gets them),
 /// with `method`: the closed forms' twins at the settings users run.
 pub fn builtin(method: Method) -> StepParams {
-    let mut p = cdlab::protocol::ProtocolParams::paper_defaults(1).step;
+    let mut p = cdlab::Config::with_disks(1).protocol().step;
     p.solver.method = method;
     p
 }
