@@ -75,6 +75,7 @@ pub fn run_example(dir: &Path) -> cdlab::Result<Measured> {
         path: finished.dir.clone(),
         fault: cdlab::error::RunFault::Unfinished,
         message: format!("{}: the run has no summary", finished.dir.display()),
+        remedy: None,
     })?;
     let last = finished.record.series.last().map_or(f64::NAN, |r| r.strain_axial);
     Ok(Measured {

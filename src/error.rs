@@ -100,7 +100,7 @@ pub enum Error {
     /// A compute shader of cdlab that naga rejects before it reaches the driver: a bug in
     /// the crate (the shaders are checked by tests/gpu.rs and tests/gpu_layout.rs), not in
     /// the input; the CPU path still runs.
-    #[error("GPU: shader {file} is invalid (a bug in cdlab; use --backend cpu): {message}")]
+    #[error("GPU: shader {file} is invalid (a bug in cdlab; the CPU backend runs without it): {message}")]
     GpuShader {
         /// The phase shader file in `shaders/`.
         file: String,
@@ -132,9 +132,9 @@ pub enum Error {
     /// A test directory kept by `cdlab archive` (configuration, summary, thinned series)
     /// asked for its full record, which went with the run's own directory.
     #[error(
-        "{} is an archived test (`cdlab archive`: its configuration, summary and time series thinned to {}, \
+        "{} is an archived test (its configuration, summary and time series thinned to {}, \
          without the record {}); this needs the full record, which only the run's own directory holds \
-         (`cdlab render DIR --curves` draws from the thinned series)",
+         (its curves can be drawn from the thinned series)",
         dir.display(),
         thinned,
         record
@@ -168,7 +168,7 @@ pub enum Error {
     },
     /// A prepared-sample file that cannot be used (`crate::protocol::sample_file`): prepare it
     /// again.
-    #[error("{}: {}", path.display(), problem.describe(path))]
+    #[error("{}: {}", path.display(), problem.describe())]
     BadSample {
         /// The sample file.
         path: PathBuf,
@@ -195,8 +195,10 @@ pub enum Error {
         path: PathBuf,
         /// What is in the way.
         fault: RunFault,
-        /// The full message, naming the path and what to do.
+        /// The full message, naming the path.
         message: String,
+        /// What the caller can do about it, when something can be done.
+        remedy: Option<Remedy>,
     },
     /// A campaign that cannot run as asked: its sweep file, grid or directory, or tests
     /// that failed.
@@ -224,6 +226,49 @@ pub enum Error {
     /// Any other failure, with its message.
     #[error("{0}")]
     Other(String),
+}
+
+impl Error {
+    /// What a user can do about this error, for the front end to say in its own terms
+    /// (the command line's flags, the Python package's calls): the library's messages name
+    /// no command and no flag.
+    pub fn remedy(&self) -> Option<Remedy> {
+        match self {
+            Error::Run { remedy, .. } => remedy.clone(),
+            Error::BadSample {
+                path,
+                problem: SampleProblem::OldFormat { .. } | SampleProblem::Checksum { .. },
+            } => Some(Remedy::PrepareAgain(path.clone())),
+            Error::Gpu(_) | Error::GpuShader { .. } => Some(Remedy::UseCpu),
+            Error::Archived { dir, .. } => Some(Remedy::UseThinnedSeries(dir.clone())),
+            _ => None,
+        }
+    }
+}
+
+/// What a user can do about an error ([`Error::remedy`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Remedy {
+    /// Resume the run in this directory: it goes on from its last intact checkpoint
+    /// (recomputing what follows a damaged part) and writes the summary at its end.
+    Resume(PathBuf),
+    /// Start the run again, replacing its files: nothing in its record can be resumed.
+    StartAgain,
+    /// The output directory holds another test's files: replace them, resume that run, or
+    /// write elsewhere.
+    ReplaceResumeOrElsewhere(PathBuf),
+    /// Prepare the sample in this file again, with its settings (a sweep prepares it again
+    /// once the file is deleted).
+    PrepareAgain(PathBuf),
+    /// Write the summary of the run in this directory again from its record.
+    Summarize(PathBuf),
+    /// Run on the CPU backend instead; a run the GPU stopped continues there from its last
+    /// checkpoint.
+    UseCpu,
+    /// Use what this archived test keeps: its summary and thinned series, from which its
+    /// curves can be drawn.
+    UseThinnedSeries(PathBuf),
 }
 
 /// Why a recorded snapshot cannot be analysed or drawn ([`Error::Snapshot`]).
@@ -319,17 +364,17 @@ pub enum SampleProblem {
 }
 
 impl SampleProblem {
-    /// The problem in words, with what to do about it (`path` is the file, for the command
-    /// that writes it again).
-    pub fn describe(&self, path: &std::path::Path) -> String {
+    /// The problem in words, with what to do about it ([`Error::remedy`] says it as a
+    /// value).
+    pub fn describe(&self) -> String {
         match self {
-            SampleProblem::OldFormat { .. } => format!(
-                "a sample in the old format without a checksum, which cannot be checked for damage: prepare \
-                 it again (`cdlab prepare -o {} --force` with its settings; for a sweep, delete the file and \
-                 run the sweep again, which prepares it)",
-                path.display()
-            ),
-            SampleProblem::NotASample => "not a cdlab sample (bad magic; `cdlab prepare` writes them)".into(),
+            SampleProblem::OldFormat { .. } => "a sample in the old format without a checksum, which \
+                 cannot be checked for damage: prepare it again with its settings (for a sweep, delete \
+                 the file and run the sweep again, which prepares it)"
+                .into(),
+            SampleProblem::NotASample => {
+                "not a cdlab sample (bad magic; a sample preparation writes them)".into()
+            }
             SampleProblem::ShortHeader { len, header } => {
                 format!("truncated: {len} bytes, shorter than the {header}-byte header")
             }
@@ -345,7 +390,7 @@ impl SampleProblem {
             }
             SampleProblem::Payload(why) => why.clone(),
             SampleProblem::NotAFile(what) => {
-                format!("{what}, not a sample file (`cdlab prepare` writes them)")
+                format!("{what}, not a sample file (a sample preparation writes them)")
             }
             SampleProblem::TooLarge { len, limit } => format!(
                 "{len} bytes, more than the {limit} bytes a sample of the most disks this \

@@ -169,6 +169,7 @@ fn in_the_way(dir: &Path) -> Option<Error> {
             "{} is {what}, not a directory: remove it or name another directory",
             dir.display()
         ),
+        remedy: None,
     })
 }
 
@@ -196,6 +197,7 @@ pub fn check_replaceable(path: &Path) -> Result<()> {
              write elsewhere",
             path.display()
         ),
+        remedy: None,
     })
 }
 

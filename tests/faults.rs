@@ -409,7 +409,8 @@ fn a_failed_read_of_the_record_at_the_end_fails_the_run_and_the_resume_ends_it()
     let file = run.join(MCAP_FILE);
     let text = err.to_string();
     assert!(text.contains(file.to_str().unwrap()), "{text}");
-    assert!(text.contains("--resume"), "{text}");
+    assert!(text.contains("resuming the run writes it"), "{text}");
+    assert_eq!(err.remedy(), Some(cdlab::error::Remedy::Resume(run.clone())));
     for name in ["summary.json", "summary.txt"] {
         assert!(!run.join(name).exists(), "{name} written without the record");
     }

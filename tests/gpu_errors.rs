@@ -12,7 +12,8 @@ mod gpu_support;
 
 use gpu_support::*;
 
-/// Checks that `e` is the GPU error of `adapter` with the advice to rerun on the CPU.
+/// Checks that `e` is the GPU error of `adapter` with the advice to run on the CPU, said
+/// in words and as its remedy.
 fn assert_gpu_failure(e: cdlab::Error, adapter: &str, what: &str) {
     let text = e.to_string();
     assert!(
@@ -23,7 +24,8 @@ fn assert_gpu_failure(e: cdlab::Error, adapter: &str, what: &str) {
         text.contains(adapter),
         "{what}: adapter {adapter} not named: {text}"
     );
-    assert!(text.contains("--backend cpu"), "{what}: no advice: {text}");
+    assert!(text.contains("CPU backend"), "{what}: no advice: {text}");
+    assert_eq!(e.remedy(), Some(cdlab::error::Remedy::UseCpu), "{what}");
 }
 
 #[test]

@@ -44,6 +44,7 @@ pub fn check_apart(source: &Path, dest: &Path) -> Result<()> {
             s.display(),
             d.display()
         ),
+        remedy: None,
     })
 }
 
@@ -108,6 +109,7 @@ pub fn archive_unfinished(src: &Path, dest: &Path) -> Result<u64> {
             path: src.to_path_buf(),
             fault: RunFault::NoCheckpoint,
             message: "no checkpoint yet, nothing to resume from".into(),
+            remedy: None,
         });
     };
     check_same_test(dest, &config)?;
@@ -172,6 +174,7 @@ fn occupied(dest: &Path, message: String) -> Error {
         path: dest.to_path_buf(),
         fault: RunFault::Occupied,
         message,
+        remedy: None,
     }
 }
 
@@ -283,11 +286,11 @@ fn record_csv(src: &Path) -> Result<String> {
             path: path.clone(),
             fault: RunFault::Damaged,
             message: format!(
-                "{}: {why}: its series would not be the whole test, not archived; `cdlab \
-                 biaxial --resume {}` repairs it",
-                path.display(),
-                src.display()
+                "{}: {why}: its series would not be the whole test, not archived; resuming \
+                 the run repairs it",
+                path.display()
             ),
+            remedy: Some(crate::error::Remedy::Resume(src.to_path_buf())),
         });
     }
     let mut csv = crate::record::csv_header();

@@ -75,6 +75,7 @@ fn read_point(dir: &Path, path: &Path) -> Result<TestPoint> {
         path: path.to_path_buf(),
         fault: RunFault::Damaged,
         message,
+        remedy: None,
     };
     let v = crate::run::read_checked_summary(dir)?;
     let num = |k: &str| v.get(k).and_then(serde_json::Value::as_f64);

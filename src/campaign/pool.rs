@@ -352,6 +352,7 @@ fn sample(
                     path.display(),
                     differ.join("; ")
                 ),
+                remedy: None,
             });
         }
         sample.scene

@@ -311,6 +311,7 @@ pub fn check_point(config: &Config, p: &Point) -> Result<State> {
                     p.dir.display(),
                     differ.join("; ")
                 ),
+                remedy: None,
             });
         }
     }

@@ -233,7 +233,39 @@ fn run_command() -> i32 {
         }
         Err(e) => {
             note!("error: {e}");
+            if let Some(r) = e.remedy() {
+                note!("help: {}", hint(&r));
+            }
             1
+        }
+    }
+}
+
+/// What to do about an error ([`crate::Error::remedy`]), in this command line's words:
+/// its commands and flags, which the library's messages leave out.
+pub fn hint(remedy: &crate::error::Remedy) -> String {
+    use crate::error::Remedy;
+    match remedy {
+        Remedy::Resume(dir) => format!("`cdlab biaxial --resume {}`", dir.display()),
+        Remedy::StartAgain => "start the run again with --force".into(),
+        Remedy::ReplaceResumeOrElsewhere(dir) => format!(
+            "pass --force to replace them, --resume {} to continue that run, or --out DIR",
+            dir.display()
+        ),
+        Remedy::PrepareAgain(file) => format!(
+            "`cdlab prepare -o {} --force` with its settings (for a sweep, delete the file and \
+             run the sweep again)",
+            file.display()
+        ),
+        Remedy::Summarize(dir) => format!("`cdlab summarize {}`", dir.display()),
+        Remedy::UseCpu => "rerun with --backend cpu, or continue the run on the CPU with \
+             `cdlab biaxial --resume DIR --backend cpu`"
+            .into(),
+        Remedy::UseThinnedSeries(dir) => {
+            format!(
+                "`cdlab render {} --curves` draws from the thinned series",
+                dir.display()
+            )
         }
     }
 }

@@ -39,6 +39,7 @@ pub fn run(args: &Args) -> Result<()> {
             path: args.output.clone(),
             fault: RunFault::Occupied,
             message: format!("{} exists: pass --force to replace it", args.output.display()),
+            remedy: None,
         });
     }
     let config = super::biaxial::configuration(&super::biaxial::Args {

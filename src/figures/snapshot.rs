@@ -236,8 +236,8 @@ impl Figure for SnapshotFigure<'_> {
                 Some(sh) => format!("local shear strain since axial strain {:.5}", sh.strain_from),
                 None => {
                     return Err(Error::NothingToDraw(
-                        "the shear field needs the local strain of an interval (cdlab render computes it \
-                         from the snapshot before)"
+                        "the shear field needs the local strain of an interval (a render of the run \
+                         computes it from the snapshot before)"
                             .into(),
                     ));
                 }

@@ -52,8 +52,8 @@ impl GpuDevice {
     /// wgpu's message, and the way out.
     pub fn failure(&self, during: &str, detail: impl std::fmt::Display) -> Error {
         Error::Gpu(format!(
-            "{} ({:?}): {during}: {detail}; rerun with --backend cpu (or continue the run on the \
-             CPU path with --resume DIR)",
+            "{} ({:?}): {during}: {detail}; run on the CPU backend instead (a run stopped here \
+             continues there from its last checkpoint)",
             self.info.name, self.info.backend
         ))
     }

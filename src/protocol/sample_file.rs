@@ -307,8 +307,16 @@ mod tests {
     fn old_format_is_refused_with_the_fix() {
         let (state, scene) = tiny();
         let v1 = checkpoint::encode(&state, &scene, &[], &[]);
-        let e = decode_sample(&v1, Path::new("old.bin")).unwrap_err().to_string();
-        assert!(e.contains("old.bin") && e.contains("cdlab prepare"), "{e}");
+        let e = decode_sample(&v1, Path::new("old.bin")).unwrap_err();
+        let text = e.to_string();
+        assert!(
+            text.contains("old.bin") && text.contains("prepare it again"),
+            "{text}"
+        );
+        assert_eq!(
+            e.remedy(),
+            Some(crate::error::Remedy::PrepareAgain("old.bin".into()))
+        );
     }
 
     /// Each kind of damage comes back as its own [`SampleProblem`], so that a caller (a

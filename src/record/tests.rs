@@ -474,8 +474,10 @@ fn archived_test_gives_its_series_and_says_it_has_no_record() {
     assert_eq!(read, rows);
     assert_eq!(config.unwrap(), Config::default());
     assert_eq!(read_config(&tmp.0).unwrap(), Config::default());
-    let e = read_run(&tmp.0).unwrap_err().to_string();
-    assert!(e.contains("archived test") && e.contains("--curves"), "{e}");
+    let e = read_run(&tmp.0).unwrap_err();
+    let text = e.to_string();
+    assert!(text.contains("archived test") && text.contains("thinned series"), "{text}");
+    assert_eq!(e.remedy(), Some(crate::error::Remedy::UseThinnedSeries(tmp.0.clone())));
 }
 
 /// Every single-bit flip in a record, wherever it lands, gives either an error naming the

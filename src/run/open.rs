@@ -37,6 +37,7 @@ pub fn open(dir: &Path) -> Result<FinishedRun> {
                 path: path.clone(),
                 fault: RunFault::Damaged,
                 message: format!("{}: {e}", path.display()),
+                remedy: None,
             })?)
         }
         Some(_) if !path.exists() => None,
@@ -45,6 +46,7 @@ pub fn open(dir: &Path) -> Result<FinishedRun> {
                 message: format!("{} {fault}", path.display()),
                 path,
                 fault: RunFault::Damaged,
+                remedy: None,
             });
         }
     };

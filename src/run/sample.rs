@@ -214,6 +214,7 @@ pub fn adopt_sample(
                      the sample as prepared",
                     path.display()
                 ),
+                remedy: None,
             });
         }
     }

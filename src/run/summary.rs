@@ -5,7 +5,7 @@ use std::path::Path;
 
 use super::{Event, Progress};
 use crate::config::Config;
-use crate::error::{Error, Result, RunFault};
+use crate::error::{Error, Remedy, Result, RunFault};
 use crate::measure::SeriesRow;
 use crate::measure::derived::DerivedCurve;
 use crate::measure::summary::{DerivedFrom, Summary};
@@ -116,18 +116,19 @@ pub fn read_checked_summary(dir: &Path) -> Result<serde_json::Value> {
     let path = dir.join(SUMMARY_FILE);
     let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
     let damaged = |why: String| {
-        let repair = if dir.join(MCAP_FILE).is_file() {
-            format!(
-                "; `cdlab summarize {}` writes it again from the record once that run is complete",
-                dir.display()
+        let (repair, remedy) = if dir.join(MCAP_FILE).is_file() {
+            (
+                "; it can be written again from the record once that run is complete",
+                Some(Remedy::Summarize(dir.to_path_buf())),
             )
         } else {
-            String::new()
+            ("", None)
         };
         Error::Run {
             path: path.clone(),
             fault: RunFault::Damaged,
             message: format!("{} {why}{repair}", path.display()),
+            remedy,
         }
     };
     let value: serde_json::Value =
@@ -182,11 +183,12 @@ pub fn summary_fault(dir: &Path, rec: &RunRecord) -> Option<String> {
 }
 
 /// An [`Error::Run`] about the record file `file`.
-fn record_fault(file: &Path, fault: RunFault, what: impl std::fmt::Display) -> Error {
+fn record_fault(file: &Path, fault: RunFault, what: impl std::fmt::Display, remedy: Option<Remedy>) -> Error {
     Error::Run {
         path: file.to_path_buf(),
         fault,
         message: format!("{}: {what}", file.display()),
+        remedy,
     }
 }
 
@@ -195,13 +197,14 @@ fn record_fault(file: &Path, fault: RunFault, what: impl std::fmt::Display) -> E
 /// name and the wall time; otherwise the record's backend and its last row's wall time.
 pub fn rebuild_summary(dir: &Path, rec: &RunRecord, old: Option<&serde_json::Value>) -> Result<Summary> {
     let name = dir.join(MCAP_FILE);
-    let named = |e: Error| record_fault(&name, RunFault::Damaged, e);
+    let named = |e: Error| record_fault(&name, RunFault::Damaged, e, None);
     let config = rec.config().map_err(named)?;
     let Some((_, bytes)) = &rec.last_checkpoint else {
         return Err(record_fault(
             &name,
             RunFault::NoCheckpoint,
             "the record holds no intact checkpoint",
+            Some(Remedy::StartAgain),
         ));
     };
     // The phase ends are in the checkpoint the run wrote as it finished.
@@ -211,9 +214,10 @@ pub fn rebuild_summary(dir: &Path, rec: &RunRecord, old: Option<&serde_json::Val
             &name,
             RunFault::Unfinished,
             format!(
-                "the record ends in phase {} (resume it with cdlab biaxial --resume)",
+                "the record ends in phase {} (resume it first)",
                 state.phase.name()
             ),
+            Some(Remedy::Resume(dir.to_path_buf())),
         ));
     }
     let old_text = |k: &str| {
@@ -270,6 +274,7 @@ pub fn summarize(dir: &Path, dry_run: bool) -> Result<Summarized> {
             message: format!(
                 "no record ({MCAP_FILE}): an archived test keeps the summary it was archived with"
             ),
+            remedy: None,
         });
     }
     let _lock = if dry_run {
@@ -283,11 +288,8 @@ pub fn summarize(dir: &Path, dry_run: bool) -> Result<Summarized> {
         return Err(record_fault(
             &file,
             RunFault::Damaged,
-            format!(
-                "{why}: `cdlab biaxial --resume {}` recomputes the run from its last intact \
-                 checkpoint",
-                dir.display()
-            ),
+            format!("{why}: resuming the run recomputes it from its last intact checkpoint"),
+            Some(Remedy::Resume(dir.to_path_buf())),
         ));
     }
     let fault = summary_fault(dir, &record);
@@ -297,7 +299,7 @@ pub fn summarize(dir: &Path, dry_run: bool) -> Result<Summarized> {
             let text = std::fs::read_to_string(&old_path).map_err(|e| Error::io(&old_path, e))?;
             Some(
                 serde_json::from_str::<serde_json::Value>(&text)
-                    .map_err(|e| record_fault(&old_path, RunFault::Damaged, e))?,
+                    .map_err(|e| record_fault(&old_path, RunFault::Damaged, e, None))?,
             )
         }
         // The figures of another record's summary are not this one's.

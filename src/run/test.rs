@@ -8,7 +8,7 @@ use super::summary::{rebuild_summary, summary_fault};
 use super::{Cancel, Event, Progress, Recording, RunOutcome, open_backend, summary_of, write_summary};
 use crate::backend::Backend;
 use crate::config::{self, Config};
-use crate::error::{Error, Result, RunFault};
+use crate::error::{Error, Remedy, Result, RunFault};
 use crate::model::Scene;
 use crate::protocol::biaxial::Lab;
 use crate::protocol::checkpoint::decode;
@@ -65,6 +65,7 @@ pub fn resume(
             path: dir.to_path_buf(),
             fault: RunFault::NoRun,
             message: format!("{}: no such run directory", dir.display()),
+            remedy: None,
         });
     }
     let _lock = RunLock::acquire(dir)?;
@@ -101,11 +102,11 @@ pub fn check_out_dir(dir: &Path, existing: Existing) -> Result<()> {
                 path: dir.to_path_buf(),
                 fault: RunFault::Occupied,
                 message: format!(
-                    "output directory {} already holds files: pass --force to replace them, \
-                     --resume {} to continue that run, or --out DIR",
-                    dir.display(),
+                    "output directory {} already holds files: replace them, resume that run, \
+                     or write elsewhere",
                     dir.display()
                 ),
+                remedy: Some(Remedy::ReplaceResumeOrElsewhere(dir.to_path_buf())),
             });
         }
     }
@@ -201,6 +202,7 @@ pub fn run_resume(
         path: file.clone(),
         fault: RunFault::Damaged,
         message: format!("{}: {e}", file.display()),
+        remedy: None,
     })?;
     if let Some(b) = backend {
         config.solver.backend = b;
@@ -214,16 +216,18 @@ pub fn run_resume(
             path: file.clone(),
             fault: RunFault::NoCheckpoint,
             message: format!(
-                "{}: the record holds no intact checkpoint to resume from{why}: start the run \
-                 again with --force",
+                "{}: the record holds no intact checkpoint to resume from{why}: the run can \
+                 only start again",
                 file.display()
             ),
+            remedy: Some(Remedy::StartAgain),
         });
     };
     let ck = decode(&bytes).map_err(|e| Error::Run {
         path: file.clone(),
         fault: RunFault::Damaged,
         message: format!("{}: checkpoint: {e}", file.display()),
+        remedy: None,
     })?;
     if let Some(why) = &rec.damaged {
         progress.event(&Event::FellBack {
@@ -243,6 +247,7 @@ pub fn run_resume(
                 path: dir.to_path_buf(),
                 fault: RunFault::Complete,
                 message: format!("{}: this run is already complete", dir.display()),
+                remedy: None,
             });
         };
         let old = std::fs::read_to_string(dir.join("summary.json"))
@@ -369,11 +374,11 @@ fn unreadable_at_end(dir: &Path, e: &Error) -> Error {
     Error::Run {
         message: format!(
             "{}: the run is complete but its record could not be read back for the summary \
-             ({e}); no summary was written: `cdlab biaxial --resume {}` writes it",
-            file.display(),
-            dir.display()
+             ({e}); no summary was written: resuming the run writes it",
+            file.display()
         ),
         path: file,
         fault: RunFault::Unfinished,
+        remedy: Some(Remedy::Resume(dir.to_path_buf())),
     }
 }
