@@ -157,6 +157,16 @@ pub enum Error {
         /// What is wrong.
         message: String,
     },
+    /// A record that failed a check (a chunk or checkpoint CRC, a message that does not
+    /// decode), refused where a damaged one is not wanted (`run::open_test` without
+    /// `allow_damaged`). What precedes the damage is intact.
+    #[error("{}: {reason}: resuming the run recomputes it from its last intact checkpoint", file.display())]
+    DamagedRecord {
+        /// The record file.
+        file: PathBuf,
+        /// The check it failed, and where.
+        reason: String,
+    },
     /// A checkpoint that does not decode (`crate::protocol::checkpoint::decode`): foreign
     /// or damaged bytes.
     #[error("{message}")]
@@ -235,6 +245,9 @@ impl Error {
     pub fn remedy(&self) -> Option<Remedy> {
         match self {
             Error::Run { remedy, .. } => remedy.clone(),
+            Error::DamagedRecord { file, .. } => Some(Remedy::Resume(
+                file.parent().unwrap_or(std::path::Path::new(".")).to_path_buf(),
+            )),
             Error::BadSample {
                 path,
                 problem: SampleProblem::OldFormat { .. } | SampleProblem::Checksum { .. },

@@ -2,10 +2,10 @@
 //! other half, which turns what this module hands out into dicts, NumPy arrays and pandas
 //! DataFrames).
 //!
-//! Everything here goes through the cdlab library's own readers: the record
-//! ([`cdlab::record::read_run`], with its chunk and checkpoint CRCs), the archived test's
-//! configuration and thinned series ([`cdlab::record::read_series`]), the micromechanical
-//! analysis of a snapshot ([`cdlab::measure::micro`]) and the campaign report
+//! Everything here goes through the cdlab library's own readers: a run or an archived test
+//! with its checked summary ([`cdlab::run::open_test`], the record read with its chunk and
+//! checkpoint CRCs), the series as typed columns ([`cdlab::record::series_column`]), the
+//! micromechanical analysis of a snapshot ([`cdlab::measure::micro`]) and the campaign report
 //! ([`cdlab::analysis::report`]). Nothing of the MCAP layout is parsed in Python.
 //!
 //! Arrays cross the boundary as little-endian bytes that the Python half wraps with
@@ -17,11 +17,9 @@ mod run;
 use std::path::{Path, PathBuf};
 
 use cdlab::Error;
-use cdlab::config::Config;
-use cdlab::measure::summary::Summary;
-use cdlab::record::{
-    ARCHIVED_CONFIG_FILE, MCAP_FILE, SERIES_FIELDS, SeriesRow, Snapshot, read_run, read_series,
-};
+use cdlab::error::Remedy;
+use cdlab::record::{SERIES_FIELDS, SeriesColumn, Snapshot, series_column};
+use cdlab::run::{OpenedTest, TestKind, open_test};
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
@@ -91,63 +89,46 @@ create_exception!(
     "A campaign that cannot run as asked (sweep file, grid, failed tests); attribute `path`."
 );
 
-/// The path written after `prefix` in `msg` up to the first of `ends` (or the end), and
-/// where that path ends.
-fn path_after(msg: &str, prefix: &str, ends: &[&str]) -> Option<(usize, usize, String)> {
-    let at = msg.find(prefix)?;
-    let from = at + prefix.len();
-    let rest = &msg[from..];
-    let len = ends
-        .iter()
-        .filter_map(|e| rest.find(e))
-        .min()
-        .unwrap_or(rest.len());
-    Some((at, from + len, rest[..len].to_string()))
+/// What to do about an error ([`Error::remedy`]) in a Python user's terms: the package's
+/// calls and arguments where the command line names its flags.
+pub fn python_hint(remedy: &Remedy) -> String {
+    match remedy {
+        Remedy::Resume(dir) => format!("cdlab.resume({:?})", dir.display().to_string()),
+        Remedy::StartAgain => "start the run again with force=True".into(),
+        Remedy::ReplaceResumeOrElsewhere(dir) => format!(
+            "pass force=True to replace them, call cdlab.resume({:?}) to continue that run, or \
+             give another out directory",
+            dir.display().to_string()
+        ),
+        Remedy::PrepareAgain(file) => format!(
+            "cdlab.prepare(config, out={:?}) with its settings",
+            file.display().to_string()
+        ),
+        Remedy::Summarize(dir) => format!(
+            "`cdlab summarize {}` on the command line writes it again",
+            dir.display()
+        ),
+        Remedy::UseCpu => "run again with backend=\"cpu\", or continue a stopped run with \
+             cdlab.resume(path, backend=\"cpu\")"
+            .into(),
+        Remedy::UseThinnedSeries(_) => "cdlab.open reads its thinned series and summary".into(),
+        // The remedies are non-exhaustive: one added later is said by the message alone.
+        _ => String::new(),
+    }
 }
 
-/// A library message in a Python user's terms: the ways out it names on the command line
-/// (`--force`, `cdlab biaxial --resume DIR`, `cdlab prepare -o FILE --force`) become the
-/// package's calls and arguments. A message naming none is returned as it is.
-pub fn in_python_terms(msg: &str) -> String {
-    let mut m = msg.to_string();
-    // `cdlab.run`'s refusal of an occupied directory.
-    if let Some((at, end, dir)) = path_after(&m, "pass --force to replace them, --resume ", &[" to continue"])
-    {
-        let tail = m[end..].replacen(" to continue that run, or --out DIR", "", 1);
-        m = format!(
-            "{}pass force=True to replace them, call cdlab.resume({dir:?}) to continue that run, \
-             or give another out directory{tail}",
-            &m[..at]
-        );
+/// An error's message with its remedy in the package's terms ([`python_hint`]).
+pub fn in_python_terms(e: &Error) -> String {
+    match e.remedy().map(|r| python_hint(&r)) {
+        Some(hint) if !hint.is_empty() => format!("{e} ({hint})"),
+        _ => e.to_string(),
     }
-    while let Some((at, end, dir)) = path_after(&m, "`cdlab biaxial --resume ", &["`"]) {
-        m = format!("{}`cdlab.resume({dir:?})`{}", &m[..at], &m[end + 1..]);
-    }
-    while let Some((at, end, file)) = path_after(&m, "`cdlab prepare -o ", &[" --force`"]) {
-        m = format!(
-            "{}`cdlab.prepare(config, out={file:?})`{}",
-            &m[..at],
-            &m[end + " --force`".len()..]
-        );
-    }
-    m.replace(
-        "resume it with cdlab biaxial --resume)",
-        "resume it with cdlab.resume(path))",
-    )
-    .replace(
-        "start the run again with --force",
-        "start the run again with force=True",
-    )
-    .replace(
-        "(`cdlab render DIR --curves` draws from the thinned series)",
-        "(cdlab.open reads its thinned series and summary)",
-    )
 }
 
 /// A cdlab error as the matching Python exception, its fields set as attributes; its
-/// message in the package's terms ([`in_python_terms`]).
+/// message with its remedy in the package's terms ([`in_python_terms`]).
 fn py_err(py: Python<'_>, e: Error) -> PyErr {
-    let msg = in_python_terms(&e.to_string());
+    let msg = in_python_terms(&e);
     let (err, attrs): (PyErr, Vec<(&str, Py<PyAny>)>) = match e {
         Error::Invalid {
             field,
@@ -191,6 +172,12 @@ fn py_err(py: Python<'_>, e: Error) -> PyErr {
         Error::InUse { dir, .. } | Error::Archived { dir, .. } => {
             (FileError::new_err(msg), vec![("path", path_obj(py, &dir))])
         }
+        Error::DamagedRecord { file, reason } => (
+            DamagedRecordError::new_err(format!(
+                "{msg} (open(..., allow_damaged=True) reads what precedes the damage)"
+            )),
+            vec![("path", path_obj(py, &file)), ("reason", text_obj(py, reason))],
+        ),
         Error::BadRecord { path, .. } => {
             let path = match path {
                 Some(p) => path_obj(py, &p),
@@ -253,174 +240,32 @@ fn file_error(py: Python<'_>, path: &Path, msg: String) -> PyErr {
     set_attrs(py, FileError::new_err(msg), vec![("path", path_obj(py, path))])
 }
 
-/// Which of the two kinds of test directory a [`Record`] was read from.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Kind {
-    /// A run directory (or its `run.mcap`): everything from the record.
-    Run,
-    /// A directory written by `cdlab archive`: configuration, summary, thinned series and,
-    /// when kept, the last snapshot.
-    Archived,
-}
-
-/// A run or an archived test, read whole (the snapshots are decoded; arrays and the
-/// micromechanical analysis of a snapshot are built when asked for).
+/// A run or an archived test, read whole by the library ([`cdlab::run::open_test`]: the
+/// snapshots are decoded; arrays and the micromechanical analysis of a snapshot are built
+/// when asked for).
 #[pyclass(frozen, module = "cdlab._cdlab")]
 struct Record {
-    path: PathBuf,
-    kind: Kind,
+    test: OpenedTest,
+    /// The configuration as JSON, written once at opening (`Test.config` parses it once).
     config_json: String,
-    summary_json: Option<String>,
-    series: Vec<SeriesRow>,
-    snapshots: Vec<Snapshot>,
-    truncated: Option<String>,
-    damaged: Option<String>,
-    run_id: Option<String>,
-    version: Option<String>,
-    backend: Option<String>,
 }
 
-/// Failures of [`read_record`]: a cdlab error, or a damaged record refused (file, why).
-enum ReadError {
-    Cdlab(Error),
-    Damaged(PathBuf, String),
-    File(PathBuf, String),
-}
-
-impl From<Error> for ReadError {
-    fn from(e: Error) -> Self {
-        ReadError::Cdlab(e)
-    }
-}
-
-/// The summary of the test in `dir` (`summary.json`), checked to parse as cdlab's
-/// [`Summary`] and, when both carry an identity, to be the summary of the record `run_id`
-/// (a summary left from a record since replaced is stale). `None` when there is none yet
-/// (a run not finished).
-fn read_summary(dir: &Path, run_id: Option<&str>) -> Result<Option<String>, ReadError> {
-    let file = dir.join("summary.json");
-    if !file.exists() {
-        return Ok(None);
-    }
-    let text = std::fs::read_to_string(&file).map_err(|e| Error::io(&file, e))?;
-    let summary: Summary = serde_json::from_str(&text)
-        .map_err(|e| ReadError::File(file.clone(), format!("{}: {e}", file.display())))?;
-    if let (Some(ours), Some(theirs)) = (run_id, summary.record_id.as_deref())
-        && ours != theirs
-    {
-        return Err(ReadError::File(
-            file.clone(),
-            format!(
-                "{}: the summary of record {theirs}, not of this directory's {MCAP_FILE} \
-                 (record {ours}): stale; `cdlab summarize {}` writes it again",
-                file.display(),
-                dir.display()
-            ),
-        ));
-    }
-    Ok(Some(text))
-}
-
-/// Reads the test at `path` (see [`open_record`]).
-fn read_record(path: &Path, allow_damaged: bool) -> Result<Record, ReadError> {
-    let archived =
-        path.is_dir() && !path.join(MCAP_FILE).exists() && path.join(ARCHIVED_CONFIG_FILE).exists();
-    let config_text = |c: &Config| {
-        serde_json::to_string(c).map_err(|e| ReadError::Cdlab(Error::Other(format!("configuration: {e}"))))
-    };
-    if archived {
-        let (series, config) = read_series(path)?;
-        let config = config?;
-        let kept = path.join(cdlab::campaign::archive::LAST_SNAPSHOT_FILE);
-        let snapshots = if kept.exists() {
-            let bytes = std::fs::read(&kept).map_err(|e| Error::io(&kept, e))?;
-            vec![
-                Snapshot::decode(&bytes)
-                    .map_err(|e| ReadError::File(kept.clone(), format!("{}: {e}", kept.display())))?,
-            ]
-        } else {
-            Vec::new()
-        };
-        return Ok(Record {
-            path: path.to_path_buf(),
-            kind: Kind::Archived,
-            config_json: config_text(&config)?,
-            summary_json: read_summary(path, None)?,
-            series,
-            snapshots,
-            truncated: None,
-            damaged: None,
-            run_id: None,
-            version: None,
-            backend: None,
-        });
-    }
-    let rec = read_run(path)?;
-    let file = if path.is_dir() {
-        path.join(MCAP_FILE)
-    } else {
-        path.to_path_buf()
-    };
-    if let (Some(why), false) = (&rec.damaged, allow_damaged) {
-        return Err(ReadError::Damaged(file, why.clone()));
-    }
-    let config = rec
-        .config()
-        .map_err(|e| ReadError::File(file.clone(), format!("{}: {e}", file.display())))?;
-    let dir = file.parent().unwrap_or(Path::new("."));
-    Ok(Record {
-        path: if path.is_dir() {
-            path.to_path_buf()
-        } else {
-            dir.to_path_buf()
-        },
-        kind: Kind::Run,
-        config_json: config_text(&config)?,
-        summary_json: read_summary(dir, rec.run_id.as_deref())?,
-        series: rec.series,
-        snapshots: rec.snapshots,
-        truncated: rec.truncated,
-        damaged: rec.damaged,
-        run_id: rec.run_id,
-        version: Some(rec.version),
-        backend: rec.backend,
-    })
-}
-
-/// Opens the run directory (or its `run.mcap`) or the archived test at `path`. The record
-/// is read with its checks (chunk CRCs, checkpoint CRCs); one that failed a check raises
-/// [`DamagedRecordError`] naming the file unless `allow_damaged`, when what precedes the
-/// damage is kept and `damaged` says why. A record cut short (a run killed mid-write, not a
-/// failed check) opens, `truncated` saying where it ends. The file is read without the GIL.
+/// Opens the run directory (or its `run.mcap`) or the archived test at `path`
+/// ([`cdlab::run::open_test`], without the GIL). A record that failed a check raises
+/// [`DamagedRecordError`] naming the file, with the `reason` apart, unless
+/// `allow_damaged`, when what precedes the damage is kept and `damaged` says why. A record
+/// cut short (a run killed mid-write, not a failed check) opens, `truncated` saying where it
+/// ends. Every other error is the library's, as [`py_err`] raises it.
 #[pyfunction]
 #[pyo3(signature = (path, allow_damaged = false))]
 fn open_record(py: Python<'_>, path: PathBuf, allow_damaged: bool) -> PyResult<Record> {
-    if !path.exists() {
-        return Err(file_error(
-            py,
-            &path,
-            format!("{}: no such file or directory", path.display()),
-        ));
-    }
-    match py.detach(|| read_record(&path, allow_damaged)) {
-        Ok(r) => Ok(r),
-        Err(ReadError::Cdlab(e)) => Err(py_err(py, e)),
-        Err(ReadError::File(p, msg)) => Err(file_error(py, &p, msg)),
-        Err(ReadError::Damaged(p, why)) => {
-            let msg = format!(
-                "{}: {why}: `cdlab biaxial --resume {}` recomputes the run from its last intact \
-                 checkpoint (open(..., allow_damaged=True) reads what precedes the damage)",
-                p.display(),
-                p.parent().unwrap_or(Path::new(".")).display()
-            );
-            let reason = why.into_pyobject(py)?.into_any().unbind();
-            Err(set_attrs(
-                py,
-                DamagedRecordError::new_err(msg),
-                vec![("path", path_obj(py, &p)), ("reason", reason)],
-            ))
-        }
-    }
+    let opened = py.detach(|| {
+        let test = open_test(&path, allow_damaged)?;
+        let config_json =
+            serde_json::to_string(&test.config).map_err(|e| Error::Other(format!("configuration: {e}")))?;
+        Ok(Record { test, config_json })
+    });
+    opened.map_err(|e| py_err(py, e))
 }
 
 /// One field of a snapshot's disk.
@@ -432,17 +277,22 @@ fn le_f64(values: impl Iterator<Item = f64>) -> Vec<u8> {
 }
 
 /// Little-endian bytes of `values`.
+fn le_u64(values: impl Iterator<Item = u64>) -> Vec<u8> {
+    values.flat_map(u64::to_le_bytes).collect()
+}
+
+/// Little-endian bytes of `values`.
 fn le_u32(values: impl Iterator<Item = u32>) -> Vec<u8> {
     values.flat_map(u32::to_le_bytes).collect()
 }
 
 impl Record {
     fn snapshot(&self, index: usize) -> PyResult<&Snapshot> {
-        self.snapshots.get(index).ok_or_else(|| {
+        self.test.snapshots.get(index).ok_or_else(|| {
             pyo3::exceptions::PyIndexError::new_err(format!(
                 "snapshot {index} of {} in {}",
-                self.snapshots.len(),
-                self.path.display()
+                self.test.snapshots.len(),
+                self.test.path.display()
             ))
         })
     }
@@ -453,15 +303,15 @@ impl Record {
     /// The run directory or archived test read.
     #[getter]
     fn path(&self) -> String {
-        self.path.display().to_string()
+        self.test.path.display().to_string()
     }
 
     /// "run" (a record) or "archived" (a directory of `cdlab archive`).
     #[getter]
     fn kind(&self) -> &'static str {
-        match self.kind {
-            Kind::Run => "run",
-            Kind::Archived => "archived",
+        match self.test.kind {
+            TestKind::Run => "run",
+            TestKind::Archived => "archived",
         }
     }
 
@@ -474,70 +324,56 @@ impl Record {
     /// `summary.json`'s text, checked; None when the test has none (not finished).
     #[getter]
     fn summary_json(&self) -> Option<&str> {
-        self.summary_json.as_deref()
+        self.test.summary_text.as_deref()
     }
 
     /// Why the record ends early (None for a complete file).
     #[getter]
     fn truncated(&self) -> Option<&str> {
-        self.truncated.as_deref()
+        self.test.truncated.as_deref()
     }
 
     /// Why the record failed a check (None unless opened with `allow_damaged`).
     #[getter]
     fn damaged(&self) -> Option<&str> {
-        self.damaged.as_deref()
+        self.test.damaged.as_deref()
     }
 
     /// The record's identity (`summary.json`'s `record_id`).
     #[getter]
     fn run_id(&self) -> Option<&str> {
-        self.run_id.as_deref()
+        self.test.run_id.as_deref()
     }
 
     /// The cdlab version that wrote the record.
     #[getter]
     fn version(&self) -> Option<&str> {
-        self.version.as_deref()
+        self.test.version.as_deref()
     }
 
     /// The backend that wrote the record's last part, when it says.
     #[getter]
     fn backend(&self) -> Option<&str> {
-        self.backend.as_deref()
+        self.test.backend.as_deref()
     }
 
     /// The series as columns in the order of `series.csv`: name -> little-endian bytes of
-    /// float64 (type "number") or uint64 (type "integer"), or a list of str ("string").
+    /// float64 (type "number") or uint64 (type "integer"), or a list of str ("string"),
+    /// each built from the library's typed rows ([`series_column`]).
     fn series_columns<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let rows: Vec<serde_json::Value> = self
-            .series
-            .iter()
-            .map(|r| serde_json::to_value(r).map_err(|e| CdlabError::new_err(format!("series row: {e}"))))
-            .collect::<PyResult<_>>()?;
         let out = PyDict::new(py);
-        for (name, kind, _) in SERIES_FIELDS {
-            let cell = |r: &serde_json::Value| r.get(*name).cloned().unwrap_or(serde_json::Value::Null);
-            match *kind {
-                "string" => {
-                    let v: Vec<String> = rows
-                        .iter()
-                        .map(|r| cell(r).as_str().unwrap_or_default().to_string())
-                        .collect();
-                    out.set_item(*name, PyList::new(py, v)?)?;
+        for (name, _, _) in SERIES_FIELDS {
+            match series_column(&self.test.series, name) {
+                Some(SeriesColumn::Number(v)) => {
+                    out.set_item(*name, PyBytes::new(py, &le_f64(v.into_iter())))?
                 }
-                "integer" => {
-                    let bytes: Vec<u8> = rows
-                        .iter()
-                        .flat_map(|r| cell(r).as_u64().unwrap_or_default().to_le_bytes())
-                        .collect();
-                    out.set_item(*name, PyBytes::new(py, &bytes))?;
+                Some(SeriesColumn::Integer(v)) => {
+                    out.set_item(*name, PyBytes::new(py, &le_u64(v.into_iter())))?
                 }
-                _ => {
-                    // JSON null is how a series row serializes NaN.
-                    let bytes = le_f64(rows.iter().map(|r| cell(r).as_f64().unwrap_or(f64::NAN)));
-                    out.set_item(*name, PyBytes::new(py, &bytes))?;
-                }
+                Some(SeriesColumn::Text(v)) => out.set_item(*name, PyList::new(py, v)?)?,
+                // The library's test holds every field to a column: a name without one would
+                // be a cdlab bug, said as such rather than a column silently missing.
+                None => return Err(CdlabError::new_err(format!("series field {name} has no column"))),
             }
         }
         Ok(out)
@@ -545,7 +381,7 @@ impl Record {
 
     /// (time_s, strain) of every snapshot, in record order.
     fn snapshot_times(&self) -> Vec<(f64, f64)> {
-        self.snapshots.iter().map(|s| (s.time_s, s.strain)).collect()
+        self.test.snapshots.iter().map(|s| (s.time_s, s.strain)).collect()
     }
 
     /// The disks of snapshot `index`: name -> little-endian float64 bytes, one value per
@@ -595,7 +431,7 @@ impl Record {
     fn snapshot_fabric_json(&self, py: Python<'_>, index: usize) -> PyResult<String> {
         let s = self.snapshot(index)?;
         let json = py.detach(|| {
-            let fabric = s.fabric(&self.series, &self.path)?;
+            let fabric = s.fabric(&self.test.series, &self.test.path)?;
             serde_json::to_string(&fabric.analysis).map_err(|e| Error::Other(e.to_string()))
         });
         json.map_err(|e| py_err(py, e))
@@ -673,49 +509,57 @@ fn _cdlab(m: &Bound<'_, PyModule>) -> PyResult<()> {
 #[cfg(test)]
 mod tests {
     use super::in_python_terms;
+    use cdlab::Error;
+    use cdlab::error::{Remedy, RunFault, SampleProblem};
 
-    /// The library's messages that name command-line flags (issue 36, item 17: RunError
-    /// told a Python user to pass --force) come out as the package's calls: the occupied
-    /// directory's refusal as the library writes it, and the others as they are worded.
+    /// The library's messages name no command-line flag (issue 36, item 17: RunError told a
+    /// Python user to pass --force); the package adds each error's remedy as its own calls:
+    /// the occupied directory's refusal as the library makes it, and the other remedies.
     #[test]
     fn messages_name_the_package_calls_not_the_flags() {
         let dir = std::env::temp_dir().join(format!("cdlab-py-terms-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         std::fs::write(dir.join("x"), b"").unwrap();
-        let occupied = cdlab::run::check_out_dir(&dir, cdlab::run::Existing::Refuse)
-            .unwrap_err()
-            .to_string();
+        let occupied = cdlab::run::check_out_dir(&dir, cdlab::run::Existing::Refuse).unwrap_err();
         let _ = std::fs::remove_dir_all(&dir);
-        assert!(occupied.contains("--force"), "{occupied}");
         let d = dir.display().to_string();
-        let m = in_python_terms(&occupied);
         assert_eq!(
-            m,
+            in_python_terms(&occupied),
             format!(
-                "output directory {d} already holds files: pass force=True to replace them, \
-                 call cdlab.resume({d:?}) to continue that run, or give another out directory"
+                "output directory {d} already holds files: replace them, resume that run, or \
+                 write elsewhere (pass force=True to replace them, call cdlab.resume({d:?}) to \
+                 continue that run, or give another out directory)"
             )
         );
-        for (cli, py) in [
+        let run = |remedy| Error::Run {
+            path: "/r/a b/run.mcap".into(),
+            fault: RunFault::NoCheckpoint,
+            message: "no checkpoint".into(),
+            remedy: Some(remedy),
+        };
+        for (e, call) in [
             (
-                "run.mcap: damaged: `cdlab biaxial --resume /r/a b` recomputes the run",
-                "run.mcap: damaged: `cdlab.resume(\"/r/a b\")` recomputes the run",
+                Error::DamagedRecord {
+                    file: "/r/a b/run.mcap".into(),
+                    reason: "chunk CRC".into(),
+                },
+                "cdlab.resume(\"/r/a b\")",
             ),
+            (run(Remedy::StartAgain), "force=True"),
+            (run(Remedy::Resume("/r/a b".into())), "cdlab.resume(\"/r/a b\")"),
             (
-                "the record ends in phase compression (resume it with cdlab biaxial --resume)",
-                "the record ends in phase compression (resume it with cdlab.resume(path))",
+                Error::BadSample {
+                    path: "s.bin".into(),
+                    problem: SampleProblem::OldFormat { version: 1 },
+                },
+                "cdlab.prepare(config, out=\"s.bin\")",
             ),
-            (
-                "no checkpoint: start the run again with --force",
-                "no checkpoint: start the run again with force=True",
-            ),
-            (
-                "prepare it again (`cdlab prepare -o s.bin --force` with its settings)",
-                "prepare it again (`cdlab.prepare(config, out=\"s.bin\")` with its settings)",
-            ),
-            ("nothing to change here", "nothing to change here"),
+            (Error::Gpu("device lost".into()), "backend=\"cpu\""),
         ] {
-            assert_eq!(in_python_terms(cli), py);
+            let m = in_python_terms(&e);
+            assert!(m.contains(call) && !m.contains("--"), "{m}");
         }
+        let plain = Error::Other("nothing to change here".into());
+        assert_eq!(in_python_terms(&plain), "nothing to change here");
     }
 }

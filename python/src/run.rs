@@ -23,13 +23,13 @@ use pyo3::types::PyDict;
 use crate::{path_obj, py_err};
 
 /// A configuration given as JSON text (what `json.dumps` makes of a Python dict with the
-/// TOML file's keys and unit strings), read as the same TOML file would be: the dict goes
-/// through the TOML reader so that units and ranges are checked as for a file, and a value
-/// of the wrong type is an InvalidParameterError naming its key
-/// ([`Config::from_generated_toml`]), not a line of a TOML text the user never wrote.
+/// TOML file's keys and unit strings), deserialised straight into the library's
+/// configuration ([`Config::from_json_value`]): units and ranges are checked as for a file,
+/// and a value of the wrong type or an unknown key is an InvalidParameterError naming its
+/// key, not a line of a text the user never wrote.
 fn config_from_json(json: &str) -> cdlab::Result<Config> {
     let bad = |why: String| Error::Parse {
-        path: PathBuf::from("<config dict>"),
+        path: PathBuf::from(CONFIG_DICT),
         line: 0,
         message: why,
     };
@@ -37,10 +37,11 @@ fn config_from_json(json: &str) -> cdlab::Result<Config> {
     if !value.is_object() {
         return Err(bad("the configuration must be a dict of sections".into()));
     }
-    let table = toml::Value::try_from(value).map_err(|e| bad(format!("not expressible as TOML: {e}")))?;
-    let text = toml::to_string(&table).map_err(|e| bad(format!("not expressible as TOML: {e}")))?;
-    Config::from_generated_toml(&text, "<config dict>")
+    Config::from_json_value(value, CONFIG_DICT)
 }
+
+/// How errors of a configuration given as a dict name their source.
+const CONFIG_DICT: &str = "<config dict>";
 
 /// The configuration of a call: a dict (as JSON), a TOML file, or the built-in default;
 /// then the output directory and backend, validated (what `cdlab biaxial --config FILE

@@ -2,7 +2,8 @@
 //!
 //! The documented default file is `assets/default.toml` ([`Config::default_toml`]); every
 //! key may be omitted, unknown keys are errors. Quantities carry units ([`units`]).
-//! Reading a file ([`Config::load`], [`Config::from_toml_str`]) also validates it, so a
+//! Reading a file ([`Config::load`], [`Config::from_toml_str`]) or a JSON value that a
+//! program built ([`Config::from_json_value`]) also validates it, so a
 //! configuration in hand is always in range; command-line [`Overrides`] are applied on top
 //! and must be followed by [`Config::validate`].
 
@@ -140,6 +141,21 @@ pub fn plain_words(message: &str) -> String {
     out
 }
 
+/// A deserialiser's message about a value ("invalid value: integer `-5`, expected a whole
+/// number >= 0", in [`plain_words`]) as the allowed form of [`Error::Invalid`]: "must be
+/// a whole number >= 0, not integer `-5`". Other messages (an unknown key, a unit of the
+/// wrong dimension) are kept as they are.
+fn allowed_of(message: &str) -> String {
+    ["invalid value: ", "invalid type: "]
+        .iter()
+        .find_map(|p| message.strip_prefix(p))
+        .and_then(|m| m.split_once(", expected "))
+        .map_or_else(
+            || message.to_string(),
+            |(got, want)| format!("must be {want}, not {got}"),
+        )
+}
+
 /// Largest configuration or sweep file read (1 MiB): the default configuration, comments
 /// included, is a few kilobytes, so anything larger is the wrong file (or `/dev/zero`), and
 /// reading it whole would take all the memory there is.
@@ -249,39 +265,37 @@ impl Config {
         Ok(config)
     }
 
-    /// Parses and validates TOML text that a program made from other values (the Python
-    /// package's dicts): nobody wrote its lines, so a value of the wrong type is an
-    /// [`Error::Invalid`] naming its key and value rather than a line of the text; only
-    /// what names no key (a key that does not exist, a section that is not a table) is an
-    /// [`Error::Parse`] of `source`, without a line.
-    pub fn from_generated_toml(text: &str, source: &str) -> Result<Self> {
-        let config: Config = toml::from_str(text).map_err(|e| {
-            let start = e.span().map(|s| s.start.min(text.len()));
-            let at_key = start.and_then(|s| key_at(text, s).map(|k| (s, k)));
-            match at_key {
-                Some((s, key)) => {
-                    let line_start = text[..s].rfind('\n').map_or(0, |k| k + 1);
-                    let value = text[line_start..]
-                        .lines()
-                        .next()
-                        .and_then(|l| l.split_once('='))
-                        .map_or("", |(_, v)| v.trim());
-                    let message = plain_words(e.message());
-                    // "invalid value: integer `-5`, expected a whole number >= 0"
-                    let allowed = ["invalid value: ", "invalid type: "]
-                        .iter()
-                        .find_map(|p| message.strip_prefix(p))
-                        .and_then(|m| m.split_once(", expected "))
-                        .map_or_else(
-                            || message.clone(),
-                            |(got, want)| format!("must be {want}, not {got}"),
-                        );
-                    Error::invalid(&key, value, &allowed)
+    /// Deserialises and validates a configuration given as a JSON value with the sections
+    /// and keys of the TOML file (quantities as SI numbers or unit strings, `"8 MPa"`, as in
+    /// a file): what a program builds (the Python package's dicts), read with serde
+    /// directly. Nobody wrote its lines, so a value of the wrong type or a key that does not
+    /// exist is an [`Error::Invalid`] naming the dotted key (`sample.disks`) and the value,
+    /// in words rather than Rust types; only what names no key (the value is not an object)
+    /// is an [`Error::Parse`] of `source`, without a line.
+    pub fn from_json_value(value: serde_json::Value, source: &str) -> Result<Self> {
+        // The value is consumed by the deserialiser: a copy gives the offending value for
+        // the message, and configurations are a few hundred bytes.
+        let copy = value.clone();
+        let config: Config = serde_path_to_error::deserialize(value).map_err(|e| {
+            let keys: Option<Vec<&str>> = e
+                .path()
+                .iter()
+                .map(|s| match s {
+                    serde_path_to_error::Segment::Map { key } => Some(key.as_str()),
+                    _ => None,
+                })
+                .collect();
+            let message = plain_words(&e.inner().to_string());
+            match keys {
+                Some(keys) if !keys.is_empty() => {
+                    let at = keys.iter().try_fold(&copy, |v, k| v.get(k));
+                    let value = at.map_or_else(String::new, |v| v.to_string());
+                    Error::invalid(&keys.join("."), value, &allowed_of(&message))
                 }
-                None => Error::Parse {
+                _ => Error::Parse {
                     path: source.into(),
                     line: 0,
-                    message: plain_words(e.message()),
+                    message,
                 },
             }
         })?;

@@ -237,14 +237,14 @@ fn the_default_protocol_follows_the_configuration() {
     assert_eq!(c, Config::default());
 }
 
-/// A value of the wrong type in text a program made (the Python package's dicts) names its
-/// key and value, in words rather than Rust types, and no line of a text nobody wrote; in
-/// a file the line stays, in the same words (issue 36, item 17: "line 2: ... invalid
-/// value: integer -5, expected usize").
+/// A value of the wrong type in a configuration a program built (the Python package's
+/// dicts, as JSON) names its key and value, in words rather than Rust types, and no line of
+/// a text nobody wrote; in a file the line stays, in the same words (issue 36, item 17:
+/// "line 2: ... invalid value: integer -5, expected usize").
 #[test]
 fn a_value_of_the_wrong_type_names_its_key_in_plain_words() {
-    let text = "[sample]\ndisks = -5\n";
-    match Config::from_generated_toml(text, "<config dict>") {
+    let json = |text: &str| serde_json::from_str::<serde_json::Value>(text).unwrap();
+    match Config::from_json_value(json(r#"{"sample": {"disks": -5}}"#), "<config dict>") {
         Err(Error::Invalid {
             field,
             value,
@@ -256,9 +256,13 @@ fn a_value_of_the_wrong_type_names_its_key_in_plain_words() {
         }
         other => panic!("{other:?}"),
     }
-    match Config::from_generated_toml("[test]\nmu = \"much\"\n", "<config dict>") {
-        Err(Error::Invalid { field, allowed, .. }) => {
-            assert_eq!(field, "test.mu");
+    match Config::from_json_value(json(r#"{"test": {"mu": "much"}}"#), "<config dict>") {
+        Err(Error::Invalid {
+            field,
+            value,
+            allowed,
+        }) => {
+            assert_eq!((field.as_str(), value.as_str()), ("test.mu", "\"much\""));
             assert!(
                 allowed.contains("a number") && !allowed.contains("f64"),
                 "{allowed}"
@@ -266,6 +270,24 @@ fn a_value_of_the_wrong_type_names_its_key_in_plain_words() {
         }
         other => panic!("{other:?}"),
     }
+    // A key that does not exist is named with its section, like a value.
+    match Config::from_json_value(json(r#"{"sample": {"diskz": 300}}"#), "<config dict>") {
+        Err(Error::Invalid {
+            field,
+            value,
+            allowed,
+        }) => {
+            assert_eq!((field.as_str(), value.as_str()), ("sample.diskz", "300"));
+            assert!(allowed.contains("unknown field"), "{allowed}");
+        }
+        other => panic!("{other:?}"),
+    }
+    // What names no key is a parse error of the source, without a line.
+    match Config::from_json_value(json("[1, 2]"), "<config dict>") {
+        Err(Error::Parse { path, line: 0, .. }) => assert_eq!(path, Path::new("<config dict>")),
+        other => panic!("{other:?}"),
+    }
+    let text = "[sample]\ndisks = -5\n";
     match Config::from_toml_str(text) {
         Err(e @ Error::Parse { line: 2, .. }) => {
             let m = e.to_string();
@@ -294,4 +316,22 @@ fn a_new_time_step_derives_its_velocity_tolerances() {
             "{got} against {want}"
         );
     }
+}
+
+/// A configuration given as JSON reads as the same TOML file does: quantities as unit
+/// strings or SI numbers, every other key at its default, and validated (a confining
+/// stress below zero is refused after it deserialises).
+#[test]
+fn a_json_configuration_reads_as_the_same_toml_file() {
+    let toml = "[sample]\ndisks = 2000\nr_min = \"400 mm\"\n[test]\nsigma3 = \"2 MPa\"\nmu = 0.3\n";
+    let json = serde_json::json!({
+        "sample": {"disks": 2000, "r_min": "400 mm"},
+        "test": {"sigma3": "2 MPa", "mu": 0.3},
+    });
+    let from_json = Config::from_json_value(json, "<config dict>").unwrap();
+    assert_eq!(from_json, Config::from_toml_str(toml).unwrap());
+    assert_eq!(from_json.test.sigma3.si(), 2e6);
+    assert_eq!(from_json.sample.r_min.si(), 0.4);
+    let negative = serde_json::json!({"test": {"sigma3": "-1 MPa"}});
+    assert!(Config::from_json_value(negative, "<config dict>").is_err());
 }

@@ -37,7 +37,7 @@ pub use crate::measure::SeriesRow;
 pub use fabric::{SnapshotFabric, nearest_snapshot, pick_snapshot, read_snapshots, rotation_reference};
 pub use lock::{LOCK_FILE, RunLock};
 pub use reader::{RunRecord, is_archived, parse_run, read_config, read_run, read_run_id, read_series};
-pub use series::{SERIES_FIELDS, csv_header, parse_csv, series_json_schema};
+pub use series::{SERIES_FIELDS, SeriesColumn, csv_header, parse_csv, series_column, series_json_schema};
 pub use snapshot::{ContactClass, ContactRecord, DiskRecord, SNAPSHOT_SCHEMA, Snapshot};
 pub use writer::{RecordHead, Recorder, new_run_id};
 

@@ -100,6 +100,60 @@ pub const SERIES_FIELDS: &[(&str, &str, &str)] = &[
     ),
 ];
 
+/// One column of a series, typed as [`SERIES_FIELDS`] says ([`series_column`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum SeriesColumn {
+    /// A "number" column (NaN where a row holds none).
+    Number(Vec<f64>),
+    /// An "integer" column.
+    Integer(Vec<u64>),
+    /// A "string" column (the phase).
+    Text(Vec<String>),
+}
+
+/// The column `name` of [`SERIES_FIELDS`] over `rows`, read from the typed rows (no JSON
+/// per cell: what the Python package hands to NumPy); `None` for a name that is no column.
+pub fn series_column(rows: &[SeriesRow], name: &str) -> Option<SeriesColumn> {
+    let number = |f: fn(&SeriesRow) -> f64| SeriesColumn::Number(rows.iter().map(f).collect());
+    let integer = |f: fn(&SeriesRow) -> u64| SeriesColumn::Integer(rows.iter().map(f).collect());
+    Some(match name {
+        "time_s" => number(|r| r.time_s),
+        "step" => integer(|r| r.step),
+        "phase" => SeriesColumn::Text(rows.iter().map(|r| r.phase.clone()).collect()),
+        "strain_axial" => number(|r| r.strain_axial),
+        "sigma1_pa" => number(|r| r.sigma1_pa),
+        "sigma3_pa" => number(|r| r.sigma3_pa),
+        "volumetric_strain" => number(|r| r.volumetric_strain),
+        "n_contacts" => integer(|r| r.n_contacts),
+        "n_force" => integer(|r| r.n_force),
+        "n_rolling" => integer(|r| r.n_rolling),
+        "n_sliding" => integer(|r| r.n_sliding),
+        "n_zero_force" => integer(|r| r.n_zero_force),
+        "coordination" => number(|r| r.coordination),
+        "isolated_fraction" => number(|r| r.isolated_fraction),
+        "overlap_mean_rel" => number(|r| r.overlap_mean_rel),
+        "overlap_max_rel" => number(|r| r.overlap_max_rel),
+        "iterations" => number(|r| r.iterations),
+        "iterations_max" => integer(|r| r.iterations_max),
+        "kinetic_energy_j" => number(|r| r.kinetic_energy_j),
+        "inertial_number" => number(|r| r.inertial_number),
+        "height_m" => number(|r| r.height_m),
+        "width_m" => number(|r| r.width_m),
+        "wall_s" => number(|r| r.wall_s),
+        "deep_contacts" => number(|r| r.deep_contacts),
+        "a_c" => number(|r| r.a_c),
+        "theta_c_deg" => number(|r| r.theta_c_deg),
+        "a_n" => number(|r| r.a_n),
+        "a_t" => number(|r| r.a_t),
+        "strong_fraction" => number(|r| r.strong_fraction),
+        "strong_q_share" => number(|r| r.strong_q_share),
+        "lw_sigma1_pa" => number(|r| r.lw_sigma1_pa),
+        "lw_sigma3_pa" => number(|r| r.lw_sigma3_pa),
+        "rose_max_dev" => number(|r| r.rose_max_dev),
+        _ => return None,
+    })
+}
+
 /// The JSON schema of `/series` messages (Foxglove uses it to offer the fields in plots).
 pub fn series_json_schema() -> String {
     let props: serde_json::Map<String, serde_json::Value> = SERIES_FIELDS

@@ -317,6 +317,46 @@ fn series_table_matches_the_struct() {
     assert_eq!(schema["properties"].as_object().unwrap().len(), obj.len());
 }
 
+/// Every column of [`SERIES_FIELDS`] read from the typed rows ([`series_column`]) is of
+/// the table's type and holds, row by row, what the row's JSON holds under that name (NaN
+/// for null): the Python package's DataFrame is built from these columns.
+#[test]
+fn series_columns_hold_the_rows_fields_by_name() {
+    let mut rows: Vec<SeriesRow> = [1, 2, 7, 60].into_iter().map(row).collect();
+    rows[2].a_t = f64::NAN;
+    let json: Vec<serde_json::Value> = rows.iter().map(|r| serde_json::to_value(r).unwrap()).collect();
+    for (name, ty, _) in SERIES_FIELDS {
+        let column = series_column(&rows, name).unwrap_or_else(|| panic!("no column {name}"));
+        let cells = json.iter().map(|v| &v[*name]);
+        match (*ty, column) {
+            ("string", SeriesColumn::Text(c)) => {
+                assert!(
+                    cells
+                        .map(|v| v.as_str().unwrap())
+                        .eq(c.iter().map(String::as_str)),
+                    "{name}"
+                )
+            }
+            ("integer", SeriesColumn::Integer(c)) => {
+                assert!(cells.map(|v| v.as_u64().unwrap()).eq(c.iter().copied()), "{name}")
+            }
+            ("number", SeriesColumn::Number(c)) => {
+                let bits = |x: f64| {
+                    if x.is_nan() {
+                        f64::NAN.to_bits()
+                    } else {
+                        x.to_bits()
+                    }
+                };
+                let want = cells.map(|v| bits(v.as_f64().unwrap_or(f64::NAN)));
+                assert!(want.eq(c.iter().map(|x| bits(*x))), "{name}");
+            }
+            (ty, c) => panic!("{name}: a {ty} column given as {c:?}"),
+        }
+    }
+    assert!(series_column(&rows, "nothing").is_none());
+}
+
 #[test]
 fn non_finite_series_values_come_back_as_nan() {
     let mut r = row(1);
@@ -476,8 +516,14 @@ fn archived_test_gives_its_series_and_says_it_has_no_record() {
     assert_eq!(read_config(&tmp.0).unwrap(), Config::default());
     let e = read_run(&tmp.0).unwrap_err();
     let text = e.to_string();
-    assert!(text.contains("archived test") && text.contains("thinned series"), "{text}");
-    assert_eq!(e.remedy(), Some(crate::error::Remedy::UseThinnedSeries(tmp.0.clone())));
+    assert!(
+        text.contains("archived test") && text.contains("thinned series"),
+        "{text}"
+    );
+    assert_eq!(
+        e.remedy(),
+        Some(crate::error::Remedy::UseThinnedSeries(tmp.0.clone()))
+    );
 }
 
 /// Every single-bit flip in a record, wherever it lands, gives either an error naming the

@@ -9,6 +9,8 @@
 //!   (any `FnMut(&Event)` closure is one) and stop at a checkpoint when their
 //!   [`Cancel`] token is set, returning [`crate::Error::Interrupted`];
 //! - [`open`] reads a finished run back: configuration, summary, series and snapshots;
+//!   [`open_test`] reads a run or an archived test alike, with the same checks (what the
+//!   Python package's `cdlab.open` is);
 //! - [`write_curves`] draws a run's figures, [`write_comparison`] several runs' curves on
 //!   common axes, [`summarize`] writes its summary again from its record.
 //!
@@ -58,7 +60,7 @@ use std::path::{Path, PathBuf};
 pub use crate::interrupt::Cancel;
 pub use backend::open_backend;
 pub use compare::write_comparison;
-pub use open::{FinishedRun, open, write_curves};
+pub use open::{FinishedRun, OpenedTest, TestKind, open, open_test, write_curves};
 pub use recording::{Recording, snapshot};
 pub use sample::{
     Prepared, PreparedSample, adopt_sample, differences, prepare, read_sample, sample_differences,
