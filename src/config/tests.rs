@@ -335,3 +335,31 @@ fn a_json_configuration_reads_as_the_same_toml_file() {
     let negative = serde_json::json!({"test": {"sigma3": "-1 MPa"}});
     assert!(Config::from_json_value(negative, "<config dict>").is_err());
 }
+
+/// A value the protocol takes as it is has one check, the protocol's: the configuration's
+/// error for it is the protocol parameters' own, word for word.
+#[test]
+fn values_the_protocol_takes_as_they_are_are_checked_by_it() {
+    for (setting, field) in [
+        ("[sample]\ndisks = 10", "sample.disks"),
+        ("[sample]\nr_max = \"0.1 m\"", "sample.r_max"),
+        ("[sample]\ndensity = \"1e13 kg/m3\"", "sample.density"),
+        ("[solver]\ndt = \"2 s\"", "solver.dt"),
+        ("[solver]\ntheta = 0.3", "solver.theta"),
+        ("[solver]\ntol = 1.5", "solver.tol"),
+        ("[solver]\njacobi_relax = 0.0", "solver.jacobi_relax"),
+        ("[test]\nsigma3 = 8", "test.sigma3"),
+        ("[test]\nstrain_end = 1.5", "test.strain_end"),
+        ("[test]\naxial_velocity = \"1e9 m/s\"", "test.axial_velocity"),
+        ("[equilibrium]\nmax_time = \"0 s\"", "equilibrium.max_time"),
+    ] {
+        let c: Config = toml::from_str(setting).unwrap();
+        let from_config = c.validate().unwrap_err();
+        let from_protocol = c.protocol().validate().unwrap_err();
+        assert_eq!(from_config.to_string(), from_protocol.to_string(), "{setting}");
+        assert!(
+            matches!(&from_config, crate::Error::Invalid { field: f, .. } if f == field),
+            "{setting}: {from_config}"
+        );
+    }
+}

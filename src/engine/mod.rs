@@ -44,6 +44,7 @@ impl StepParams {
     /// Rejects dt <= 0, theta outside [0.5, 1], negative distances and bad solver settings.
     pub fn validate(&self) -> Result<()> {
         check_positive("solver.dt", self.dt)?;
+        crate::protocol::limits::check_time_step("solver.dt", self.dt)?;
         check_range("solver.theta", self.theta, 0.5, 1.0)?;
         check_non_negative("solver.alert", self.alert)?;
         check_positive("solver.overlap_limit", self.overlap_limit)?;

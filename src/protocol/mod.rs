@@ -9,6 +9,7 @@
 pub mod biaxial;
 pub mod checkpoint;
 mod gauge;
+pub mod limits;
 pub mod prepare;
 pub mod sample_file;
 
@@ -178,61 +179,118 @@ pub struct ProtocolParams {
 }
 
 impl ProtocolParams {
-    /// Rejects values the protocol cannot run with, naming the field.
+    /// Rejects values the protocol cannot run with, naming each by its configuration key:
+    /// the one check of every parameter a configuration gives in these units (the
+    /// configuration checks only what it holds in other forms, [`crate::config::Config::validate`]).
     pub fn validate(&self) -> Result<()> {
-        if self.disks < 50 {
-            return Err(Error::invalid(
-                "sample.disks",
-                self.disks,
-                "must be >= 50 (the strips and glued walls need disks)",
-            ));
-        }
+        use limits::{COMPACTED_WIDTH, check_at_least, check_disk_count, check_open, check_pressure};
+        // Each side strip is a few disks thick; below ~50 disks there is no bulk between them.
+        check_at_least(
+            "sample.disks",
+            self.disks as u64,
+            50,
+            "the deformable-wall strips need disks on both sides of a bulk",
+        )?;
+        check_disk_count("sample.disks", self.disks)?;
         check_positive("sample.r_min", self.r_min)?;
-        if self.r_max.is_nan() || self.r_max < self.r_min || !self.r_max.is_finite() {
+        if !(self.r_max.is_finite() && self.r_max >= self.r_min) {
             return Err(Error::invalid(
                 "sample.r_max",
-                self.r_max,
-                &format!("must be finite and >= sample.r_min = {}", self.r_min),
+                format!("{} m", self.r_max),
+                &format!("must be finite and >= sample.r_min = {} m", self.r_min),
             ));
         }
         check_positive("sample.density", self.density)?;
-        check_positive("sample.aspect", self.aspect)?;
-        check_positive("compaction.sigma_c", self.sigma_c)?;
+        // Masses, inverse masses and kinetic energies stay finite and normal far beyond
+        // any material (aerogels to osmium, 1 to 22,600 kg/m3) and the density scaling of
+        // quasi-static studies; 1e308 overflowed the masses and 1e-320 their inverses.
+        if !(1e-6..=1e12).contains(&self.density) {
+            return Err(Error::invalid(
+                "sample.density",
+                format!("{} kg/m3", self.density),
+                "must lie in [1e-6, 1e12] kg/m3 (the masses and their inverses must stay finite)",
+            ));
+        }
+        check_positive("sample.aspect_ratio", self.aspect)?;
+        // The deposit box's width comes from it: 1e-320 made the width infinite.
+        if !(0.01..=100.0).contains(&self.aspect) {
+            return Err(Error::invalid(
+                "sample.aspect_ratio",
+                self.aspect,
+                "must lie in [0.01, 100] (sample height over width)",
+            ));
+        }
         self.step.validate()?;
+        check_positive("compaction.sigma_c", self.sigma_c)?;
+        check_pressure("compaction.sigma_c", self.sigma_c)?;
+        crate::error::check_non_negative("compaction.friction", self.mu_compaction)?;
         crate::error::check_non_negative("test.mu", self.mu)?;
-        crate::error::check_non_negative("test.mu_wall", self.mu_wall)?;
+        crate::error::check_non_negative("test.wall_mu", self.mu_wall)?;
+        check_positive("test.sigma3", self.sigma3)?;
+        check_pressure("test.sigma3", self.sigma3)?;
+        check_positive("test.strip_thickness", self.strip_thickness)?;
+        // The strips need a core between them, which the confinement checks on the compacted
+        // sample; a sample too narrow for them by far is refused here, before minutes of
+        // deposition and compaction, from the width its disk count gives.
+        let width =
+            crate::sample::box_width_for(self.disks, self.r_min, self.r_max, self.aspect) * COMPACTED_WIDTH;
+        let need = 2.0 * self.strip_thickness + 2.0 * self.r_max;
+        if width <= need {
+            let area = crate::sample::mean_area(self.r_min, self.r_max);
+            let min = (need / COMPACTED_WIDTH).powi(2) * crate::sample::DEPOSIT_PACKING * self.aspect / area;
+            return Err(Error::invalid(
+                "sample.disks",
+                self.disks,
+                &format!(
+                    "a sample of {} disks will be about {width:.1} m wide once compacted, too \
+                     narrow for two strips of test.strip_thickness = {} m and a core (at least \
+                     {need:.1} m): use more than {} disks or thinner strips",
+                    self.disks,
+                    self.strip_thickness,
+                    min.ceil() as u64
+                ),
+            ));
+        }
+        check_positive("test.axial_velocity", self.axial_velocity)?;
+        // The top wall's travel per step, against the smallest disk: more than a tenth of
+        // r_min per step is an impact, not a quasi-static test (1e308 m/s gave an infinite
+        // travel); below 1e-9 r_min the test never ends (1e-320 m/s wrote 118 MB of rows
+        // without moving).
+        let travel = self.axial_velocity * self.step.dt / self.r_min;
+        if !(1e-9..=0.1).contains(&travel) {
+            return Err(Error::invalid(
+                "test.axial_velocity",
+                format!("{} m/s", self.axial_velocity),
+                &format!(
+                    "moves the top wall by {travel:.3e} r_min per step (solver.dt = {} s, \
+                     sample.r_min = {} m): keep it between 1e-9 and 0.1",
+                    self.step.dt, self.r_min
+                ),
+            ));
+        }
+        check_open("test.strain_end", self.strain_end, 0.0, 1.0)?;
         check_range("test.e_n", self.e_n, 0.0, 1.0)?;
         check_range("test.e_t", self.e_t, -1.0, 1.0)?;
-        check_positive("test.sigma3", self.sigma3)?;
-        check_positive("test.strip_thickness", self.strip_thickness)?;
-        check_positive("test.axial_velocity", self.axial_velocity)?;
-        if !(self.strain_end > 0.0 && self.strain_end < 1.0) {
-            return Err(Error::invalid(
-                "test.strain_end",
-                self.strain_end,
-                "must lie in (0, 1)",
-            ));
-        }
-        check_positive("equilibrium.kinetic_ratio", self.equilibrium.kinetic_ratio)?;
-        check_positive(
-            "equilibrium.runaway_kinetic_ratio",
-            self.equilibrium.runaway_kinetic_ratio,
+        let e = &self.equilibrium;
+        check_positive("equilibrium.kinetic_ratio", e.kinetic_ratio)?;
+        check_positive("equilibrium.runaway_kinetic_ratio", e.runaway_kinetic_ratio)?;
+        check_positive("equilibrium.compaction_kinetic_ratio", e.compaction_kinetic_ratio)?;
+        check_positive("equilibrium.force_imbalance", e.force_imbalance)?;
+        crate::error::check_non_negative("equilibrium.creep_rate", e.creep_rate)?;
+        check_at_least("equilibrium.hold_steps", e.window.into(), 1, "a number of steps")?;
+        check_positive("equilibrium.max_time", e.max_time)?;
+        check_at_least(
+            "output.series_every",
+            self.series_every.into(),
+            1,
+            "a number of steps",
         )?;
-        check_positive(
-            "equilibrium.compaction_kinetic_ratio",
-            self.equilibrium.compaction_kinetic_ratio,
+        check_at_least(
+            "output.checkpoint_every",
+            self.checkpoint_every.into(),
+            1,
+            "a number of steps",
         )?;
-        crate::error::check_non_negative("compaction.friction", self.mu_compaction)?;
-        check_positive("equilibrium.force_imbalance", self.equilibrium.force_imbalance)?;
-        crate::error::check_non_negative("equilibrium.creep_rate", self.equilibrium.creep_rate)?;
-        check_positive("equilibrium.max_time", self.equilibrium.max_time)?;
-        if self.equilibrium.window == 0 || self.series_every == 0 || self.checkpoint_every == 0 {
-            return Err(Error::invalid(
-                "equilibrium.window / output.series_every / output.checkpoint_every",
-                0,
-                "must be >= 1",
-            ));
-        }
         crate::error::check_non_negative("output.snapshot_every", self.snapshot_every)?;
         Ok(())
     }

@@ -21,7 +21,7 @@ pub mod sweep;
 mod team;
 mod update;
 
-use crate::error::{Error, Result, check_positive};
+use crate::error::{Error, Result};
 
 /// Order in which contacts are updated.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -285,13 +285,10 @@ impl SolverParams {
 
     /// Rejects a non-positive tolerance, a zero iteration cap and a relaxation outside (0, 1].
     pub fn validate(&self) -> Result<()> {
-        check_positive("solver.tol", self.tol)?;
-        if self.max_iter == 0 {
-            return Err(Error::invalid("solver.max_iter", 0, "must be >= 1"));
-        }
-        if !(self.relax > 0.0 && self.relax <= 1.0) {
-            return Err(Error::invalid("solver.relax", self.relax, "must lie in (0, 1]"));
-        }
+        use crate::protocol::limits::{check_at_least, check_half_open, check_open};
+        check_open("solver.tol", self.tol, 0.0, 1.0)?;
+        check_at_least("solver.max_iter", self.max_iter.into(), 1, "at least one sweep")?;
+        check_half_open("solver.jacobi_relax", self.relax, 0.0, 1.0)?;
         if !(self.gs_relax > 0.0 && self.gs_relax <= 1.0) {
             return Err(Error::invalid(
                 "solver.gs_relax",
