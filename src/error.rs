@@ -54,59 +54,10 @@ pub enum Error {
         /// The step of the checkpoint written, 0 when none was.
         step: u64,
     },
-    /// A GPU adapter or device problem.
-    #[error("GPU: {0}")]
-    Gpu(String),
-    /// The environment variable `WGPU_BACKEND` names a backend wgpu does not know: wgpu
-    /// would ignore it and find no adapter. Unset it, or name those of `accepted`.
-    #[error(
-        "GPU: the environment variable WGPU_BACKEND = `{value}` names no GPU backend ({}): use one \
-         or more, comma-separated, of {} (e.g. WGPU_BACKEND=vulkan), or unset it to try them all",
-        unknown.iter().map(|b| format!("`{b}`")).collect::<Vec<_>>().join(", "),
-        accepted.join(", ")
-    )]
-    GpuBackendEnv {
-        /// The variable's value.
-        value: String,
-        /// The names in it that are no backend.
-        unknown: Vec<String>,
-        /// The names wgpu accepts (`crate::gpu::device::BACKEND_NAMES`).
-        accepted: &'static [&'static str],
-    },
-    /// No GPU adapter at all: the machine has no driver wgpu can use. Kept apart from
-    /// [`Error::Gpu`] so that a caller can tell "no GPU here" (a test may skip) from a GPU
-    /// that fails (a shader rejected, a buffer over a limit: always an error).
-    #[error("GPU: {0}")]
-    NoAdapter(String),
-    /// A buffer the sample needs is larger than the adapter allows (checked before any
-    /// allocation). The way out: a sample of about `fits_disks` disks, an adapter with
-    /// larger limits, or the CPU path.
-    #[error(
-        "GPU: the {what} buffer needs {bytes} bytes but the adapter's {limit_name} is {limit}: \
-         the largest sample that fits is about {fits_disks} disks"
-    )]
-    GpuLimit {
-        /// Which buffer (disk, contact, integer scratch, ...).
-        what: String,
-        /// Bytes it needs.
-        bytes: u64,
-        /// The wgpu limit it exceeds (`max_storage_buffer_binding_size`, `max_buffer_size`).
-        limit_name: &'static str,
-        /// That limit's value on this adapter (bytes).
-        limit: u64,
-        /// Estimate of the largest sample that fits (disks; sizes grow linearly with them).
-        fits_disks: u64,
-    },
-    /// A compute shader of cdlab that naga rejects before it reaches the driver: a bug in
-    /// the crate (the shaders are checked by tests/gpu.rs and tests/gpu_layout.rs), not in
-    /// the input; the CPU path still runs.
-    #[error("GPU: shader {file} is invalid (a bug in cdlab; the CPU backend runs without it): {message}")]
-    GpuShader {
-        /// The phase shader file in `shaders/`.
-        file: String,
-        /// naga's diagnostic, with the line in the composed source.
-        message: String,
-    },
+    /// The GPU: no adapter, a device or shader that fails, a buffer over a limit, a bad
+    /// `WGPU_BACKEND` ([`GpuError`]).
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
     // Files a caller can act on (read again, prepare again, wait, skip): each names what
     // is at fault; the messages are those the command line prints.
     /// A path that names no file (`/`, `..`) where a file is to be written
@@ -238,6 +189,70 @@ pub enum Error {
     Other(String),
 }
 
+/// What went wrong with the GPU ([`Error::Gpu`]).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum GpuError {
+    /// The device failed (validation, memory, a lost device), or could not be opened.
+    #[error("GPU: {0}")]
+    Failure(String),
+    /// The environment variable `WGPU_BACKEND` names a backend wgpu does not know: wgpu
+    /// would ignore it and find no adapter. Unset it, or name those of `accepted`.
+    #[error(
+        "GPU: the environment variable WGPU_BACKEND = `{value}` names no GPU backend ({}): use one \
+         or more, comma-separated, of {} (e.g. WGPU_BACKEND=vulkan), or unset it to try them all",
+        unknown.iter().map(|b| format!("`{b}`")).collect::<Vec<_>>().join(", "),
+        accepted.join(", ")
+    )]
+    BackendEnv {
+        /// The variable's value.
+        value: String,
+        /// The names in it that are no backend.
+        unknown: Vec<String>,
+        /// The names wgpu accepts (`crate::gpu::device::BACKEND_NAMES`).
+        accepted: &'static [&'static str],
+    },
+    /// No GPU adapter at all: the machine has no driver wgpu can use. Kept apart from the
+    /// others so that a caller can tell "no GPU here" (a test may skip) from a GPU that
+    /// fails (a shader rejected, a buffer over a limit: always an error).
+    #[error("GPU: {0}")]
+    NoAdapter(String),
+    /// A buffer the sample needs is larger than the adapter allows (checked before any
+    /// allocation). The way out: a sample of about `fits_disks` disks, an adapter with
+    /// larger limits, or the CPU path.
+    #[error(
+        "GPU: the {what} buffer needs {bytes} bytes but the adapter's {limit_name} is {limit}: \
+         the largest sample that fits is about {fits_disks} disks"
+    )]
+    Limit {
+        /// Which buffer (disk, contact, integer scratch, ...).
+        what: String,
+        /// Bytes it needs.
+        bytes: u64,
+        /// The wgpu limit it exceeds (`max_storage_buffer_binding_size`, `max_buffer_size`).
+        limit_name: &'static str,
+        /// That limit's value on this adapter (bytes).
+        limit: u64,
+        /// Estimate of the largest sample that fits (disks; sizes grow linearly with them).
+        fits_disks: u64,
+    },
+    /// A compute shader of cdlab that naga rejects before it reaches the driver: a bug in
+    /// the crate (the shaders are checked by tests/gpu.rs and tests/gpu_layout.rs), not in
+    /// the input; the CPU path still runs.
+    #[error("GPU: shader {file} is invalid (a bug in cdlab; the CPU backend runs without it): {message}")]
+    Shader {
+        /// The phase shader file in `shaders/`.
+        file: String,
+        /// naga's diagnostic, with the line in the composed source.
+        message: String,
+    },
+}
+
+/// A failure of the GPU device ([`GpuError::Failure`]) as an [`Error`].
+pub fn gpu_failure(message: impl Into<String>) -> Error {
+    Error::Gpu(GpuError::Failure(message.into()))
+}
+
 impl Error {
     /// What a user can do about this error, for the front end to say in its own terms
     /// (the command line's flags, the Python package's calls): the library's messages name
@@ -252,7 +267,7 @@ impl Error {
                 path,
                 problem: SampleProblem::OldFormat { .. } | SampleProblem::Checksum { .. },
             } => Some(Remedy::PrepareAgain(path.clone())),
-            Error::Gpu(_) | Error::GpuShader { .. } => Some(Remedy::UseCpu),
+            Error::Gpu(GpuError::Failure(_) | GpuError::Shader { .. }) => Some(Remedy::UseCpu),
             Error::Archived { dir, .. } => Some(Remedy::UseThinnedSeries(dir.clone())),
             _ => None,
         }

@@ -17,7 +17,7 @@ use gpu_support::*;
 fn assert_gpu_failure(e: cdlab::Error, adapter: &str, what: &str) {
     let text = e.to_string();
     assert!(
-        matches!(e, cdlab::Error::Gpu(_)),
+        matches!(e, cdlab::Error::Gpu(cdlab::error::GpuError::Failure(_))),
         "{what}: not a GPU error: {text}"
     );
     assert!(
@@ -89,8 +89,12 @@ fn gpu_errors_come_back_as_cdlab_errors_naming_the_adapter() {
 #[test]
 fn only_a_missing_adapter_is_a_skip() {
     use std::panic::{AssertUnwindSafe, catch_unwind};
-    let no_adapter = || Err::<(), _>(cdlab::Error::NoAdapter("no adapter".into()));
-    let failing = || Err::<(), _>(cdlab::Error::Gpu("shader rejected by the driver".into()));
+    let no_adapter = || {
+        Err::<(), _>(cdlab::Error::Gpu(cdlab::error::GpuError::NoAdapter(
+            "no adapter".into(),
+        )))
+    };
+    let failing = || Err::<(), _>(cdlab::error::gpu_failure("shader rejected by the driver"));
     // The skip lines of these made-up cases are kept here, not printed.
     let mut said = Vec::new();
     assert_eq!(decide_to("t", no_adapter(), false, &mut said), None);
@@ -110,7 +114,9 @@ fn only_a_missing_adapter_is_a_skip() {
     }
     assert!(said.is_empty(), "{}", String::from_utf8_lossy(&said));
     // The device's own "no adapter" comes back as the distinct variant, not as Error::Gpu.
-    let e = cdlab::Error::NoAdapter(cdlab::gpu::device::NO_ADAPTER.into());
+    let e = cdlab::Error::Gpu(cdlab::error::GpuError::NoAdapter(
+        cdlab::gpu::device::NO_ADAPTER.into(),
+    ));
     assert!(e.to_string().starts_with("GPU: no GPU adapter"), "{e}");
 }
 

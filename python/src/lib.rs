@@ -153,8 +153,8 @@ fn py_err(py: Python<'_>, e: Error) -> PyErr {
             NumericalError::new_err(msg),
             vec![("step", step.into_pyobject(py).unwrap().into_any().unbind())],
         ),
+        Error::Gpu(cdlab::error::GpuError::NoAdapter(_)) => (NoAdapterError::new_err(msg), vec![]),
         Error::Gpu(_) => (GpuError::new_err(msg), vec![]),
-        Error::NoAdapter(_) => (NoAdapterError::new_err(msg), vec![]),
         Error::Io { path, .. } => (FileError::new_err(msg), vec![("path", path_obj(py, &path))]),
         Error::Interrupted { signal, step } => (
             StoppedError::new_err(msg),
@@ -163,9 +163,6 @@ fn py_err(py: Python<'_>, e: Error) -> PyErr {
                 ("step", step.into_pyobject(py).unwrap().into_any().unbind()),
             ],
         ),
-        Error::GpuLimit { .. } | Error::GpuShader { .. } | Error::GpuBackendEnv { .. } => {
-            (GpuError::new_err(msg), vec![])
-        }
         Error::NotAFile { path } | Error::BadSample { path, .. } => {
             (FileError::new_err(msg), vec![("path", path_obj(py, &path))])
         }
@@ -554,7 +551,7 @@ mod tests {
                 },
                 "cdlab.prepare(config, out=\"s.bin\")",
             ),
-            (Error::Gpu("device lost".into()), "backend=\"cpu\""),
+            (cdlab::error::gpu_failure("device lost"), "backend=\"cpu\""),
         ] {
             let m = in_python_terms(&e);
             assert!(m.contains(call) && !m.contains("--"), "{m}");

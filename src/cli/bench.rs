@@ -128,7 +128,7 @@ pub fn run(args: &Args) -> Result<()> {
                 "gpu" => match measure_gpu(scene.clone(), params, n, run) {
                     Ok(c) => c,
                     // Only a missing adapter is a skip: any other GPU error is a failure.
-                    Err(e @ Error::NoAdapter(_)) => {
+                    Err(e @ Error::Gpu(crate::error::GpuError::NoAdapter(_))) => {
                         eprintln!("gpu, {n} disks: skipped: {e}");
                         continue;
                     }

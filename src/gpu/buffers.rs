@@ -509,7 +509,7 @@ pub fn conv_slot(cap: Capacity, k: u32) -> u32 {
     4 + 2 * cap.colors + cap.rounds + k
 }
 
-/// Checks one buffer size against the adapter's limits; the error ([`Error::GpuLimit`])
+/// Checks one buffer size against the adapter's limits; the error ([`GpuError::Limit`](crate::error::GpuError::Limit))
 /// names the limit, the need and an estimate of the largest sample that fits (sizes grow
 /// linearly with disks).
 pub fn check_size(
@@ -528,13 +528,13 @@ pub fn check_size(
         (limits.max_buffer_size, "max_buffer_size")
     };
     if bytes > limit {
-        return Err(Error::GpuLimit {
+        return Err(Error::Gpu(crate::error::GpuError::Limit {
             what: what.to_string(),
             bytes,
             limit_name: name,
             limit,
             fits_disks: (n_disks as f64 * limit as f64 / bytes as f64) as u64,
-        });
+        }));
     }
     Ok(())
 }
@@ -640,22 +640,22 @@ mod tests {
         check_size("disk", 1000, 100, &limits, true).expect("at the limit fits");
         match check_size("disk", 4000, 100, &limits, true) {
             // 100 disks need 4000 bytes, 1000 fit: about 25 disks.
-            Err(Error::GpuLimit {
+            Err(Error::Gpu(crate::error::GpuError::Limit {
                 limit_name,
                 limit,
                 fits_disks,
                 ..
-            }) => {
+            })) => {
                 assert_eq!(limit_name, "max_storage_buffer_binding_size");
                 assert_eq!((limit, fits_disks), (1000, 25));
             }
-            other => panic!("expected Error::GpuLimit, got {other:?}"),
+            other => panic!("expected GpuError::Limit, got {other:?}"),
         }
         // A non-binding buffer is held to max_buffer_size only.
         check_size("indirect", 4000, 100, &limits, false).expect("within max_buffer_size");
         assert!(matches!(
             check_size("indirect", 4001, 100, &limits, false),
-            Err(Error::GpuLimit { limit: 4000, .. })
+            Err(Error::Gpu(crate::error::GpuError::Limit { limit: 4000, .. }))
         ));
     }
 }

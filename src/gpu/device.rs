@@ -51,7 +51,7 @@ impl GpuDevice {
     /// The error that ends a run on this device: names the adapter, what was being done,
     /// wgpu's message, and the way out.
     pub fn failure(&self, during: &str, detail: impl std::fmt::Display) -> Error {
-        Error::Gpu(format!(
+        crate::error::gpu_failure(format!(
             "{} ({:?}): {during}: {detail}; run on the CPU backend instead (a run stopped here \
              continues there from its last checkpoint)",
             self.info.name, self.info.backend
@@ -154,11 +154,12 @@ fn check_backend_env() -> Result<()> {
     if unknown.is_empty() {
         return Ok(());
     }
-    Err(Error::GpuBackendEnv {
+    Err(crate::error::GpuError::BackendEnv {
         value: value.to_string(),
         unknown: unknown.iter().map(|b| b.to_string()).collect(),
         accepted: BACKEND_NAMES,
-    })
+    }
+    .into())
 }
 
 /// Sort key of an adapter: hardware before software, and GL last within a type (its
@@ -199,7 +200,7 @@ pub fn list_adapters() -> Vec<AdapterSummary> {
 }
 
 /// Opens the best adapter: hardware first, software with a warning on stderr, and
-/// [`Error::NoAdapter`] naming the packages to install when there is none.
+/// [`GpuError::NoAdapter`](crate::error::GpuError::NoAdapter) naming the packages to install when there is none.
 pub fn open() -> Result<GpuDevice> {
     check_backend_env()?;
     let instance = instance();
@@ -209,7 +210,7 @@ pub fn open() -> Result<GpuDevice> {
     let adapter = adapters
         .into_iter()
         .next()
-        .ok_or_else(|| Error::NoAdapter(NO_ADAPTER.to_string()))?;
+        .ok_or_else(|| Error::Gpu(crate::error::GpuError::NoAdapter(NO_ADAPTER.to_string())))?;
     let info = adapter.get_info();
     if info.device_type == wgpu::DeviceType::Cpu {
         // A warning that cannot be shown (stderr closed or full) must not stop the work.
@@ -231,7 +232,7 @@ pub fn open() -> Result<GpuDevice> {
         required_features: features,
         ..Default::default()
     }))
-    .map_err(|e| Error::Gpu(format!("cannot open {}: {e}", info.name)))?;
+    .map_err(|e| crate::error::gpu_failure(format!("cannot open {}: {e}", info.name)))?;
     let errors = ErrorLog::default();
     let log = errors.clone();
     device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {

@@ -6,7 +6,7 @@
 use super::buffers::{Buffers, GpuArgs, GpuContact, GpuDisk, GpuWall, SimParams};
 use super::device::GpuDevice;
 use super::{SHADERS, compose};
-use crate::error::{Error, Result};
+use crate::error::Result;
 
 /// Declares [`Kernel`] from the entry points of each shader file.
 macro_rules! kernels {
@@ -161,10 +161,10 @@ fn entry(b: &Binding) -> wgpu::BindGroupLayoutEntry {
 }
 
 /// Parses and validates a composed shader with naga, as wgpu would, so that a shader error
-/// comes back as [`Error::GpuShader`] naming the file and line rather than as a driver's
+/// comes back as [`GpuError::Shader`](crate::error::GpuError::Shader) naming the file and line rather than as a driver's
 /// failure to create a pipeline.
 pub fn validate(file: &str, source: &str) -> Result<()> {
-    let shader_error = |message: String| Error::GpuShader {
+    let shader_error = |message: String| crate::error::GpuError::Shader {
         file: file.to_string(),
         message,
     };
@@ -182,7 +182,7 @@ impl Pipelines {
     /// Compiles every shader and creates every pipeline inside error scopes: a shader the
     /// driver rejects (a bug in the crate, or a driver that cannot take it) comes back as
     /// [`Error::Gpu`] naming the adapter, not as wgpu's panic; a shader naga rejects
-    /// ([`validate`]) is [`Error::GpuShader`].
+    /// ([`validate`]) is [`GpuError::Shader`](crate::error::GpuError::Shader).
     pub fn new(gpu: &GpuDevice) -> Result<Self> {
         gpu.scoped("compiling the compute shaders", Self::create)?
     }
@@ -228,7 +228,7 @@ impl Pipelines {
         let pipelines = Kernel::ALL
             .iter()
             .zip(slots)
-            .map(|(k, p)| p.ok_or_else(|| Error::Gpu(format!("missing shader {}", k.file()))))
+            .map(|(k, p)| p.ok_or_else(|| crate::error::gpu_failure(format!("missing shader {}", k.file()))))
             .collect::<Result<_>>()?;
         Ok(Pipelines {
             pipelines,
@@ -287,6 +287,7 @@ fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::error::Error;
 
     #[test]
     fn a_shader_naga_rejects_is_a_shader_error_naming_the_file_and_line() {
@@ -295,12 +296,12 @@ mod tests {
         }
         let broken = compose("fn f() -> u32 { return ST_CONTACTS + 1.0; }");
         match validate("broken.wgsl", &broken) {
-            Err(Error::GpuShader { file, message }) => {
+            Err(Error::Gpu(crate::error::GpuError::Shader { file, message })) => {
                 assert_eq!(file, "broken.wgsl");
                 let line = broken.lines().count();
                 assert!(message.contains(&format!("wgsl:{line}:")), "{message}");
             }
-            other => panic!("expected Error::GpuShader, got {other:?}"),
+            other => panic!("expected GpuError::Shader, got {other:?}"),
         }
     }
 }

@@ -284,11 +284,11 @@ pub fn measure_cpu(scene: Scene, params: StepParams, n: usize, run: Run) -> Resu
     measure(&mut CpuBackend::new(scene, params)?, &probe, n, run)
 }
 
-/// Measures the GPU backend as [`measure_cpu`] does the CPU's. `Err(Error::NoAdapter)`
+/// Measures the GPU backend as [`measure_cpu`] does the CPU's. `Err(Error::Gpu(GpuError::NoAdapter))`
 /// when the machine has no adapter (a caller may skip), any other error when opening it
 /// or stepping fails.
 ///
-/// [`Error::NoAdapter`]: crate::Error::NoAdapter
+/// [`Error::NoAdapter`]: crate::error::GpuError::NoAdapter
 pub fn measure_gpu(scene: Scene, params: StepParams, n: usize, run: Run) -> Result<Case> {
     let probe = Probe {
         counters: |g: &GpuBackend| Some(g.counters()),

@@ -55,7 +55,7 @@ pub fn decide_to<T>(
 ) -> Option<T> {
     match opened {
         Ok(b) => Some(b),
-        Err(cdlab::Error::NoAdapter(msg)) if !require => {
+        Err(cdlab::Error::Gpu(cdlab::error::GpuError::NoAdapter(msg))) if !require => {
             let line = format!("SKIPPED (no GPU adapter): {test}: {msg}\n");
             let _ = out.write_all(line.as_bytes());
             None
