@@ -171,13 +171,14 @@ pub fn read_capped(path: &Path, limit: u64, what: &str) -> Result<String> {
     file.take(limit + 1)
         .read_to_end(&mut bytes)
         .map_err(|e| Error::io(path, e))?;
+    // Errors of the file's content, named by it (the Python package's FileError with its path).
+    let bad = |why: String| Error::io(path, std::io::Error::new(std::io::ErrorKind::InvalidData, why));
     if bytes.len() as u64 > limit {
-        return Err(Error::Other(format!(
-            "{}: longer than {limit} bytes, too long for {what}: is it the right file?",
-            path.display()
+        return Err(bad(format!(
+            "longer than {limit} bytes, too long for {what}: is it the right file?"
         )));
     }
-    String::from_utf8(bytes).map_err(|e| Error::Other(format!("{}: not UTF-8 text ({e})", path.display())))
+    String::from_utf8(bytes).map_err(|e| bad(format!("not UTF-8 text ({e})")))
 }
 
 impl Config {

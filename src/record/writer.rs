@@ -354,6 +354,9 @@ impl Recorder {
 fn mcap_error(path: &Path, e: McapError) -> Error {
     match e {
         McapError::Io(io) => Error::io(path, io),
-        other => Error::Other(format!("{}: MCAP: {other}", path.display())),
+        other => Error::io(
+            path,
+            std::io::Error::new(std::io::ErrorKind::InvalidData, format!("MCAP: {other}")),
+        ),
     }
 }
