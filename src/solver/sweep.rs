@@ -29,19 +29,19 @@ pub fn solve(
     gv: &mut [DVec3],
     work: &mut Workspace,
 ) -> SolveStats {
-    if params.method == Method::Jacobi {
-        work.clear_coloring();
-        return jacobi::solve(params, contacts, gv0, gv);
+    match params.method {
+        Method::Gs | Method::ColoredGs => gauss_seidel::solve(params, contacts, gv, work),
+        Method::Jacobi => {
+            work.clear_coloring();
+            jacobi::solve(params, contacts, gv0, gv)
+        }
+        Method::Apgd => {
+            work.clear_coloring();
+            apgd::solve(&mut BodySpace { contacts, gv0, gv }, params)
+        }
+        Method::AndersonGs => {
+            work.clear_coloring();
+            anderson::solve(&mut BodySpace { contacts, gv0, gv }, params)
+        }
     }
-    if params.method == Method::Apgd {
-        work.clear_coloring();
-        let mut s = BodySpace { contacts, gv0, gv };
-        return apgd::solve(&mut s, params);
-    }
-    if params.method == Method::AndersonGs {
-        work.clear_coloring();
-        let mut s = BodySpace { contacts, gv0, gv };
-        return anderson::solve(&mut s, params);
-    }
-    gauss_seidel::solve(params, contacts, gv, work)
 }
