@@ -63,7 +63,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         solver.max_iter = cap;
     }
     if let Some(w) = env("CDLAB_GS_RELAX") {
-        solver.gs_relax = w;
+        solver.gauss_seidel.relax = w;
     }
     if let Some(m) = env::<String>("CDLAB_METHOD") {
         solver.method = m.parse()?;

@@ -188,8 +188,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         captured.contacts.len(),
         run_params.method,
         run_params.tol,
-        run_params.gs_relax,
-        run_params.gs_relax_after
+        run_params.gauss_seidel.relax,
+        run_params.gauss_seidel.relax_after
     );
     let frictions: Vec<Option<f64>> = std::env::var("MUS").map_or(vec![None, Some(3.0), Some(12.0)], |v| {
         v.split(',')
@@ -226,8 +226,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let (k, r) = colored_iterations(&c, &colored);
             println!(
                 "{label}: colored-gs (gs_relax {} after {}): {k} sweeps to local_residual {r:.2e} ({:.1} s search)",
-                colored.gs_relax,
-                colored.gs_relax_after,
+                colored.gauss_seidel.relax,
+                colored.gauss_seidel.relax_after,
                 t0.elapsed().as_secs_f64()
             );
         }
@@ -254,7 +254,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 st.iterations,
                 local_residual(&out.space()),
                 closing(&out.space()).max,
-                q2.anderson_depth,
+                q2.anderson.depth,
                 st2.iterations,
                 local_residual(&out2.space()),
                 closing(&out2.space()).max,
@@ -265,7 +265,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             for d in [0u32, 1, 5, 10] {
                 let q = SolverParams {
                     method: Method::AndersonGs,
-                    anderson_depth: d,
+                    anderson: cdlab::solver::AndersonSettings { depth: d },
                     tol: 1e-300,
                     max_iter: 500,
                     ..run_params

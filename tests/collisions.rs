@@ -35,8 +35,8 @@ fn relaxed_pair_with(
 ) -> (f64, f64, u32) {
     let mut s = pair(2.0, -1.0, 0.0);
     let mut p = tight(method);
-    p.solver.gs_relax = relax;
-    p.solver.gs_relax_after = after;
+    p.solver.gauss_seidel.relax = relax;
+    p.solver.gauss_seidel.relax_after = after;
     p.solver.max_iter = iterations;
     p.solver.velocity_tol = velocity_tol;
     let mut e = cdlab::engine::CpuEngine::new(p).unwrap();

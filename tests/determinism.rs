@@ -59,8 +59,8 @@ fn run_on(
     // Colors here hold about 1500 contacts: lower the threshold so the threads do run.
     p.solver.parallel_min = 1024;
     if let Some((w, after, velocity_tol)) = relax {
-        p.solver.gs_relax = w;
-        p.solver.gs_relax_after = after;
+        p.solver.gauss_seidel.relax = w;
+        p.solver.gauss_seidel.relax_after = after;
         p.solver.velocity_tol = velocity_tol;
     }
     let mut e = cdlab::engine::CpuEngine::new(p).unwrap();

@@ -185,7 +185,7 @@ fn gpu_jacobi_stops_on_the_cpus_test() {
     let s = lattice(12, 11);
     let mut params = gpu_params(Method::Jacobi);
     params.solver.tol = 1e-4;
-    params.solver.relax = 0.2;
+    params.solver.jacobi.relax = 0.2;
     let Some(mut g) = gpu_or_skip("jacobi stopping test", &s, params) else {
         return;
     };
@@ -411,7 +411,7 @@ fn gpu_work_per_step_follows_the_step_structure() {
     p.solver.max_iter = 1000;
     // No change of relaxation inside the iterations, so every block but the last is
     // conv_every long (the relaxation change also ends a block).
-    p.solver.gs_relax_after = 0;
+    p.solver.gauss_seidel.relax_after = 0;
     let Some(mut g) = gpu_or_skip("work counts", &s, p) else {
         return;
     };

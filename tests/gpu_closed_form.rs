@@ -48,8 +48,8 @@ fn relaxed_pair(after: u32, max_iter: u32, velocity_tol: f64, conv_every: u32) -
     s.disks.vel[0] = DVec2::new(2.0, 0.0);
     s.disks.vel[1] = DVec2::new(-1.0, 0.0);
     let mut p = gpu_params(Method::ColoredGs);
-    p.solver.gs_relax = 0.5;
-    p.solver.gs_relax_after = after;
+    p.solver.gauss_seidel.relax = 0.5;
+    p.solver.gauss_seidel.relax_after = after;
     p.solver.max_iter = max_iter;
     p.solver.velocity_tol = velocity_tol;
     let mut g = gpu_or_skip("relaxed pair", &s, p)?;

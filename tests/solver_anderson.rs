@@ -191,7 +191,10 @@ fn solve(c: &Captured, method: Method, tol: f64) -> (Captured, cdlab::solver::So
         parallel: false,
         open_skip: 0.0,
         velocity_tol: 0.0,
-        gs_relax: 1.0,
+        gauss_seidel: cdlab::solver::GaussSeidelSettings {
+            relax: 1.0,
+            ..SolverParams::default().gauss_seidel
+        },
         ..SolverParams::default()
     };
     c.solve(&p)
@@ -323,7 +326,7 @@ fn the_method_and_its_depth_are_read_from_the_configuration_and_checked() {
     );
     // The GPU backend refuses it before opening a device, naming the key.
     let mut p = tight(Method::AndersonGs);
-    p.solver.anderson_depth = 5;
+    p.solver.anderson.depth = 5;
     let e = cdlab::gpu::backend::GpuBackend::new(Scene::default(), p)
         .err()
         .expect("refused")

@@ -265,7 +265,10 @@ fn gauss_seidel_and_apgd_agree_on_a_packed_state() {
             method: Method::Gs,
             tol: 1e-12,
             max_iter: 100_000,
-            gs_relax_after: 100_000,
+            gauss_seidel: cdlab::solver::GaussSeidelSettings {
+                relax_after: 100_000,
+                ..SolverParams::default().gauss_seidel
+            },
             ..SolverParams::default()
         };
         let (mut a, sa) = cap.solve(&gs);

@@ -164,7 +164,10 @@ fn jacobis_stopping_test_reads_the_unrelaxed_change() {
     let (e, _) = settled_pile(Method::Jacobi);
     let kept = e.captured().unwrap();
     let mut p = e.params.solver;
-    assert_eq!(p.relax, 0.5, "the default relaxation, which the old test halved");
+    assert_eq!(
+        p.jacobi.relax, 0.5,
+        "the default relaxation, which the old test halved"
+    );
     p.tol = 1e-30;
     let k = 7;
     p.max_iter = k;

@@ -350,7 +350,7 @@ impl Config {
     pub fn protocol(&self) -> crate::protocol::ProtocolParams {
         use crate::engine::StepParams;
         use crate::protocol::{Equilibrium, ProtocolParams};
-        use crate::solver::SolverParams;
+        use crate::solver::{AndersonSettings, GaussSeidelSettings, JacobiSettings, SolverParams};
         let (s, v, t, e, o) = (
             &self.sample,
             &self.solver,
@@ -377,17 +377,23 @@ impl Config {
                     method: v.method,
                     tol: v.tol,
                     max_iter: v.max_iter,
-                    relax: v.jacobi_relax,
+                    jacobi: JacobiSettings {
+                        relax: v.jacobi_relax,
+                    },
                     parallel: true,
                     parallel_min: crate::solver::default_parallel_min(),
                     threads: v.threads,
-                    gs_relax: v.gs_relax,
-                    gs_relax_after: v.gs_relax_after,
+                    gauss_seidel: GaussSeidelSettings {
+                        relax: v.gs_relax,
+                        relax_after: v.gs_relax_after,
+                    },
                     velocity_tol: v.velocity_tol * r_min / v.dt.si(),
                     open_skip: v.open_skip_gap * r_min / v.dt.si(),
                     deep_gap: v.deep_overlap_rel() * r_min,
                     deep_sweeps: v.deep_sweeps,
-                    anderson_depth: v.anderson_depth,
+                    anderson: AndersonSettings {
+                        depth: v.anderson_depth,
+                    },
                     check_every: v.check_every,
                 },
             },

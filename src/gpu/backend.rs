@@ -332,7 +332,7 @@ impl GpuBackend {
         sim.dt = p.dt as f32;
         sim.theta = p.theta as f32;
         sim.alert = p.alert as f32;
-        sim.relax = p.solver.relax as f32;
+        sim.relax = p.solver.jacobi.relax as f32;
         sim.jacobi = (p.solver.method == Method::Jacobi) as u32;
         sim.r_max = d.radius.iter().cloned().fold(0.0, f64::max) as f32;
         sim.r_min = d.radius.iter().cloned().fold(f64::INFINITY, f64::min) as f32;
@@ -347,7 +347,7 @@ impl GpuBackend {
         sim.deep_sweeps = p.solver.deep_sweeps;
         sim.deep_budget = self.deep_budget;
         // The relaxed blocks' sweeps move by it (their argument slots say which are).
-        sim.gs_relax = p.solver.gs_relax as f32;
+        sim.gs_relax = p.solver.gauss_seidel.relax as f32;
         sim.max_iter = p.solver.max_iter;
         sim.tol = p.solver.tol as f32;
         // Gauss-Seidel's only, as on the CPU.

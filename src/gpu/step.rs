@@ -106,12 +106,16 @@ pub(super) fn schedule(p: &SolverParams, every: u32) -> Vec<Block> {
     while done < p.max_iter {
         // The next test falls at the next multiple of `every`, as on the CPU.
         let mut len = (every - done % every).min(p.max_iter - done);
-        if done < p.gs_relax_after {
-            len = len.min(p.gs_relax_after - done);
+        if done < p.gauss_seidel.relax_after {
+            len = len.min(p.gauss_seidel.relax_after - done);
         }
-        let relaxed = !jacobi && done + 1 > p.gs_relax_after;
-        let velocity_test = !jacobi && p.velocity_tol > 0.0 && done + len > p.gs_relax_after;
-        let w = if jacobi { p.relax } else { p.relax_at(done + 1) } as f32;
+        let relaxed = !jacobi && done + 1 > p.gauss_seidel.relax_after;
+        let velocity_test = !jacobi && p.velocity_tol > 0.0 && done + len > p.gauss_seidel.relax_after;
+        let w = if jacobi {
+            p.jacobi.relax
+        } else {
+            p.relax_at(done + 1)
+        } as f32;
         let kind = (len, velocity_test, w.to_bits());
         let slot = match kinds.iter().position(|k| *k == kind) {
             Some(k) => k,
@@ -988,7 +992,10 @@ mod tests {
         SolverParams {
             method,
             max_iter,
-            gs_relax_after: after,
+            gauss_seidel: crate::solver::GaussSeidelSettings {
+                relax_after: after,
+                ..SolverParams::default().gauss_seidel
+            },
             velocity_tol,
             ..SolverParams::default()
         }
@@ -1021,7 +1028,7 @@ mod tests {
         assert_eq!(s.iter().map(|b| b.len).collect::<Vec<_>>(), [6, 6, 6, 2]);
         assert!(
             s.iter()
-                .all(|b| !b.velocity_test && !b.relaxed && b.w == p.relax as f32)
+                .all(|b| !b.velocity_test && !b.relaxed && b.w == p.jacobi.relax as f32)
         );
     }
 }

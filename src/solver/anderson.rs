@@ -65,7 +65,7 @@ impl Options {
         Options {
             tol: p.tol,
             max_iter: p.max_iter,
-            depth: p.anderson_depth as usize,
+            depth: p.anderson.depth as usize,
             start: START,
             accept: ACCEPT,
             drop: DROP,

@@ -38,7 +38,7 @@ impl<'a> VelocityTest<'a> {
     /// when the test applies from the first iteration; `prev` is the workspace's buffer.
     pub(super) fn new(params: &SolverParams, gv: &[DVec3], prev: &'a mut Vec<DVec3>) -> Self {
         prev.clear();
-        if params.velocity_tol > 0.0 && params.gs_relax_after == 0 {
+        if params.velocity_tol > 0.0 && params.gauss_seidel.relax_after == 0 {
             prev.extend_from_slice(gv);
         }
         VelocityTest {
@@ -46,8 +46,8 @@ impl<'a> VelocityTest<'a> {
             // the way to the local solutions: like the impulse test, it bounds the change
             // divided by the relaxation, so that `velocity_tol` means the same at any
             // relaxation.
-            tol: params.velocity_tol * params.gs_relax,
-            after: params.gs_relax_after,
+            tol: params.velocity_tol * params.gauss_seidel.relax,
+            after: params.gauss_seidel.relax_after,
             prev,
         }
     }

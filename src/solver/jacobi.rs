@@ -16,7 +16,7 @@ pub(super) fn solve(
     gv0: &[DVec3],
     gv: &mut [DVec3],
 ) -> SolveStats {
-    let omega = params.relax;
+    let omega = params.jacobi.relax;
     let mut stats = SolveStats::default();
     let mut fresh = vec![(0.0, 0.0); contacts.len()];
     for it in 1..=params.max_iter {

@@ -88,8 +88,9 @@ pub struct SolverParams {
     pub tol: f64,
     /// Iteration cap; reaching it is recorded in the step statistics.
     pub max_iter: u32,
-    /// Jacobi relaxation factor in (0, 1].
-    pub relax: f64,
+    /// Jacobi's own settings (`Method::Jacobi`).
+    #[serde(flatten)]
+    pub jacobi: JacobiSettings,
     /// Use several threads for colors and Jacobi (results are bit-identical either way).
     pub parallel: bool,
     /// Smallest contact problem worth solving on several threads. Colored Gauss-Seidel
@@ -100,18 +101,11 @@ pub struct SolverParams {
     /// Threads of the colored Gauss-Seidel team; 0 means every available core.
     #[serde(default)]
     pub threads: usize,
-    /// Relaxation of the Gauss-Seidel update in (0, 1], applied from iteration
-    /// `gs_relax_after + 1` of a step on: each contact moves this fraction of the way from
-    /// its impulse to its local solution. The convergence test divides the change by it, so
-    /// `tol` keeps bounding the distance to the local solutions. Records written before
-    /// this field existed ran unrelaxed (1).
-    #[serde(default = "unrelaxed")]
-    pub gs_relax: f64,
-    /// Iterations of a step swept unrelaxed before `gs_relax` applies; steps that converge
-    /// within them are unaffected by `gs_relax`.
-    #[serde(default)]
-    pub gs_relax_after: u32,
-    /// Velocity test (m/s), from iteration `gs_relax_after + 1` of a step on: the step also
+    /// Gauss-Seidel's own settings (`Method::Gs`, `Method::ColoredGs`).
+    #[serde(flatten)]
+    pub gauss_seidel: GaussSeidelSettings,
+    /// Velocity test (m/s), from iteration [`GaussSeidelSettings::relax_after`] + 1 of a
+    /// step on (the plain iterations of every method that runs the test): the step also
     /// ends when no body's velocity (rim speed `r |omega|` included) changed over the last
     /// iteration by more than this times the iteration's relaxation (so that, as in the
     /// impulse test, the bound is on the change the local solutions ask for). 0 turns it
@@ -140,16 +134,50 @@ pub struct SolverParams {
     /// See `deep_gap`.
     #[serde(default)]
     pub deep_sweeps: u32,
-    /// Anderson depth of `Method::AndersonGs`: the differences between the last
-    /// `anderson_depth + 1` iterates enter the mixing; 0 is plain Gauss-Seidel.
-    #[serde(default = "default_anderson_depth")]
-    pub anderson_depth: u32,
+    /// Anderson's own settings (`Method::AndersonGs`).
+    #[serde(flatten)]
+    pub anderson: AndersonSettings,
     /// Iterations between two convergence tests (Gauss-Seidel and Jacobi); 0 lets the
     /// backend choose ([`SolverParams::check_interval`]). A step then stops only at a
     /// multiple of it (or at `max_iter`). On the CPU a test costs nothing beyond the sweep's
     /// sums; on the GPU each is a reduction over the contacts.
     #[serde(default)]
     pub check_every: u32,
+}
+
+/// The settings of the Gauss-Seidel methods. Their names in records and checkpoints are
+/// those of the configuration's keys (`gs_relax`, `gs_relax_after`).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct GaussSeidelSettings {
+    /// Relaxation of the update in (0, 1], applied from iteration `relax_after + 1` of a
+    /// step on: each contact moves this fraction of the way from its impulse to its local
+    /// solution. The convergence test divides the change by it, so `tol` keeps bounding the
+    /// distance to the local solutions. Records written before this field existed ran
+    /// unrelaxed (1).
+    #[serde(rename = "gs_relax", default = "unrelaxed")]
+    pub relax: f64,
+    /// Iterations of a step swept unrelaxed before `relax` applies; steps that converge
+    /// within them are unaffected by it. The velocity test starts after them too, whatever
+    /// the method.
+    #[serde(rename = "gs_relax_after", default)]
+    pub relax_after: u32,
+}
+
+/// The settings of the Jacobi method.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct JacobiSettings {
+    /// Relaxation factor in (0, 1] (the configuration's `solver.jacobi_relax`; `relax` in
+    /// records and checkpoints).
+    pub relax: f64,
+}
+
+/// The settings of Anderson-accelerated Gauss-Seidel.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AndersonSettings {
+    /// Anderson depth: the differences between the last `depth + 1` iterates enter the
+    /// mixing; 0 is plain Gauss-Seidel (`anderson_depth` in records and checkpoints).
+    #[serde(rename = "anderson_depth", default = "default_anderson_depth")]
+    pub depth: u32,
 }
 
 /// Iterations between two convergence tests on the GPU when `solver.check_every` is 0: a
@@ -175,7 +203,7 @@ pub fn default_deep_sweeps() -> u32 {
     50
 }
 
-/// Default of [`SolverParams::anderson_depth`] (docs/method.md, "Anderson-accelerated
+/// Default of [`AndersonSettings::depth`] (docs/method.md, "Anderson-accelerated
 /// Gauss-Seidel").
 pub fn default_anderson_depth() -> u32 {
     5
@@ -194,7 +222,7 @@ pub fn default_velocity_tol_rel() -> f64 {
     1e-5
 }
 
-/// Default of [`SolverParams::gs_relax`]. Some contacts of a high-friction packing flip
+/// Default of [`GaussSeidelSettings::relax`]. Some contacts of a high-friction packing flip
 /// between two states from one sweep to the next (a disk whose second contact opens and
 /// closes every iteration), and plain Gauss-Seidel then runs to the cap; relaxation damps
 /// these cycles. 0.5 needed the fewest iterations and capped steps among the values tried
@@ -203,7 +231,7 @@ pub fn default_gs_relax() -> f64 {
     0.5
 }
 
-/// Default of [`SolverParams::gs_relax_after`]. At friction 0.3 (40-60 iterations per step
+/// Default of [`GaussSeidelSettings::relax_after`]. At friction 0.3 (40-60 iterations per step
 /// on average) relaxation from the first iteration cost 20-30% more iterations, while 50,
 /// 100 or 200 plain iterations first gave the same count as plain Gauss-Seidel within the
 /// scatter between trajectories, and the same gain at friction 3 (docs/results.md,
@@ -218,17 +246,21 @@ impl Default for SolverParams {
             method: Method::ColoredGs,
             tol: 1e-4,
             max_iter: 1000,
-            relax: 0.5,
+            jacobi: JacobiSettings { relax: 0.5 },
             parallel: true,
             parallel_min: default_parallel_min(),
             threads: 0,
-            gs_relax: default_gs_relax(),
-            gs_relax_after: default_gs_relax_after(),
+            gauss_seidel: GaussSeidelSettings {
+                relax: default_gs_relax(),
+                relax_after: default_gs_relax_after(),
+            },
             velocity_tol: 0.0,
             open_skip: 0.0,
             deep_gap: 0.0,
             deep_sweeps: 0,
-            anderson_depth: default_anderson_depth(),
+            anderson: AndersonSettings {
+                depth: default_anderson_depth(),
+            },
             check_every: 0,
         }
     }
@@ -249,8 +281,8 @@ impl SolverParams {
 
     /// The Gauss-Seidel relaxation of iteration `it` (1-based) of a step.
     pub fn relax_at(&self, it: u32) -> f64 {
-        if it > self.gs_relax_after {
-            self.gs_relax
+        if it > self.gauss_seidel.relax_after {
+            self.gauss_seidel.relax
         } else {
             1.0
         }
@@ -288,11 +320,11 @@ impl SolverParams {
         use crate::protocol::limits::{check_at_least, check_half_open, check_open};
         check_open("solver.tol", self.tol, 0.0, 1.0)?;
         check_at_least("solver.max_iter", self.max_iter.into(), 1, "at least one sweep")?;
-        check_half_open("solver.jacobi_relax", self.relax, 0.0, 1.0)?;
-        if !(self.gs_relax > 0.0 && self.gs_relax <= 1.0) {
+        check_half_open("solver.jacobi_relax", self.jacobi.relax, 0.0, 1.0)?;
+        if !(self.gauss_seidel.relax > 0.0 && self.gauss_seidel.relax <= 1.0) {
             return Err(Error::invalid(
                 "solver.gs_relax",
-                self.gs_relax,
+                self.gauss_seidel.relax,
                 "must lie in (0, 1]",
             ));
         }
@@ -331,10 +363,10 @@ impl SolverParams {
                 &format!("must be <= {MAX_DEEP_SWEEPS}"),
             ));
         }
-        if self.anderson_depth > MAX_ANDERSON_DEPTH {
+        if self.anderson.depth > MAX_ANDERSON_DEPTH {
             return Err(Error::invalid(
                 "solver.anderson_depth",
-                self.anderson_depth,
+                self.anderson.depth,
                 &format!("must be <= {MAX_ANDERSON_DEPTH}"),
             ));
         }
@@ -349,7 +381,7 @@ impl SolverParams {
     }
 }
 
-/// Largest [`SolverParams::anderson_depth`]: the history holds two vectors of all impulses per
+/// Largest [`AndersonSettings::depth`]: the history holds two vectors of all impulses per
 /// unit of depth, and beyond a few tens the fit is dominated by stale differences.
 pub const MAX_ANDERSON_DEPTH: u32 = 50;
 
