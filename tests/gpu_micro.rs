@@ -98,11 +98,22 @@ fn gpu_micro_sums_match_the_cpu_measures() {
     // The forces of a hyperstatic packing are not unique, and this 64-disk sample is still
     // moving slowly (a few cm/s): the two solvers (f64 Gauss-Seidel against f32 colored
     // Gauss-Seidel, tolerance 1e-6) find different force networks, 80 contacts of which
-    // each weighs about 1%. Tolerances: the Love-Weber principal stresses within 5% (they
-    // differ by 1-4% here), the anisotropies and the strong fraction within 0.05 (0.01-0.04
-    // here), the strong network's share of q within 0.35 (q is a fifth of p, so the share
-    // is a ratio of small deviators: 0.81 and 1.06 here). Part 1 is the check of the
-    // reduction code; this part checks that the GPU columns mean the same thing.
+    // each weighs about 1%. Part 1 is the check of the reduction code; this part checks
+    // that the GPU columns mean the same thing. Bands, from the values measured on
+    // lavapipe (CPU, GPU):
+    // - Love-Weber principal stresses: 174128 and 173586 Pa, 135562 and 136105 Pa (0.31%,
+    //   0.40% apart); band 1.2%, 3 times the larger.
+    // - a_t: 0.0870 and 0.0800 (0.0070 apart); band 0.02, 3 times that (a quarter of a_t).
+    // - strong fraction: 0.418 and 0.403 (0.015 apart); band 0.045, 3 times that.
+    // - strong network's share of q: 0.810 and 0.723 (0.087 apart; q is a fifth of p, so
+    //   the share is a ratio of small deviators); band 0.26, 3 times that.
+    // - a_c: 0.2211 and 0.2227 (0.0016 apart), a_n: -0.0109 and -0.0145 (0.0036 apart).
+    //   These follow the network the solver picks, not the physics alone: the CPU's own
+    //   colored Gauss-Seidel, as correct as its Gauss-Seidel, gives a_c 0.2458 and a_n
+    //   -0.0382 on this sample (0.025 and 0.027 away). Bands 0.035 and 0.04, 1.5 times
+    //   that spread, so that another adapter's f32 path picking another valid network passes.
+    // A GPU friction of 0.3 instead of 0.5 gives a_t 0.0631 (0.024 off) and sigma_1 1.6%
+    // off, and fails on both; the old bands (0.05 absolute, 5%) let it pass.
     let mut cpu = CpuBackend::new(scene.clone(), gpu_support::gpu_params(Method::Gs)).unwrap();
     cpu.set_warm_start(&warm).unwrap();
     let c = cpu.run(5, &Loading::default()).unwrap().micro;
@@ -125,13 +136,16 @@ fn gpu_micro_sums_match_the_cpu_measures() {
         gs.0,
         gs.1
     );
-    assert!((gs.0 - cs.0).abs() < 0.05 * cs.0 && (gs.1 - cs.1).abs() < 0.05 * cs.1);
+    assert!(
+        (gs.0 - cs.0).abs() < 0.012 * cs.0 && (gs.1 - cs.1).abs() < 0.012 * cs.1,
+        "Love-Weber principal stresses: GPU {gs:?}, CPU {cs:?}"
+    );
     for (name, a, b, tol) in [
-        ("a_c", g.a_c(), c.a_c(), 0.05),
-        ("a_n", g.a_n(), c.a_n(), 0.05),
-        ("a_t", g.a_t(), c.a_t(), 0.05),
-        ("strong fraction", g.strong_fraction(), c.strong_fraction(), 0.05),
-        ("strong share of q", g.strong_q_share(), c.strong_q_share(), 0.35),
+        ("a_c", g.a_c(), c.a_c(), 0.035),
+        ("a_n", g.a_n(), c.a_n(), 0.04),
+        ("a_t", g.a_t(), c.a_t(), 0.02),
+        ("strong fraction", g.strong_fraction(), c.strong_fraction(), 0.045),
+        ("strong share of q", g.strong_q_share(), c.strong_q_share(), 0.26),
     ] {
         assert!((a - b).abs() < tol, "{name}: GPU {a}, CPU {b}");
     }

@@ -106,6 +106,14 @@ def test_fabric_of_a_snapshot(small_run):
     width = f["pdf"][1, 0] - f["pdf"][0, 0]
     assert math.isclose(f["pdf"][:, 1].sum() * width, 1.0, rel_tol=1e-9)
     assert 0.0 <= f["theta_c_deg"] < 180.0
-    # The Love-Weber stress (Pa) is of the order of the boundary stress of the series.
+    # The Love-Weber stress (Pa) of the snapshot is the one the run computed at the same
+    # step (the series' lw_ columns, from the same contacts and the same row's area).
+    # Measured: 1.9e-7 relative for sigma1, 1.4e-7 for sigma3; band 1e-6.
     row = t.series.iloc[-1]
-    assert 0.5 < f["sigma1_pa"] / row["sigma1_pa"] < 2.0
+    assert math.isclose(f["sigma1_pa"], row["lw_sigma1_pa"], rel_tol=1e-6)
+    assert math.isclose(f["sigma3_pa"], row["lw_sigma3_pa"], rel_tol=1e-6)
+    # ... and close to the top wall's stress of that row. They differ by the inertial terms
+    # of a sample under compression (inertial number 4e-4, kinetic energy rising) and the
+    # residual of a solver stopped at tol 1e-3. Measured: ratio 0.873 on this run (12.7%
+    # below; 0.87-0.98 over its last four rows); band 30%, about 2.4 times that deviation.
+    assert abs(f["sigma1_pa"] / row["sigma1_pa"] - 1.0) < 0.30
