@@ -460,7 +460,9 @@ pub fn parse_run(bytes: &[u8]) -> Result<RunRecord> {
         run.damaged = Some(why);
     };
     // Each channel numbers its messages 0, 1, 2...: a jump means a whole record (a chunk
-    // whose opcode was damaged, say) was skipped by the MCAP reader without an error.
+    // whose opcode was damaged, say) was skipped by the MCAP reader without an error. The
+    // data channels start at 0, so a chunk lost before a channel's first message read is a
+    // jump too (a damaged opcode of the first chunk once handed out the rows after it).
     let mut next_seq: std::collections::HashMap<u16, u32> = Default::default();
     let mut n_read = 0u64;
     let mut messages = Messages::new(bytes);
@@ -485,16 +487,25 @@ pub fn parse_run(bytes: &[u8]) -> Result<RunRecord> {
         let seq = msg.sequence;
         let ours = [TOPIC_CONFIG, TOPIC_SERIES, TOPIC_SNAPSHOT, TOPIC_CHECKPOINT];
         if ours.contains(&msg.channel.topic.as_str()) {
-            let expected = next_seq.insert(msg.channel.id, seq.wrapping_add(1));
+            let first = (msg.channel.topic != TOPIC_CONFIG).then_some(0);
+            let expected = next_seq.insert(msg.channel.id, seq.wrapping_add(1)).or(first);
             if let Some(expected) = expected.filter(|e| *e != seq) {
                 stop(
                     &mut run,
                     n_messages,
-                    format!(
-                        "{} message {seq} follows message {}: records between them were lost",
-                        msg.channel.topic,
-                        expected.wrapping_sub(1)
-                    ),
+                    if expected == 0 {
+                        format!(
+                            "the first {} message read is number {seq}: the records before it \
+                             were lost",
+                            msg.channel.topic
+                        )
+                    } else {
+                        format!(
+                            "{} message {seq} follows message {}: records between them were lost",
+                            msg.channel.topic,
+                            expected.wrapping_sub(1)
+                        )
+                    },
                 );
                 break;
             }

@@ -549,6 +549,10 @@ fn bit_flips_never_hand_out_damaged_content() {
         marks[marks.len() - 1].0 as usize,
     );
     let mut offsets: Vec<usize> = (lo..hi).step_by(5).collect();
+    // The first chunk's opcode, each of its bits: a chunk whose opcode is damaged is
+    // skipped by the MCAP reader without an error, and the rows after it were once handed
+    // out as the run's (the sequence numbers now stop the read there).
+    offsets.extend(std::iter::repeat_n(first as usize, 8));
     let mut s = 0x2545f4914f6cdd1du64;
     for _ in 0..300 {
         s ^= s << 13;
@@ -893,3 +897,4 @@ fn a_resumed_record_lists_the_backends_of_its_parts() {
     drop(Recorder::create(&tmp.0, &config).unwrap());
     assert!(read_run(&tmp.0).unwrap().backends.is_empty());
 }
+
