@@ -897,4 +897,3 @@ fn a_resumed_record_lists_the_backends_of_its_parts() {
     drop(Recorder::create(&tmp.0, &config).unwrap());
     assert!(read_run(&tmp.0).unwrap().backends.is_empty());
 }
-
