@@ -109,8 +109,9 @@ fn reference_sweeps(p: &Problem, tol: f64, cap: usize) -> (usize, Vec<f64>) {
     (sweeps, r)
 }
 
-/// The three fc2d problems Siconos ships and tests its own Gauss-Seidel on, to an error of
-/// 1e-5 within 10,000 sweeps (tests/data/fc2d/README.md). The library's Gauss-Seidel must
+/// The five fc2d problems Siconos ships and tests its own Gauss-Seidel on, to an error of
+/// 1e-5 within 10,000 sweeps (tests/data/fc2d/README.md): two of a slider-crank
+/// mechanism, stored dense, and three of a granular flow, stored sparse. The library's Gauss-Seidel must
 /// reach that error in the sweeps the independent solver above takes, within two: both are
 /// exact Gauss-Seidel in the same order, so a slower sweep, a looser local solution or an
 /// error measured wrong shows as a different count. The first problem is the flow at rest
@@ -118,6 +119,9 @@ fn reference_sweeps(p: &Problem, tol: f64, cap: usize) -> (usize, Vec<f64>) {
 #[test]
 fn the_shared_problems_reach_the_siconos_error_in_the_reference_sweeps() {
     for (name, contacts, at_rest) in [
+        // A slider-crank mechanism (two contacts, friction 0.01), stored dense.
+        ("FC2D_SliderCrankLagrangian00000.dat", 2, false),
+        ("FC2D_SliderCrankLagrangian00001.dat", 2, false),
         ("fc2d_granularflowonwall_00667_00000.dat", 667, true),
         ("fc2d_granularflowonwall_02020_00213.dat", 2020, false),
         ("fc2d_granularflowonwall_07002_00801.dat", 7002, false),
@@ -182,6 +186,7 @@ fn malformed_problem_files_are_rejected_with_the_line() {
             "negative friction",
         ),
         (good.replacen("CSparse", "Dense", 1), "CSparse"),
+        (good.replacen("2\n667\n2\n", "2\n667\n1\n", 1), "only dense (0) and sparse"),
     ];
     for (text, expect) in cases {
         let e = parse(&text, path).unwrap_err().to_string();
@@ -206,6 +211,60 @@ fn synthetic(nc: usize) -> String {
     t + &q.join(" ") + "\n" + &mu.join(" ") + "\n"
 }
 
+/// The same problem written dense (Siconos's storage 0: line `j` is column `j`) and sparse
+/// reads as the same problem; a dense column with a value too few is refused with its
+/// line.
+#[test]
+fn a_dense_problem_reads_as_its_sparse_twin() {
+    let nc = 3;
+    let n = 2 * nc;
+    // An unsymmetric matrix with zeros off the diagonal, which the sparse file leaves out.
+    let w = |i: usize, j: usize| match (i == j, (i + j) % 3) {
+        (true, _) => 4.0 + i as f64,
+        (false, 0) => 0.25 * (i as f64 - j as f64),
+        _ => 0.0,
+    };
+    let q: Vec<String> = (0..n).map(|k| format!("-0.{}5", k + 1)).collect();
+    let mu = "0.2 0.3 0.4";
+    let mut dense = format!("2\n{nc}\n0\n{n}\n{n}\n{n}\t{n}\n");
+    for j in 0..n {
+        let col: Vec<String> = (0..n).map(|i| format!("{:.6e}", w(i, j))).collect();
+        dense += &(col.join(" ") + " \n");
+    }
+    dense += &(q.join(" ") + "\n" + mu + "\n");
+    let nnz = (0..n * n).filter(|k| w(k % n, k / n) != 0.0).count();
+    let mut sparse =
+        format!("2\n{nc}\n2\n{n}\n{n}\n2\nCSparse twin\n{n}-by-{n}, nzmax: {nnz} nnz: {nnz}, 1-norm: 1\n");
+    let mut at = 0;
+    for j in 0..n {
+        let rows: Vec<usize> = (0..n).filter(|&i| w(i, j) != 0.0).collect();
+        sparse += &format!("    col {j} : locations {at} to {}\n", at + rows.len() - 1);
+        for i in rows {
+            sparse += &format!("      {i} : {:.6e}\n", w(i, j));
+            at += 1;
+        }
+    }
+    sparse += &(q.join(" ") + "\n" + mu + "\n");
+    let (d, s) = (
+        parse(&dense, Path::new("dense.dat")).unwrap(),
+        parse(&sparse, Path::new("sparse.dat")).unwrap(),
+    );
+    assert_eq!((d.nc, &d.q, &d.mu), (s.nc, &s.q, &s.mu));
+    assert_eq!(
+        (&d.w.col_start, &d.w.row_idx, &d.w.vals),
+        (&s.w.col_start, &s.w.row_idx, &s.w.vals)
+    );
+    // Line 7 is column 0 (after the five header lines and the size line).
+    let mut lines: Vec<String> = dense.lines().map(str::to_string).collect();
+    lines[6] = lines[6].trim_end().rsplit_once(' ').unwrap().0.to_string();
+    let short = lines.join("\n") + "\n";
+    let e = parse(&short, Path::new("dense.dat")).unwrap_err().to_string();
+    assert!(
+        e.contains("dense.dat") && e.contains("line 7") && e.contains("column 0"),
+        "{e}"
+    );
+}
+
 /// A file cut at any byte is refused, never read as a smaller or different problem: every
 /// cut of a synthetic file, and of the shipped files every cut in the last 300 bytes (the
 /// q and mu lines, where a cut inside a number still parses as a number) and every 499th
@@ -225,6 +284,7 @@ fn a_file_cut_at_any_byte_is_refused() {
         );
     }
     for name in [
+        "FC2D_SliderCrankLagrangian00000.dat",
         "fc2d_granularflowonwall_00667_00000.dat",
         "fc2d_granularflowonwall_02020_00213.dat",
     ] {

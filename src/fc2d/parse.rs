@@ -15,8 +15,11 @@
 //! mu_0 ... mu_{nc-1}     the friction coefficients, on one line
 //! ```
 //!
-//! Components are ordered normal first, then tangent, contact by contact. Two such files are
-//! shipped as test data in `tests/data/fc2d/`.
+//! A dense matrix (storage 0) follows `n n` with a line `n<TAB>n`, then `n` lines of `n`
+//! values: Siconos writes its column-major storage in order, so line `j` is column `j`.
+//!
+//! Components are ordered normal first, then tangent, contact by contact. The files shipped
+//! as test data are in `tests/data/fc2d/`.
 //!
 //! A file cut short must not read as a smaller or different problem: q and mu must hold
 //! exactly `n` and `nc` values on their own lines, nothing but blank lines may follow, and the
@@ -101,42 +104,16 @@ fn finite(l: &Lines, t: &str, what: &str) -> Result<f64> {
     }
 }
 
-/// Parses the text of a problem (`path` only names it in errors).
-pub fn parse(text: &str, path: &Path) -> Result<Problem> {
-    let mut l = Lines {
-        lines: text.lines().collect(),
-        at: 0,
-        path,
-    };
-    // Header integers: dimension, contacts, storage kind, rows, columns, sparse kind; the
-    // matrix size may share a line.
-    let mut head = Vec::new();
-    while head.len() < 6 {
-        head.extend(l.ints("the header (dimension, contacts, storage, size, sparse kind)")?);
-    }
-    let (dim, nc, kind, rows, cols, sub) = (head[0], head[1], head[2], head[3], head[4], head[5]);
-    if dim != 2 {
-        return Err(l.err(format!("space dimension {dim}: only 2D problems are supported")));
-    }
-    if nc == 0 {
-        return Err(l.err("the problem has no contact"));
-    }
-    if nc > text.len() / BYTES_PER_CONTACT {
-        return Err(l.err(format!(
-            "{nc} contacts announced, but a file of {} bytes holds at most {} (a damaged header?)",
-            text.len(),
-            text.len() / BYTES_PER_CONTACT
-        )));
-    }
-    if kind != 2 || sub != 2 {
-        return Err(l.err(format!(
-            "matrix storage {kind}/{sub}: only sparse compressed columns (2/2) are supported"
-        )));
-    }
-    if rows != 2 * nc || cols != 2 * nc {
-        return Err(l.err(format!("matrix {rows} x {cols} does not match 2 x {nc} contacts")));
-    }
-    let n = rows;
+/// Storage kinds of a Siconos matrix file: dense (column-major, one column a line) and
+/// sparse, whose layout 2 is compressed columns (CSparse).
+const DENSE: usize = 0;
+/// See [`DENSE`].
+const SPARSE: usize = 2;
+/// See [`DENSE`].
+const SPARSE_CSC: usize = 2;
+
+/// The `n x n` matrix of a sparse (CSparse) file, and the line after it.
+fn sparse_matrix<'a>(l: &mut Lines<'a>, n: usize) -> Result<(Csc, &'a str)> {
     let banner = l.next("the CSparse banner")?;
     if !banner.starts_with("CSparse") {
         return Err(l.err(format!("expected the CSparse banner, found `{}`", shown(banner))));
@@ -194,6 +171,113 @@ pub fn parse(text: &str, path: &Path) -> Result<Problem> {
             "the vector q"
         })?;
     }
+    Ok((
+        Csc {
+            n,
+            col_start,
+            row_idx,
+            vals,
+        },
+        line,
+    ))
+}
+
+/// The `n x n` matrix of a dense file (Siconos writes its column-major storage in order,
+/// `n` values a line: line `j` is column `j`), its zeros left out, and the line after it.
+fn dense_matrix<'a>(l: &mut Lines<'a>, n: usize) -> Result<(Csc, &'a str)> {
+    let mut col_start = vec![0usize; n + 1];
+    let (mut row_idx, mut vals) = (Vec::new(), Vec::new());
+    for j in 0..n {
+        let line = l.next("a column of the dense matrix")?;
+        let mut count = 0;
+        for (i, t) in line.split_whitespace().enumerate() {
+            let v = finite(l, t, "a matrix entry")?;
+            if i < n && v != 0.0 {
+                row_idx.push(i);
+                vals.push(v);
+            }
+            count = i + 1;
+        }
+        if count != n {
+            return Err(l.err(format!(
+                "{count} values in column {j} of the dense matrix, expected {n}"
+            )));
+        }
+        col_start[j + 1] = vals.len();
+    }
+    let line = l.next("the vector q")?;
+    Ok((
+        Csc {
+            n,
+            col_start,
+            row_idx,
+            vals,
+        },
+        line,
+    ))
+}
+
+/// Parses the text of a problem (`path` only names it in errors).
+pub fn parse(text: &str, path: &Path) -> Result<Problem> {
+    let mut l = Lines {
+        lines: text.lines().collect(),
+        at: 0,
+        path,
+    };
+    // Header integers: dimension, contacts, storage kind, rows, columns; then the sparse
+    // layout (kind 2) or the dense size line (kind 0). Several may share a line.
+    let mut head = Vec::new();
+    while head.len() < 5 {
+        head.extend(l.ints("the header (dimension, contacts, storage, size)")?);
+    }
+    let (dim, nc, kind, rows, cols) = (head[0], head[1], head[2], head[3], head[4]);
+    let mut more = head.split_off(5);
+    if dim != 2 {
+        return Err(l.err(format!("space dimension {dim}: only 2D problems are supported")));
+    }
+    if nc == 0 {
+        return Err(l.err("the problem has no contact"));
+    }
+    if nc > text.len() / BYTES_PER_CONTACT {
+        return Err(l.err(format!(
+            "{nc} contacts announced, but a file of {} bytes holds at most {} (a damaged header?)",
+            text.len(),
+            text.len() / BYTES_PER_CONTACT
+        )));
+    }
+    if rows != 2 * nc || cols != 2 * nc {
+        return Err(l.err(format!("matrix {rows} x {cols} does not match 2 x {nc} contacts")));
+    }
+    let n = rows;
+    let (w, line) = match kind {
+        DENSE => {
+            while more.len() < 2 {
+                more.extend(l.ints("the dense matrix's size line")?);
+            }
+            if more != [n, n] {
+                return Err(l.err(format!("dense matrix size line {more:?}, expected [{n}, {n}]")));
+            }
+            dense_matrix(&mut l, n)?
+        }
+        SPARSE => {
+            if more.is_empty() {
+                more.extend(l.ints("the sparse layout")?);
+            }
+            if more != [SPARSE_CSC] {
+                return Err(l.err(format!(
+                    "matrix storage {kind}/{more:?}: only sparse compressed columns (2/2) and \
+                     dense (0) are supported"
+                )));
+            }
+            sparse_matrix(&mut l, n)?
+        }
+        _ => {
+            return Err(l.err(format!(
+                "matrix storage {kind}: only dense (0) and sparse compressed columns (2/2) are \
+                 supported"
+            )));
+        }
+    };
     // q then mu, each on its own line with exactly its number of values.
     let mut numbers = Vec::with_capacity(n + nc);
     for t in line.split_whitespace() {
@@ -230,12 +314,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Problem> {
     }
     Ok(Problem {
         nc,
-        w: Csc {
-            n,
-            col_start,
-            row_idx,
-            vals,
-        },
+        w,
         q: numbers,
         mu,
     })
