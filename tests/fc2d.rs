@@ -186,7 +186,10 @@ fn malformed_problem_files_are_rejected_with_the_line() {
             "negative friction",
         ),
         (good.replacen("CSparse", "Dense", 1), "CSparse"),
-        (good.replacen("2\n667\n2\n", "2\n667\n1\n", 1), "only dense (0) and sparse"),
+        (
+            good.replacen("2\n667\n2\n", "2\n667\n1\n", 1),
+            "only dense (0) and sparse",
+        ),
     ];
     for (text, expect) in cases {
         let e = parse(&text, path).unwrap_err().to_string();

@@ -162,7 +162,7 @@ fn sparse_matrix<'a>(l: &mut Lines<'a>, n: usize) -> Result<(Csc, &'a str)> {
                 return Err(l.err(format!("row index {i} out of range 0..{n}")));
             }
             row_idx.push(i);
-            vals.push(finite(&l, v.trim(), "a matrix entry")?);
+            vals.push(finite(l, v.trim(), "a matrix entry")?);
         }
         col_start[j + 1] = vals.len();
         line = l.next(if j + 1 < n {
