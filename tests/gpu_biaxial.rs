@@ -342,17 +342,18 @@ fn strength(rows: &[SeriesRow]) -> [f64; 4] {
 /// seeds 1-8 run on the CPU to strain 0.03 (19.1 MPa at strain 0.012, then 16-17 MPa);
 /// run to 0.025 on both backends from one compacted sample, each run must pass its peak
 /// (the peak before 70% of the compression, the last 40 rows 5% or more below it) and
-/// dilate, and the GPU's peak, its strain and the post-peak stress must lie within 1.5
-/// times the spread of twelve CPU runs, each with one disk moved by one ulp (floors: 0.5%
-/// of the stresses, 5e-4 of strain), as chaos sets the spread past the peak.
+/// dilate, and the GPU's peak, its strain, the post-peak stress and the final dV/V0 must
+/// lie within 1.5 times the spread of twelve CPU runs, each with one disk moved by 1e-5 m
+/// (floors: 0.5% of the stresses, 5e-4 of strain, 1e-4 of dV/V0).
 ///
-/// Measured on lavapipe: CPU 19.48 MPa at strain 0.0090, 16.19 MPa after the peak; GPU
-/// 19.30 MPa at 0.0102, 16.84 MPa; the CPU runs' spread 0.55 MPa, 0.0013 and 2.3 MPa. The
-/// final dV/V0 is not held to a band: the GPU's, 10.5e-3, lies above all twelve CPU runs
-/// (7.7e-3 to 9.4e-3, the unperturbed 8.8e-3), 1.65 times their largest distance from the
-/// unperturbed run, while its width is the outline of its own disks (the GPU's reduction
-/// and the CPU's outline of the GPU's final scene agree to 1e-8 m). One sample cannot tell
-/// a GPU bias from a trajectory further out (docs/validation.md).
+/// Why 1e-5 m and not one ulp, as the short run's study: the GPU holds positions in f32
+/// pairs and rounds what it is given to f32 (2.4e-6 m at 40 m), so past the peak its
+/// trajectories part from the CPU's as those of runs moved by that much, not by 1e-15 m.
+/// Measured on lavapipe: with one-ulp moves the CPU's final dV/V0 ranged over 7.7e-3 to
+/// 9.4e-3 and the GPU's, 10.5e-3, lay above all twelve; with 1e-5 m moves three CPU runs
+/// gave 8.2e-3 to 11.3e-3 and three GPU runs 8.8e-3 to 10.5e-3 (and seed 6: GPU 7.9e-3
+/// inside the CPU's 5.7e-3 to 9.0e-3). The GPU's width is the outline of its own disks
+/// (its reduction and the CPU's outline of its final scene agree to 1e-8 m).
 #[test]
 fn a_gpu_run_past_the_peak_stays_within_the_cpus_spread() {
     let mut p = params();
@@ -387,7 +388,7 @@ fn a_gpu_run_past_the_peak_stays_within_the_cpus_spread() {
     let mut spread = [0.0f64; 4];
     for disk in (0..300).step_by(25) {
         let mut nudged = compacted.clone();
-        nudged.disks.pos[disk].x = nudged.disks.pos[disk].x.next_up();
+        nudged.disks.pos[disk].x += 1e-5;
         let s = strength(&run(
             Box::new(CpuBackend::new(nudged.clone(), p.step).unwrap()),
             &nudged,
@@ -396,19 +397,19 @@ fn a_gpu_run_past_the_peak_stays_within_the_cpus_spread() {
             spread[k] = spread[k].max((s[k] - cpu[k]).abs());
         }
     }
-    let floor = [0.005 * cpu[0], 5e-4, 0.005 * cpu[2]];
+    let floor = [0.005 * cpu[0], 5e-4, 0.005 * cpu[2], 1e-4];
     let names = [
         "peak sigma1 (Pa)",
         "strain at the peak",
         "post-peak sigma1 (Pa)",
         "final dV/V0",
     ];
-    println!("past the peak: CPU {cpu:?}, GPU {gpu:?}, CPU 1-ulp spread {spread:?}");
-    for k in 0..3 {
+    println!("past the peak: CPU {cpu:?}, GPU {gpu:?}, spread of the moved CPU runs {spread:?}");
+    for k in 0..4 {
         let band = (1.5 * spread[k]).max(floor[k]);
         assert!(
             (gpu[k] - cpu[k]).abs() <= band,
-            "{}: GPU {:.4e}, CPU {:.4e}, band {band:.3e} (the CPU's 1-ulp spread {:.3e})",
+            "{}: GPU {:.4e}, CPU {:.4e}, band {band:.3e} (the moved CPU runs' spread {:.3e})",
             names[k],
             gpu[k],
             cpu[k],
