@@ -57,9 +57,6 @@ impl Config {
             }
         }
         check_range("solver.alert_distance", v.alert_distance, 0.0, 1.0)?;
-        if let Some(w) = self.test.wall_mu {
-            check_non_negative("test.wall_mu", w)?;
-        }
         // The protocol takes these clamped to at least 1.
         check_at_least(
             "equilibrium.hold_steps",

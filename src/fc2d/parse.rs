@@ -112,8 +112,8 @@ const SPARSE: usize = 2;
 /// See [`DENSE`].
 const SPARSE_CSC: usize = 2;
 
-/// The `n x n` matrix of a sparse (CSparse) file, and the line after it.
-fn sparse_matrix<'a>(l: &mut Lines<'a>, n: usize) -> Result<(Csc, &'a str)> {
+/// The `n x n` matrix of a sparse (CSparse) file.
+fn sparse_matrix(l: &mut Lines, n: usize) -> Result<Csc> {
     let banner = l.next("the CSparse banner")?;
     if !banner.starts_with("CSparse") {
         return Err(l.err(format!("expected the CSparse banner, found `{}`", shown(banner))));
@@ -125,8 +125,12 @@ fn sparse_matrix<'a>(l: &mut Lines<'a>, n: usize) -> Result<(Csc, &'a str)> {
     let mut col_start = vec![0usize; n + 1];
     let mut row_idx = Vec::new();
     let mut vals = Vec::new();
-    let mut line = l.next("the first column")?;
     for j in 0..n {
+        let line = l.next(if j == 0 {
+            "the first column"
+        } else {
+            "the next column"
+        })?;
         let rest = line.strip_prefix("col ").ok_or_else(|| {
             l.err(format!(
                 "expected `col {j} : locations a to b`, found `{}`",
@@ -165,26 +169,18 @@ fn sparse_matrix<'a>(l: &mut Lines<'a>, n: usize) -> Result<(Csc, &'a str)> {
             vals.push(finite(l, v.trim(), "a matrix entry")?);
         }
         col_start[j + 1] = vals.len();
-        line = l.next(if j + 1 < n {
-            "the next column"
-        } else {
-            "the vector q"
-        })?;
     }
-    Ok((
-        Csc {
-            n,
-            col_start,
-            row_idx,
-            vals,
-        },
-        line,
-    ))
+    Ok(Csc {
+        n,
+        col_start,
+        row_idx,
+        vals,
+    })
 }
 
 /// The `n x n` matrix of a dense file (Siconos writes its column-major storage in order,
-/// `n` values a line: line `j` is column `j`), its zeros left out, and the line after it.
-fn dense_matrix<'a>(l: &mut Lines<'a>, n: usize) -> Result<(Csc, &'a str)> {
+/// `n` values a line: line `j` is column `j`), its zeros left out.
+fn dense_matrix(l: &mut Lines, n: usize) -> Result<Csc> {
     let mut col_start = vec![0usize; n + 1];
     let (mut row_idx, mut vals) = (Vec::new(), Vec::new());
     for j in 0..n {
@@ -205,16 +201,12 @@ fn dense_matrix<'a>(l: &mut Lines<'a>, n: usize) -> Result<(Csc, &'a str)> {
         }
         col_start[j + 1] = vals.len();
     }
-    let line = l.next("the vector q")?;
-    Ok((
-        Csc {
-            n,
-            col_start,
-            row_idx,
-            vals,
-        },
-        line,
-    ))
+    Ok(Csc {
+        n,
+        col_start,
+        row_idx,
+        vals,
+    })
 }
 
 /// Parses the text of a problem (`path` only names it in errors).
@@ -249,7 +241,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Problem> {
         return Err(l.err(format!("matrix {rows} x {cols} does not match 2 x {nc} contacts")));
     }
     let n = rows;
-    let (w, line) = match kind {
+    let w = match kind {
         DENSE => {
             while more.len() < 2 {
                 more.extend(l.ints("the dense matrix's size line")?);
@@ -278,6 +270,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Problem> {
             )));
         }
     };
+    let line = l.next("the vector q")?;
     // q then mu, each on its own line with exactly its number of values.
     let mut numbers = Vec::with_capacity(n + nc);
     for t in line.split_whitespace() {
