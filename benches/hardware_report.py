@@ -115,8 +115,8 @@ def main(out):
         "",
         "## cdlab bench (tolerance 1e-4, 5 warm-up and 10 measured steps)",
         "",
-        "| binary | backend | method | disks | contacts | check every | iterations/step | ms/step | host recording ms/step | recording threads | sweep_all | device ms/step (solve) | ns/update | colors | dispatches/step | empty dispatches/step | submissions/step | waits/window |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| binary | backend | method | disks | contacts | check every | iterations/step | ms/step | host recording ms/step | recording threads | sweep_all | device ms/step (solve) | device detection / coloring / deep / integration ms/step | ns/update | colors | dispatches/step | empty dispatches/step | submissions/step | waits/window |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for c in report["bench"]:
         # Older binaries' bench.json lacks the newer fields.
@@ -125,9 +125,13 @@ def main(out):
         waits = c.get("readbacks_per_window")
         if waits is None:
             waits = c.get("readbacks_per_step", 0.0) * 10
+        ph = c.get("device_phases_ms_per_step")
+        phase_ms = "-" if not ph else " / ".join(
+            format(ph[k], ".3f") for k in ("detection", "coloring", "deep_updates", "integration")
+        )
         md.append(
             f"| {c['binary']} | {c['backend']} | {c.get('method', 'colored-gs')} | {c['disks']} | {c['contacts']} | {every} | {c['iterations_per_step']:.1f} "
-            f"| {c['ms_per_step']:.2f} | {c.get('host_record_ms_per_step', float('nan')):.2f} | {c.get('record_threads', '-')} | {c.get('sweep_all', '-')} | {c.get('device_ms_per_step')} ({c.get('device_solve_ms_per_step')}) | {c['ns_per_contact_update']:.2f} | {c['colors_per_step']:.1f} "
+            f"| {c['ms_per_step']:.2f} | {c.get('host_record_ms_per_step', float('nan')):.2f} | {c.get('record_threads', '-')} | {c.get('sweep_all', '-')} | {c.get('device_ms_per_step')} ({c.get('device_solve_ms_per_step')}) | {phase_ms} | {c['ns_per_contact_update']:.2f} | {c['colors_per_step']:.1f} "
             f"| {c['dispatches_per_step']:.0f} | {'-' if empty is None else format(empty, '.0f')} "
             f"| {c['submissions_per_step']:.2f} | {waits:.2f} |"
         )

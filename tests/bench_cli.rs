@@ -128,6 +128,21 @@ fn bench_writes_its_report_and_rejects_bad_sizes() {
                 c["device_solve_ms_per_step"].as_f64(),
             ) {
                 assert!(0.0 < solve && solve < dev && dev <= ms, "{c}");
+                // The phases tile the step: their sum with the solve is the step's time,
+                // to the rounding of the timestamps (one tick each, under a microsecond).
+                let p = &c["device_phases_ms_per_step"];
+                let parts: Vec<f64> = ["detection", "coloring", "deep_updates", "integration"]
+                    .iter()
+                    .map(|k| p[k].as_f64().unwrap_or(-1.0))
+                    .collect();
+                assert!(parts.iter().all(|&t| t >= 0.0), "{c}");
+                let sum = solve + parts.iter().sum::<f64>();
+                assert!(
+                    (sum - dev).abs() <= 1e-3 * dev + 1e-3,
+                    "phases {sum} ms against the step's {dev} ms: {c}"
+                );
+                // Detection and coloring each run a dozen dispatches or more.
+                assert!(parts[0] > 0.0 && parts[1] > 0.0, "{c}");
             }
             // The sweeps alone move 204 bytes per contact and iteration (src/gpu/traffic.rs:
             // the record, two velocities read and written, impulses and convergence terms).

@@ -70,14 +70,16 @@ fn compare_contact_sets(test: &str, s: &Scene) {
     assert_eq!(gpu, cpu, "{test}: contact sets differ");
 }
 
-#[test]
-fn gpu_contact_set_equals_cpu_on_a_random_cloud() {
-    // Near-touching disks on a jittered square lattice: gaps spread over [-0.01, 0.03] m
-    // around the alert distance (0.01 m), some overlapping, some beyond it.
+/// Near-touching disks on a jittered square lattice: gaps spread over [-0.01, 0.03] m
+/// around the alert distance (0.01 m), some overlapping, some beyond it. 576 disks: each
+/// prefix sum of the detection and coloring (cells, disks, bodies) and the grid's bounds
+/// span several blocks of 256, the pieces shaders/scan.wgsl and shaders/grid.wgsl cut them
+/// into.
+fn random_cloud() -> Scene {
     let mut rng = Rng(7);
     let mut s = scene(0.3);
-    for a in 0..16 {
-        for b in 0..16 {
+    for a in 0..24 {
+        for b in 0..24 {
             let r = 1.0 - 0.01 * rng.uniform();
             let p = DVec2::new(
                 2.0 * a as f64 + rng.range(-0.004, 0.004),
@@ -87,8 +89,40 @@ fn gpu_contact_set_equals_cpu_on_a_random_cloud() {
             s.disks.vel[k] = DVec2::new(rng.range(-0.1, 0.1), rng.range(-0.1, 0.1));
         }
     }
-    add_box(&mut s, -1.005, 31.0, -1.0, 31.0);
-    compare_contact_sets("random cloud", &s);
+    add_box(&mut s, -1.005, 47.0, -1.0, 47.0);
+    s
+}
+
+#[test]
+fn gpu_contact_set_equals_cpu_on_a_random_cloud() {
+    compare_contact_sets("random cloud", &random_cloud());
+}
+
+#[test]
+fn gpu_grid_bounds_every_disk_centre() {
+    // The grid's box is the centres' box, to the bit: the origin at the lowest x and y of
+    // the high words the device holds, and as many cells as the highest need at the
+    // sizing rule of shaders/grid.wgsl (the cell is the largest diameter plus the alert
+    // distance here: the capacity, four cells per disk, leaves room).
+    let s = random_cloud();
+    let params = gpu_params(Method::ColoredGs);
+    let Some(mut g) = gpu_or_skip("grid bounds", &s, params) else {
+        return;
+    };
+    let disks = g.raw_disks().unwrap();
+    g.run(1, &Loading::default()).unwrap();
+    let [ox, oy, cell, nx, ny] = g.raw_grid().unwrap();
+    let (ox, oy, cell) = (f32::from_bits(ox), f32::from_bits(oy), f32::from_bits(cell));
+    let lo = |f: fn(&cdlab::gpu::buffers::GpuDisk) -> f32| disks.iter().map(f).fold(f32::INFINITY, f32::min);
+    let hi =
+        |f: fn(&cdlab::gpu::buffers::GpuDisk) -> f32| disks.iter().map(f).fold(f32::NEG_INFINITY, f32::max);
+    assert_eq!((ox, oy), (lo(|d| d.x), lo(|d| d.y)), "grid origin");
+    let r_max = disks.iter().map(|d| d.radius).fold(0.0f32, f32::max);
+    let expected_cell = 2.0 * r_max + params.alert as f32;
+    assert_eq!(cell, expected_cell, "cell side");
+    let count = |ext: f32| (ext / cell) as u32 + 1;
+    assert_eq!(nx, count(hi(|d| d.x) - ox), "cells along x");
+    assert_eq!(ny, count(hi(|d| d.y) - oy), "cells along y");
 }
 
 #[test]
@@ -848,6 +882,40 @@ fn gpu_sweeps_in_one_workgroup_equal_a_dispatch_per_color() {
 /// (`GpuBackend::probe`): 30 steps in one window end in the state of 10 then 20 steps
 /// (windows too short to be probed), bit for bit, at the same time and step, with the
 /// probe counted as a window run again and not as a step.
+#[test]
+fn gpu_margin_swept_in_one_workgroup_equals_a_dispatch_per_color() {
+    // The rule of samples above step::ONE_WORKGROUP_CONTACTS (tried here on a small one):
+    // a dispatch per color up to the last window's largest count, sweep_all in the margin
+    // after it. Bit for bit the sweeps of a dispatch per color, with fewer dispatches.
+    let Some((mut per_color, mut margin)) = loaded_column_pair("margin in one workgroup") else {
+        return;
+    };
+    let Some((mut typical, _)) = loaded_column_pair("margin in one workgroup") else {
+        return;
+    };
+    per_color.overflow_sweeps = false;
+    margin.one_workgroup_contacts = 0;
+    for _ in 0..3 {
+        per_color.run(6, &Loading::default()).unwrap();
+        margin.run(6, &Loading::default()).unwrap();
+        typical.run(6, &Loading::default()).unwrap();
+    }
+    let (ka, kb, kc) = (per_color.counters(), margin.counters(), typical.counters());
+    assert_eq!(ka.iterations, kb.iterations);
+    // Fewer dispatches than a dispatch per color everywhere, and no fewer than the small
+    // samples' rule, whose sweep_all starts at the mean count (here every step of a window
+    // takes the same blocks, so the two rules record the same).
+    let recorded = |k: cdlab::gpu::backend::GpuCounters| k.dispatches + k.empty_dispatches;
+    assert!(
+        recorded(kc) <= recorded(kb) && recorded(kb) < recorded(ka),
+        "dispatches recorded: {} (from the mean), {} (from the largest), {} (none in one workgroup)",
+        recorded(kc),
+        recorded(kb),
+        recorded(ka)
+    );
+    same_disks(&mut per_color, &mut margin);
+}
+
 #[test]
 fn gpu_first_window_probed_with_one_step_equals_short_windows() {
     let Some((mut probed, mut short)) = loaded_column_pair("probe") else {

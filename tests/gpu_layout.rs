@@ -7,8 +7,8 @@
 use std::mem::offset_of;
 
 use cdlab::gpu::buffers::{GpuArgs, GpuContact, GpuDisk, GpuWall, SimParams};
-use cdlab::gpu::pipeline::{BINDINGS, Kernel};
-use cdlab::gpu::{COMMON_WGSL, SHADERS, compose, wgsl_constants, wgsl_prelude};
+use cdlab::gpu::pipeline::{Access, BINDINGS, Kernel, wgsl_bindings};
+use cdlab::gpu::{COMMON_WGSL, SHADERS, compose_file, wgsl_constants, wgsl_prelude};
 use naga::{Scalar, ScalarKind, TypeInner};
 
 /// One field of a Rust record: name, byte offset, byte size, scalar type of its elements.
@@ -322,7 +322,7 @@ fn modules() -> Vec<(&'static str, String, naga::Module)> {
     SHADERS
         .iter()
         .map(|(name, src)| {
-            let source = compose(src);
+            let source = compose_file(name, src);
             let module = parse(name, &source);
             (*name, source, module)
         })
@@ -353,7 +353,10 @@ fn the_comparison_catches_a_moved_field_and_a_wrong_size() {
         "inv_mass: f32, is_active: u32, force: u32,",
     );
     assert_ne!(source, COMMON_WGSL, "the WGSL `Wall` declaration was not found");
-    let module = parse("altered common.wgsl", &format!("{}{source}", wgsl_prelude()));
+    let module = parse(
+        "altered common.wgsl",
+        &format!("{}{}{source}", wgsl_prelude(), wgsl_bindings(Access::Shared)),
+    );
     let walls = records().into_iter().find(|r| r.0 == "Wall").unwrap();
     let bad = compare(&module, walls.0, walls.1, walls.2, &walls.3);
     let text = bad.join("\n");
@@ -404,10 +407,23 @@ fn every_binding_matches_the_shaders_declaration() {
             };
             assert_eq!(
                 !access.contains(naga::StorageAccess::STORE),
-                b.read_only,
+                Access::of_file(name).read_only(&b),
                 "{name}: `{}` read-only",
                 b.name
             );
+            // The integers are atomic where they are written and plain loads where they
+            // are read-only (the sweeps' access): atomics cannot be bound read-only.
+            if b.name == "ints" {
+                let TypeInner::Array { base, .. } = module.types[g.ty].inner else {
+                    panic!("{name}: `ints` is not an array");
+                };
+                let atomic = matches!(module.types[base].inner, TypeInner::Atomic(_));
+                assert_eq!(
+                    atomic,
+                    !Access::of_file(name).read_only(&b),
+                    "{name}: `ints` atomic"
+                );
+            }
             // The smallest valid binding: one element of a runtime-sized array, else the
             // whole type.
             let min = match &module.types[g.ty].inner {

@@ -15,7 +15,7 @@ use cdlab::backend::{Backend, Loading};
 use cdlab::gpu::buffers::{GpuContact, GpuDisk, GpuWall};
 use cdlab::gpu::pipeline::Kernel;
 use cdlab::gpu::traffic::{self, Buf, CONTACT, DISK, TABLE, VEL, WALL, WORD};
-use cdlab::gpu::{SHADERS, compose};
+use cdlab::gpu::{SHADERS, compose, compose_file};
 use cdlab::solver::Method;
 use naga::{Expression, Handle, Statement, TypeInner};
 
@@ -40,7 +40,7 @@ fn parse(name: &str, source: &str) -> naga::Module {
 #[test]
 fn the_record_sizes_of_the_table_are_the_wgsl_sizes() {
     let (name, src) = SHADERS[0];
-    let module = parse(name, &compose(src));
+    let module = parse(name, &compose_file(name, src));
     let mut layouter = naga::proc::Layouter::default();
     layouter.update(module.to_ctx()).expect("WGSL layout");
     let size_of_struct = |wgsl: &str| -> u32 {
@@ -161,7 +161,7 @@ fn walk(block: &naga::Block, visit: &mut impl FnMut(&Statement)) {
 fn every_entry_names_the_buffers_its_kernel_loads_and_stores() {
     let mut bad = Vec::new();
     for (file, src) in SHADERS {
-        let module = parse(file, &compose(src));
+        let module = parse(file, &compose_file(file, src));
         for &kernel in Kernel::ALL.iter().filter(|k| k.file() == *file) {
             let ep = module
                 .entry_points

@@ -74,6 +74,15 @@ pub struct GpuCounters {
     pub device_step_ns: u64,
     /// Device time of their solver iterations (ns).
     pub device_solve_ns: u64,
+    /// Device time of their detection: grid, pairs, contact records, warm start (ns).
+    pub device_detect_ns: u64,
+    /// Device time of their coloring: incidence lists, warm-start gather, colors, the
+    /// solve's dispatch arguments (ns).
+    pub device_color_ns: u64,
+    /// Device time of their local updates of deep contacts (ns).
+    pub device_deep_ns: u64,
+    /// Device time of their integration, wall impulses and warm-start records (ns).
+    pub device_integrate_ns: u64,
     /// Sweeps of the local updates of deep contacts left out, summed over the steps, to
     /// keep the software adapter's loop limit (see [`DEEP_LOOP_BUDGET`]); 0 on a hardware
     /// GPU.
@@ -85,9 +94,13 @@ pub struct GpuCounters {
 /// eight were no faster (docs/gpu.md, "Measured on hardware").
 pub const RECORD_THREADS_MAX: u32 = 2;
 
-/// Steps of a window timed on the device (four timestamps each; a query set holds at most
-/// 4096).
-pub const TIMED_STEPS: u32 = 1000;
+/// Timestamps of a timed step: its start, the ends of detection, coloring, solve and deep
+/// updates, and its end.
+pub const MARKS_PER_STEP: u32 = 6;
+
+/// Steps of a window timed on the device ([`MARKS_PER_STEP`] timestamps each; a query set
+/// holds at most 4096).
+pub const TIMED_STEPS: u32 = 640;
 
 /// Loop iterations allowed to one invocation of the deep-contact kernel on a software
 /// adapter (WGSL `deep_updates`): llvmpipe ends an invocation's loops after 65,535
@@ -120,6 +133,10 @@ impl std::ops::Sub for GpuCounters {
             timed_steps: self.timed_steps - earlier.timed_steps,
             device_step_ns: self.device_step_ns - earlier.device_step_ns,
             device_solve_ns: self.device_solve_ns - earlier.device_solve_ns,
+            device_detect_ns: self.device_detect_ns - earlier.device_detect_ns,
+            device_color_ns: self.device_color_ns - earlier.device_color_ns,
+            device_deep_ns: self.device_deep_ns - earlier.device_deep_ns,
+            device_integrate_ns: self.device_integrate_ns - earlier.device_integrate_ns,
             deep_sweeps_cut: self.deep_sweeps_cut - earlier.deep_sweeps_cut,
         }
     }
@@ -152,7 +169,7 @@ pub struct GpuBackend {
     pub(super) gpu: GpuDevice,
     pub(super) pipes: Pipelines,
     pub(super) bufs: Buffers,
-    pub(super) bind: (wgpu::BindGroup, wgpu::BindGroup),
+    pub(super) bind: super::pipeline::BindGroups,
     pub(super) sim: SimParams,
     pub(super) cap: Capacity,
     pub(super) params: StepParams,
@@ -184,10 +201,18 @@ pub struct GpuBackend {
     /// The last window's mean iterations per step, rounded up: the blocks that cover it
     /// are swept with a dispatch per color, those after with `sweep_all`.
     pub(super) typical_iters: u32,
-    /// Whether the iterations recorded past `typical_iters` are swept by one workgroup
-    /// each (`sweep_all`, below `step::ONE_WORKGROUP_CONTACTS` contacts); the results are
-    /// the same either way.
+    /// The last window's largest iterations per step: above
+    /// [`GpuBackend::one_workgroup_contacts`] contacts, the blocks that cover it are swept
+    /// with a dispatch per color, those of the margin after it with `sweep_all`.
+    pub(super) peak_iters: u32,
+    /// Whether iterations are swept by one workgroup each (`sweep_all`) past
+    /// `typical_iters` (at most [`GpuBackend::one_workgroup_contacts`] contacts) or in the
+    /// margin past `peak_iters` (more contacts); the results are the same either way.
     pub overflow_sweeps: bool,
+    /// The most contacts for which iterations past the typical count are swept by one
+    /// workgroup ([`step::ONE_WORKGROUP_CONTACTS`](super::step::ONE_WORKGROUP_CONTACTS) unless
+    /// a test lowers it to try the rule of larger samples on a small one).
+    pub one_workgroup_contacts: u32,
     /// The blocks of a solve (`step::schedule`) for the parameters and `conv_every` it
     /// was made for.
     pub(super) schedule: Vec<Block>,
@@ -243,7 +268,9 @@ impl GpuBackend {
             colors_hint: 16,
             iters_hint: 64,
             typical_iters: 64,
+            peak_iters: 64,
             overflow_sweeps: true,
+            one_workgroup_contacts: super::step::ONE_WORKGROUP_CONTACTS,
             schedule: Vec::new(),
             schedule_for: None,
             history: None,
@@ -253,7 +280,7 @@ impl GpuBackend {
             activity_mark: GpuCounters::default(),
         };
         if b.gpu.timestamps {
-            let q = 4 * TIMED_STEPS;
+            let q = MARKS_PER_STEP * TIMED_STEPS;
             let set = b.gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
                 label: Some("step timestamps"),
                 ty: wgpu::QueryType::Timestamp,
@@ -378,22 +405,24 @@ impl GpuBackend {
         q.write_buffer(&self.bufs.sim, 0, bytemuck::bytes_of(&self.sim));
         let s = &self.sim;
         let mut table = vec![0u32; (args_slots(self.cap) as u64 * ARGS_STRIDE / 4) as usize];
-        let mut put = |slot: u32, a: u32, b: u32, c: u32| {
+        let mut put = |slot: u32, a: u32, b: u32, c: u32, d: u32| {
             let w = slot as usize * (ARGS_STRIDE / 4) as usize;
-            table[w] = a;
-            table[w + 1] = b;
-            table[w + 2] = c;
+            table[w..w + 4].copy_from_slice(&[a, b, c, d]);
         };
-        put(0, 0, self.bufs.layout.clear_len, 0);
-        put(1, s.o_cell_start, s.cap_cells, 0);
-        put(2, s.o_dcount, s.n_disks, 0);
-        put(3, s.o_inc_count, s.n_bodies, 0);
+        put(0, 0, self.bufs.layout.clear_len, 0, 0);
+        // The prefix sums: the region, then its block totals (shaders/scan.wgsl).
+        let sums = self.bufs.layout.scan_sums;
+        let blocks = |n: u32| n.div_ceil(super::buffers::SCAN_BLOCK);
+        put(1, s.o_cell_start, s.cap_cells, sums, blocks(s.cap_cells));
+        put(2, s.o_dcount, s.n_disks, sums, blocks(s.n_disks));
+        put(3, s.o_inc_count, s.n_bodies, sums, blocks(s.n_bodies));
+        put(4, sums, s.n_disks, 0, 0);
         for c in 0..self.cap.colors {
-            put(color_slot(self.cap, c, false), c, 0, 0);
-            put(color_slot(self.cap, c, true), c, 1, 0);
+            put(color_slot(self.cap, c, false), c, 0, 0, 0);
+            put(color_slot(self.cap, c, true), c, 1, 0, 0);
         }
         for r in 1..=self.cap.rounds {
-            put(round_slot(self.cap, r), r, 0, 0);
+            put(round_slot(self.cap, r), r, 0, 0, 0);
         }
         // Each kind of block's test: its iterations, its velocity test, its relaxation.
         for b in &self.schedule {
@@ -402,6 +431,7 @@ impl GpuBackend {
                 b.len,
                 b.velocity_test as u32,
                 b.w.to_bits(),
+                0,
             );
         }
         q.write_buffer(&self.bufs.args, 0, bytemuck::cast_slice(&table));
@@ -609,6 +639,31 @@ impl GpuBackend {
         q.write_buffer(&self.bufs.disks, 0, bytemuck::cast_slice(&disks));
         q.write_buffer(&self.bufs.walls, 0, bytemuck::cast_slice(&walls));
         q.write_buffer(&self.bufs.vel, 0, bytemuck::cast_slice(&vel));
+    }
+
+    /// The disks as the device holds them (f32 records, positions relative to the sample
+    /// centre as two floats).
+    #[doc(hidden)]
+    pub fn raw_disks(&mut self) -> Result<Vec<GpuDisk>> {
+        let n = self.sim.n_disks as u64;
+        if n == 0 {
+            return Ok(Vec::new());
+        }
+        let disks = self.bufs.disks.clone();
+        let bytes = self.download(&disks, 0, n * size_of::<GpuDisk>() as u64)?;
+        Ok(bytemuck::cast_slice(&bytes).to_vec())
+    }
+
+    /// The cell grid of the last step as the device built it (shaders/grid.wgsl): origin x
+    /// and y relative to the sample centre, cell side (f32 bits), cells along x and y.
+    #[doc(hidden)]
+    pub fn raw_grid(&mut self) -> Result<[u32; 5]> {
+        let floats = self.bufs.floats.clone();
+        let at = 4 * (self.sim.f_grid as u64 + super::buffers::float_slot::GRID_ORIGIN_X as u64);
+        let bytes = self.download(&floats, at, 4 * 5)?;
+        let mut words = [0u32; 5];
+        words.copy_from_slice(bytemuck::cast_slice(&bytes));
+        Ok(words)
     }
 
     /// Contacts of the last step as f32 records (key order).
@@ -862,10 +917,16 @@ impl GpuCounters {
         let steps = self.steps.max(1) as f64;
         let ms = |ns: u64| ns as f64 / 1e6 / steps;
         let device = if self.timed_steps > 0 {
+            let t = |ns: u64| ns as f64 / 1e6 / self.timed_steps as f64;
             format!(
-                "{:.3} ms/step (solve {:.3} ms/step)",
-                self.device_step_ns as f64 / 1e6 / self.timed_steps as f64,
-                self.device_solve_ns as f64 / 1e6 / self.timed_steps as f64
+                "{:.3} ms/step (detection {:.3}, coloring {:.3}, solve {:.3}, deep updates \
+                 {:.3}, integration {:.3} ms/step)",
+                t(self.device_step_ns),
+                t(self.device_detect_ns),
+                t(self.device_color_ns),
+                t(self.device_solve_ns),
+                t(self.device_deep_ns),
+                t(self.device_integrate_ns)
             )
         } else {
             "not timed".into()

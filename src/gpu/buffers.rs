@@ -395,7 +395,15 @@ pub struct Layout {
     pub floats_keep: u32,
     /// Words of `prev`.
     pub prev_len: u32,
+    /// Offset in `ints` of the block totals of the prefix sums (shaders/scan.wgsl): one
+    /// word per [`SCAN_BLOCK`] words of the largest region scanned, and its total. The
+    /// grid's partial bounds (four words per [`SCAN_BLOCK`] disks, shaders/grid.wgsl) use it
+    /// before the first prefix sum of a step: the cells are more than four per disk.
+    pub scan_sums: u32,
 }
+
+/// Words of a region each workgroup of a prefix sum takes (shaders/scan.wgsl).
+pub const SCAN_BLOCK: u32 = 256;
 
 /// Fills the region offsets of `p` for the given sizes and returns the buffer sizes.
 /// Counters cleared every step come first so one dispatch clears them all; the float
@@ -430,6 +438,11 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
     p.o_per_disk = take(&mut o, nd);
     p.o_outline = take(&mut o, 2 * OUTLINE_BINS);
     p.o_color_map = take(&mut o, cap.colors);
+    let scanned = cap.cells.max(nd).max(nb);
+    let scan_sums = take(
+        &mut o,
+        (scanned.div_ceil(SCAN_BLOCK) + 1).max(4 * nd.div_ceil(SCAN_BLOCK)),
+    );
     let ints_len = o.max(1);
     let mut f = 0u32;
     p.f_wall = take(&mut f, 2 * p.n_walls);
@@ -454,6 +467,7 @@ pub fn layout(p: &mut SimParams, cap: Capacity) -> Layout {
         floats_len: f,
         floats_keep,
         prev_len: nd + 1 + PREV_STRIDE * cap.contacts,
+        scan_sums,
     }
 }
 
@@ -487,26 +501,31 @@ pub struct Buffers {
 /// length, velocity test, relaxation) in a step's schedule, which has at most four.
 pub const CONV_SLOTS: u32 = 8;
 
-/// Number of per-dispatch argument slots: 4 fixed ones, two per color (unrelaxed and
+/// The fixed argument slots: 0 the cleared counters, 1 to 3 the prefix sums (cells, disks,
+/// bodies: the region, then its block totals), 4 the grid's bounds (the scratch of its
+/// partial bounds, the disks).
+pub const FIXED_SLOTS: u32 = 5;
+
+/// Number of per-dispatch argument slots: [`FIXED_SLOTS`], two per color (unrelaxed and
 /// relaxed sweeps), one per coloring round, [`CONV_SLOTS`] for the convergence tests.
 pub fn args_slots(cap: Capacity) -> u32 {
-    4 + 2 * cap.colors + cap.rounds + CONV_SLOTS
+    FIXED_SLOTS + 2 * cap.colors + cap.rounds + CONV_SLOTS
 }
 
 /// Argument slot of color `c`'s sweep at relaxation 1 (`relaxed` false) or
 /// `solver.gs_relax` (its `a` is `c`, its `b` the relaxation's f32 bits).
 pub fn color_slot(cap: Capacity, c: u32, relaxed: bool) -> u32 {
-    4 + c + if relaxed { cap.colors } else { 0 }
+    FIXED_SLOTS + c + if relaxed { cap.colors } else { 0 }
 }
 
 /// Argument slot of coloring round `r` (1-based; its `a` is `r`).
 pub fn round_slot(cap: Capacity, r: u32) -> u32 {
-    4 + 2 * cap.colors + r - 1
+    FIXED_SLOTS + 2 * cap.colors + r - 1
 }
 
 /// Argument slot of convergence test `k` (`k < CONV_SLOTS`).
 pub fn conv_slot(cap: Capacity, k: u32) -> u32 {
-    4 + 2 * cap.colors + cap.rounds + k
+    FIXED_SLOTS + 2 * cap.colors + cap.rounds + k
 }
 
 /// Checks one buffer size against the adapter's limits; the error ([`GpuError::Limit`](crate::error::GpuError::Limit))

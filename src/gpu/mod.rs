@@ -30,6 +30,7 @@ pub const SHADERS: &[(&str, &str)] = &[
     ("detect.wgsl", include_str!("../../shaders/detect.wgsl")),
     ("color.wgsl", include_str!("../../shaders/color.wgsl")),
     ("solve.wgsl", include_str!("../../shaders/solve.wgsl")),
+    ("sweep.wgsl", include_str!("../../shaders/sweep.wgsl")),
     ("integrate.wgsl", include_str!("../../shaders/integrate.wgsl")),
     ("reduce.wgsl", include_str!("../../shaders/reduce.wgsl")),
 ];
@@ -285,8 +286,24 @@ pub fn wgsl_prelude() -> String {
 }
 
 /// A phase shader with the shared WGSL in front of it: the generated constants
-/// ([`wgsl_prelude`]), then `common.wgsl` (plain concatenation: WGSL has no includes, and
-/// one shared prefix is all the composition the phases need).
+/// ([`wgsl_prelude`]), the bindings with every buffer read-write
+/// ([`pipeline::wgsl_bindings`] under [`pipeline::Access::Shared`]), then `common.wgsl`
+/// (plain concatenation: WGSL has no includes, and one shared prefix is all the
+/// composition the phases need).
 pub fn compose(phase: &str) -> String {
-    format!("{}{COMMON_WGSL}\n{phase}", wgsl_prelude())
+    compose_with(pipeline::Access::Shared, phase)
+}
+
+/// [`compose`] for the phase file `file`, its buffers bound as its access says
+/// ([`pipeline::Access::of_file`]): what the pipelines compile.
+pub fn compose_file(file: &str, phase: &str) -> String {
+    compose_with(pipeline::Access::of_file(file), phase)
+}
+
+fn compose_with(access: pipeline::Access, phase: &str) -> String {
+    format!(
+        "{}{}{COMMON_WGSL}\n{phase}",
+        wgsl_prelude(),
+        pipeline::wgsl_bindings(access)
+    )
 }

@@ -26,15 +26,15 @@
 //! to spare, so that a redone step equals one run with room from the start.
 
 use super::WG;
-use super::backend::GpuBackend;
+use super::backend::{GpuBackend, MARKS_PER_STEP};
 use super::buffers::float_slot::{
     MICRO_COUNTS, MICRO_SUMS, RED_CONNECTED, RED_CONNECTED_ENERGY, RED_EDGE_COUNT, RED_EDGE_LEFT,
     RED_EDGE_RIGHT, RED_FREE, RED_KINETIC, RED_MICRO, RED_MICRO_SUMS, RED_OVERLAP_COUNT, RED_OVERLAP_MAX,
     RED_OVERLAP_SUM, RED_ROLLING, RED_SLIDING, RED_STRIP_N_LEFT, RED_STRIP_N_RIGHT, RED_STRIP_X_LEFT,
     RED_STRIP_X_RIGHT, RED_TRANSLATIONAL, RED_ZERO_FORCE,
 };
-use super::buffers::{ARGS_STRIDE, GpuWall, color_slot, conv_slot, disp, round_slot, status};
-use super::pipeline::Kernel;
+use super::buffers::{ARGS_STRIDE, GpuWall, SCAN_BLOCK, color_slot, conv_slot, disp, round_slot, status};
+use super::pipeline::{Access, Kernel};
 use super::traffic::{self, Counts};
 use crate::backend::{Loading, Reductions};
 use crate::error::{Error, Result};
@@ -46,7 +46,10 @@ fn groups(n: u32) -> u32 {
 
 /// The most contacts for which iterations past the typical count are swept by one
 /// workgroup (`sweep_all`): its 256 threads walk every contact, 128 passes here, where a
-/// dispatch per color costs the device a few microseconds each (docs/gpu.md).
+/// dispatch per color costs the device a few microseconds each (docs/gpu.md). Larger
+/// samples sweep one workgroup only in the margin, past the last window's largest count:
+/// there an iteration is rarely run, and recorded empty it costs one dispatch instead of
+/// one per color.
 pub const ONE_WORKGROUP_CONTACTS: u32 = 32_768;
 
 /// Windows of at least this many steps are probed with one step when they are a fresh
@@ -178,10 +181,10 @@ struct Rec<'a> {
     b: &'a GpuBackend,
     log: Vec<Logged>,
     block: Option<u32>,
-    /// The pipeline and argument slot bound in the open pass: a dispatch that needs the
-    /// same ones sets neither again (the host's recording sets the pace of small samples,
-    /// docs/gpu.md, "Measured on hardware").
-    bound: (Option<Kernel>, Option<u32>),
+    /// The pipeline, argument slot and group 0's access bound in the open pass: a dispatch
+    /// that needs the same ones sets none again (the host's recording sets the pace of small
+    /// samples, docs/gpu.md, "Measured on hardware").
+    bound: (Option<Kernel>, Option<u32>, Option<Access>),
 }
 
 impl<'a> Rec<'a> {
@@ -192,28 +195,24 @@ impl<'a> Rec<'a> {
             b,
             log: Vec::new(),
             block: None,
-            bound: (None, None),
+            bound: (None, None, None),
         }
     }
 
     fn pass(&mut self) -> &mut wgpu::ComputePass<'static> {
-        let b = self.b;
         self.pass.get_or_insert_with(|| {
-            let mut pass = self
-                .enc
+            self.enc
                 .begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("cdlab step"),
                     timestamp_writes: None,
                 })
-                .forget_lifetime();
-            pass.set_bind_group(0, &b.bind.0, &[]);
-            pass
+                .forget_lifetime()
         })
     }
 
     fn end_pass(&mut self) {
         self.pass = None;
-        self.bound = (None, None);
+        self.bound = (None, None, None);
     }
 
     /// Writes timestamp `index` of the step timestamps, if the device has them (an empty
@@ -247,21 +246,35 @@ impl<'a> Rec<'a> {
 
     fn bind_args(&mut self, kernel: Kernel, slot: u32) {
         let b = self.b;
-        let (kernel_was, slot_was) = self.bound;
+        let (kernel_was, slot_was, access_was) = self.bound;
+        let access = Access::of_file(kernel.file());
         let pass = self.pass();
+        if access_was != Some(access) {
+            pass.set_bind_group(0, &b.bind.group0[access as usize], &[]);
+        }
         if kernel_was != Some(kernel) {
             pass.set_pipeline(b.pipes.get(kernel));
         }
         if slot_was != Some(slot) {
-            pass.set_bind_group(1, &b.bind.1, &[(slot as u64 * ARGS_STRIDE) as u32]);
+            pass.set_bind_group(1, &b.bind.args, &[(slot as u64 * ARGS_STRIDE) as u32]);
         }
-        self.bound = (Some(kernel), Some(slot));
+        self.bound = (Some(kernel), Some(slot), Some(access));
     }
 
     /// Dispatches `x` workgroups of `kernel` with argument slot `slot`, over `items` items
     /// (the count its per-item traffic is multiplied by, see [`super::traffic`]).
     fn go(&mut self, kernel: Kernel, slot: u32, x: u32, items: u32) {
         self.go_over(kernel, slot, x, Items::N(items));
+    }
+
+    /// The exclusive prefix sum of the `n` words of the region of argument slot `slot`, in
+    /// place (shaders/scan.wgsl): a workgroup per block, one for the blocks' totals, a
+    /// thread per word.
+    fn scan(&mut self, slot: u32, n: u32) {
+        let blocks = n.div_ceil(SCAN_BLOCK);
+        self.go(Kernel::ScanBlocks, slot, blocks, n);
+        self.go(Kernel::ScanSums, slot, 1, blocks);
+        self.go(Kernel::ScanAdd, slot, blocks.max(1), n);
     }
 
     /// [`Rec::go`] over `items` of any kind.
@@ -453,14 +466,20 @@ impl GpuBackend {
         }
     }
 
-    /// Of `blocks` blocks, those swept with a dispatch per color: all of them for a sample
-    /// above [`ONE_WORKGROUP_CONTACTS`] contacts or with `overflow_sweeps` off; else those
-    /// that cover the last window's mean iterations per step, the rest with `sweep_all`.
+    /// Of `blocks` blocks, those swept with a dispatch per color: all of them with
+    /// `overflow_sweeps` off; else those that cover the last window's mean iterations per
+    /// step (at most [`GpuBackend::one_workgroup_contacts`] contacts) or its largest (more
+    /// contacts), the rest with `sweep_all`.
     fn full_blocks(&self, blocks: u32) -> u32 {
-        if !self.overflow_sweeps || self.n_contacts > ONE_WORKGROUP_CONTACTS {
+        if !self.overflow_sweeps {
             return blocks;
         }
-        self.blocks_for(self.typical_iters).min(blocks)
+        let per_color = if self.n_contacts > self.one_workgroup_contacts {
+            self.peak_iters
+        } else {
+            self.typical_iters
+        };
+        self.blocks_for(per_color).min(blocks)
     }
 
     /// The blocks recorded for a solve expected to take `iters` iterations.
@@ -508,9 +527,14 @@ impl GpuBackend {
             let t: &[u64] = bytemuck::cast_slice(&bytes[at.times_at as usize..at.end as usize]);
             let period = self.gpu.queue.get_timestamp_period() as f64;
             let ns = |a: u64, b: u64| (b.saturating_sub(a) as f64 * period) as u64;
-            for q in t.chunks_exact(4) {
-                self.counters.device_step_ns += ns(q[0], q[3]);
-                self.counters.device_solve_ns += ns(q[1], q[2]);
+            for q in t.chunks_exact(MARKS_PER_STEP as usize) {
+                let c = &mut self.counters;
+                c.device_step_ns += ns(q[0], q[5]);
+                c.device_detect_ns += ns(q[0], q[1]);
+                c.device_color_ns += ns(q[1], q[2]);
+                c.device_solve_ns += ns(q[2], q[3]);
+                c.device_deep_ns += ns(q[3], q[4]);
+                c.device_integrate_ns += ns(q[4], q[5]);
             }
             self.counters.timed_steps += at.timed as u64;
         }
@@ -593,6 +617,7 @@ impl GpuBackend {
         self.colors_hint = c + 1;
         let it = max(status::ITERS);
         self.iters_hint = it + it / 4 + self.conv_every;
+        self.peak_iters = it;
         self.typical_iters = red.iterations_sum.div_ceil(red.steps.max(1) as u64) as u32;
         self.counters.steps += steps as u64;
         self.counters.iterations += red.iterations_sum;
@@ -625,7 +650,7 @@ impl GpuBackend {
             walls_bytes,
             timed,
             times_at,
-            end: times_at + 8 * 4 * timed as u64,
+            end: times_at + 8 * (MARKS_PER_STEP * timed) as u64,
         }
     }
 
@@ -662,7 +687,7 @@ impl GpuBackend {
                 }
             }
             if s < steps {
-                self.record_step(&mut r, rec, (s < timed).then_some(4 * s));
+                self.record_step(&mut r, rec, (s < timed).then_some(MARKS_PER_STEP * s));
                 let st = 4 * self.sim.o_status as u64;
                 r.copy(&self.bufs.ints, st, history, s as u64 * ROW_BYTES, ROW_BYTES);
             }
@@ -683,8 +708,9 @@ impl GpuBackend {
                     && timed > 0
                 {
                     r.end_pass();
-                    r.enc.resolve_query_set(set, 0..4 * timed, resolve, 0);
-                    r.copy(resolve, 0, history, times_at, 8 * 4 * timed as u64);
+                    let marks = MARKS_PER_STEP * timed;
+                    r.enc.resolve_query_set(set, 0..marks, resolve, 0);
+                    r.copy(resolve, 0, history, times_at, 8 * marks as u64);
                 }
             }
             r.finish()
@@ -766,8 +792,9 @@ impl GpuBackend {
         (more != rec).then_some(Redo::Record(more))
     }
 
-    /// Records one step into `r` with the margins `rec`, and its four timestamps from
-    /// index `times` on when given (start, solve start, solve end, end).
+    /// Records one step into `r` with the margins `rec`, and its timestamps from index
+    /// `times` on when given ([`MARKS_PER_STEP`]: start, detection end, solve start, solve
+    /// end, deep updates end, end).
     fn record_step(&self, r: &mut Rec<'_>, rec: Recorded, times: Option<u32>) {
         let at = |k: u32| times.map(|t| t + k);
         r.mark(at(0));
@@ -777,12 +804,13 @@ impl GpuBackend {
         r.block = None;
         r.go(Kernel::ClearInts, 0, groups(clear), clear);
         r.go(Kernel::FreeVelocity, 0, groups(nb), nb);
-        r.go(Kernel::GridBounds, 0, 1, nd);
+        r.go(Kernel::GridPartial, 4, nd.div_ceil(SCAN_BLOCK), nd);
+        r.go(Kernel::GridBounds, 4, 1, nd.div_ceil(SCAN_BLOCK));
         r.go(Kernel::GridCount, 0, groups(nd), nd);
-        r.go(Kernel::Scan, 1, 1, self.sim.cap_cells);
+        r.scan(1, self.sim.cap_cells);
         r.go(Kernel::GridScatter, 0, groups(nd), nd);
         r.go(Kernel::Detect, 0, groups(nd), nd);
-        r.go(Kernel::Scan, 2, 1, nd);
+        r.scan(2, nd);
         r.go(Kernel::ContactArgs, 0, 1, 1);
         let o = 4 * (self.sim.o_status as u64 + status::ARGS as u64);
         r.copy(
@@ -794,8 +822,9 @@ impl GpuBackend {
         );
         let all = Items::Contacts;
         r.go(Kernel::BuildContacts, 0, groups(nd), nd);
+        r.mark(at(1));
         r.go_indirect(Kernel::IncidenceCount, 0, disp::CONTACTS, all);
-        r.go(Kernel::Scan, 3, 1, nb);
+        r.scan(3, nb);
         r.go_indirect(Kernel::IncidenceFill, 0, disp::CONTACTS, all);
         r.go_indirect(Kernel::IncidenceRank, 0, disp::CONTACTS, all);
         r.go(Kernel::Gather, 0, groups(nb), nb);
@@ -809,7 +838,7 @@ impl GpuBackend {
         r.go(Kernel::SolveArgs, 0, 1, 1);
         let entries = disp::entries(rec.colors);
         r.publish_args(entries);
-        r.mark(at(1));
+        r.mark(at(2));
         let jacobi = self.params.solver.method == Method::Jacobi;
         for (k, b) in self.schedule[..rec.blocks as usize].iter().enumerate() {
             r.block = Some(k as u32);
@@ -845,7 +874,7 @@ impl GpuBackend {
             r.publish_args(entries);
         }
         r.block = None;
-        r.mark(at(2));
+        r.mark(at(3));
         let p = self.params.solver;
         if p.deep_updates() {
             // Local updates of deep contacts: the selection, then every sweep over the
@@ -854,12 +883,13 @@ impl GpuBackend {
             r.go_indirect(Kernel::DeepMark, 0, disp::CONTACTS, all);
             r.go(Kernel::DeepUpdates, 0, 1, 1);
         }
+        r.mark(at(4));
         r.go(Kernel::Integrate, 0, groups(nb), nb);
         let nw = self.sim.n_walls;
         r.go(Kernel::WallImpulse, 0, nw, nw);
         let save = self.cap.contacts.max(nd + 1);
         r.go(Kernel::SavePrev, 0, groups(save), nd + 1);
-        r.mark(at(3));
+        r.mark(at(5));
     }
 
     /// The end-of-run reductions from the history's tail (the float accumulators, then the

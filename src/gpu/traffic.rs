@@ -146,10 +146,19 @@ const SWEEP: &[Access] = &[
 pub const TABLE: &[(Kernel, &[Access])] = &[
     // Over the words of the cleared region.
     (Kernel::ClearInts, &[w(Ints, Item, WORD)]),
-    // One workgroup over the words of a region: each read and written, then the total.
+    // A workgroup per block of a region's words: each read and written (the blocks'
+    // totals, a word per 256, are not counted).
+    (Kernel::ScanBlocks, &[r(Ints, Item, WORD), w(Ints, Item, WORD)]),
+    // One workgroup over the blocks' totals: each read and written, then the total.
     (
-        Kernel::Scan,
+        Kernel::ScanSums,
         &[r(Ints, Item, WORD), w(Ints, Item, WORD), w(Ints, Once, WORD)],
+    ),
+    // Over the words of the region: each and its block's offset read, each written; the
+    // total after the region.
+    (
+        Kernel::ScanAdd,
+        &[r(Ints, Item, 2 * WORD), w(Ints, Item, WORD), w(Ints, Once, WORD)],
     ),
     // Over bodies: state velocity, the disk, the two words of the y of each of the two walls
     // bounding the strips; the disk's strip force, three velocity regions; each wall body
@@ -165,10 +174,15 @@ pub const TABLE: &[(Kernel, &[Access])] = &[
             w(Vel, Item, 3 * VEL),
         ],
     ),
-    // One workgroup over disks: x, y; the grid's 5 words.
+    // Over disks: x, y; a workgroup's box, 4 words per 256 disks (counted once).
+    (
+        Kernel::GridPartial,
+        &[r(Disks, Item, 2 * WORD), w(Ints, Once, 4 * WORD)],
+    ),
+    // One workgroup over the partial boxes: 4 words each; the grid's 5 words.
     (
         Kernel::GridBounds,
-        &[r(Disks, Item, 2 * WORD), w(Floats, Once, 5 * WORD)],
+        &[r(Ints, Item, 4 * WORD), w(Floats, Once, 5 * WORD)],
     ),
     // Over disks: the grid's 5 words, x, y; the cell of the disk, the cell's count (atomic).
     (
@@ -311,6 +325,45 @@ pub const TABLE: &[(Kernel, &[Access])] = &[
         Kernel::SolveArgs,
         &[r(Ints, Once, 66 * WORD), w(Ints, Once, (3 * 68 + 2) * WORD)],
     ),
+    // One workgroup over contacts: the flag, the count, the iterations; the two terms of
+    // each; the two sums, the iterations and the residual (the solve's end, once a step,
+    // is not counted).
+    (
+        Kernel::ConvCheck,
+        &[
+            r(Ints, Once, 3 * WORD),
+            r(Floats, Item, 2 * WORD),
+            w(Floats, Once, 2 * WORD),
+            w(Ints, Once, 2 * WORD),
+        ],
+    ),
+    // Over contacts: the count, the record; its mark. The count of marked contacts
+    // (atomic) only for the marked ones.
+    (
+        Kernel::DeepMark,
+        &[
+            r(Ints, Item, WORD),
+            r(Contacts, Item, CONTACT),
+            w(Contacts, Item, WORD),
+            w(Ints, Item, 0),
+        ],
+    ),
+    // One workgroup, once: the step's count, the sum; the sum. Then the colors holding
+    // deep contacts and those contacts' Gauss-Seidel updates, and on a software adapter
+    // the count of sweeps cut, off the common path (none in a settled packing).
+    (
+        Kernel::DeepUpdates,
+        &[
+            r(Ints, Once, WORD),
+            r(Floats, Once, WORD),
+            w(Floats, Once, WORD),
+            w(Ints, Once, 0),
+            r(Contacts, Once, 0),
+            w(Contacts, Once, 0),
+            r(Vel, Once, 0),
+            w(Vel, Once, 0),
+        ],
+    ),
     // Over bodies: the free velocity, its two list bounds; per contact (two incidences)
     // the list entry and the record; the iterate.
     (
@@ -350,51 +403,12 @@ pub const TABLE: &[(Kernel, &[Access])] = &[
             w(Contacts, Item, 2 * WORD),
         ],
     ),
-    // One workgroup over contacts: the flag, the count, the iterations; the two terms of
-    // each; the two sums, the iterations and the residual (the solve's end, once a step,
-    // is not counted).
-    (
-        Kernel::ConvCheck,
-        &[
-            r(Ints, Once, 3 * WORD),
-            r(Floats, Item, 2 * WORD),
-            w(Floats, Once, 2 * WORD),
-            w(Ints, Once, 2 * WORD),
-        ],
-    ),
     // Over bodies: the iterate, copied.
     (Kernel::SaveIterate, &[r(Vel, Item, VEL), w(Vel, Item, VEL)]),
     // One workgroup over bodies: both iterates and the radius; the maximum.
     (
         Kernel::VelocityChange,
         &[r(Vel, Item, 2 * VEL), r(Disks, Item, WORD), w(Floats, Once, WORD)],
-    ),
-    // Over contacts: the count, the record; its mark. The count of marked contacts
-    // (atomic) only for the marked ones.
-    (
-        Kernel::DeepMark,
-        &[
-            r(Ints, Item, WORD),
-            r(Contacts, Item, CONTACT),
-            w(Contacts, Item, WORD),
-            w(Ints, Item, 0),
-        ],
-    ),
-    // One workgroup, once: the step's count, the sum; the sum. Then the colors holding
-    // deep contacts and those contacts' Gauss-Seidel updates, and on a software adapter
-    // the count of sweeps cut, off the common path (none in a settled packing).
-    (
-        Kernel::DeepUpdates,
-        &[
-            r(Ints, Once, WORD),
-            r(Floats, Once, WORD),
-            w(Floats, Once, WORD),
-            w(Ints, Once, 0),
-            r(Contacts, Once, 0),
-            w(Contacts, Once, 0),
-            r(Vel, Once, 0),
-            w(Vel, Once, 0),
-        ],
     ),
     // Over bodies: both velocity regions, the disk; its x, y (two words each), theta, its
     // velocity. Each wall body reads and writes its point (two words a coordinate).

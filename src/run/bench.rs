@@ -14,6 +14,19 @@ use crate::gpu::backend::GpuBackend;
 use crate::model::{Scene, WallDrive};
 use crate::protocol::{prepare, walls};
 
+/// The device's time per step outside the solve, by phase (ms).
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct DevicePhases {
+    /// Grid, pair detection, contact records and warm start.
+    pub detection: f64,
+    /// Incidence lists, warm-start gather, colors and the solve's dispatch arguments.
+    pub coloring: f64,
+    /// Local updates of deep contacts.
+    pub deep_updates: f64,
+    /// Integration, wall impulses and the records kept for the next warm start.
+    pub integration: f64,
+}
+
 /// One measured case (`bench.json`).
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct Case {
@@ -64,6 +77,10 @@ pub struct Case {
     pub device_ms_per_step: Option<f64>,
     /// GPU: device time of the solver iterations per step (ms), as `device_ms_per_step`.
     pub device_solve_ms_per_step: Option<f64>,
+    /// GPU: device time of the other phases per step (ms), as `device_ms_per_step`:
+    /// detection, coloring, local updates of deep contacts, integration. With the solve
+    /// they add up to the step.
+    pub device_phases_ms_per_step: Option<DevicePhases>,
     /// Solver method.
     pub method: String,
     /// GPU: dispatches per step beyond one per color per solver iteration and one
@@ -189,14 +206,24 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, run: Run) ->
     let steps = done.max(1) as f64;
     let n_windows = windows(run.steps, run.window).count().max(1) as f64;
     let iterations = iterations_sum as f64 / steps;
-    let mut device = (None, None);
+    let mut device = (None, None, None);
     let (rounds, redone, traffic, dispatches, empty, submissions, readbacks, fixed, record) =
         match (before, after) {
             (Some(a), Some(b)) => {
                 let k = b - a;
                 if k.timed_steps > 0 {
                     let per = |ns: u64| ns as f64 / 1e6 / k.timed_steps as f64;
-                    device = (Some(per(k.device_step_ns)), Some(per(k.device_solve_ns)));
+                    let phases = DevicePhases {
+                        detection: per(k.device_detect_ns),
+                        coloring: per(k.device_color_ns),
+                        deep_updates: per(k.device_deep_ns),
+                        integration: per(k.device_integrate_ns),
+                    };
+                    device = (
+                        Some(per(k.device_step_ns)),
+                        Some(per(k.device_solve_ns)),
+                        Some(phases),
+                    );
                 }
                 let d = k.dispatches as f64 / steps;
                 // Less the sweeps (counted by the backend: one per large color and one for
@@ -246,6 +273,7 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, run: Run) ->
         sweep_all: run.sweep_all,
         device_ms_per_step: device.0,
         device_solve_ms_per_step: device.1,
+        device_phases_ms_per_step: device.2,
         method: backend.params().solver.method.name().to_string(),
         fixed_dispatches_per_step: fixed,
         traffic_mb_per_step: traffic,
