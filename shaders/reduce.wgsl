@@ -309,3 +309,73 @@ fn outline_sum(@builtin(local_invocation_index) t: u32) {
         floats[sim.f_red + FR_EDGE_COUNT] = bitcast<f32>(u32(count.x));
     }
 }
+
+// The strips' members, found on the device (CPU twin: backend::reduce::strip_members), so
+// that a refresh of the strips reads back one word per disk instead of the scene. Part 1,
+// after outline_clear, a thread per free disk: the outline of all free disks, its leftmost
+// point at each height in the left bins and its rightmost in the right ones.
+@compute @workgroup_size(WG)
+fn free_outline(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if k >= sim.n_disks { return; }
+    let d = disks[k];
+    if d.kind != KIND_FREE { return; }
+    let hs = outline_heights();
+    let x = d.x + d.x_lo;
+    let y = d.y + d.y_lo;
+    let first = max(ceil((y - d.radius - hs.x) / hs.y - 0.5), 0.0);
+    let last = min(floor((y + d.radius - hs.x) / hs.y - 0.5), hs.z - 1.0);
+    if last < first { return; }
+    for (var i = u32(first); i <= u32(last); i++) {
+        let dy = hs.x + (f32(i) + 0.5) * hs.y - y;
+        let half = sqrt(max(d.radius * d.radius - dy * dy, 0.0));
+        atomicMin(&ints[sim.o_outline + i], sortable(x - half));
+        atomicMax(&ints[sim.o_outline + OUTLINE_BINS + i], sortable(x + half));
+    }
+}
+
+// Part 2, a thread per disk: -1 for a free disk whose centre lies within the strip
+// thickness (args.a, f32 bits) of the left edge at its height, +1 of the right edge, 0
+// otherwise, to the per-disk scratch (ints[o_per_disk + k]). The edge at a height is the
+// outermost point of the outline within half the thickness above or below it. Unset
+// heights hold the extreme bits (outline_clear), which the min and max pass over; a free
+// disk sets the heights it crosses, so its own window is never empty.
+@compute @workgroup_size(WG)
+fn strip_classify(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if k >= sim.n_disks { return; }
+    let d = disks[k];
+    var tag = 0;
+    if d.kind == KIND_FREE {
+        let t = bitcast<f32>(args.a);
+        let hs = outline_heights();
+        let n = u32(hs.z);
+        let x = d.x + d.x_lo;
+        let y = d.y + d.y_lo;
+        let i = u32(clamp(floor((y - hs.x) / hs.y), 0.0, hs.z - 1.0));
+        let reach = u32(ceil(0.5 * t / hs.y));
+        let lo = select(0u, i - reach, i >= reach);
+        let hi = min(i + reach + 1u, n);
+        var left = 0xffffffffu;
+        var right = 0u;
+        for (var j = lo; j < hi; j++) {
+            left = min(left, ld(sim.o_outline + j));
+            right = max(right, ld(sim.o_outline + OUTLINE_BINS + j));
+        }
+        if left == 0xffffffffu || x < unsortable(left) + t {
+            tag = -1;
+        } else if right == 0u || x > unsortable(right) - t {
+            tag = 1;
+        }
+    }
+    st(sim.o_per_disk + k, bitcast<u32>(tag));
+}
+
+// A refresh of the strips taken into the disk records: the tags in the per-disk scratch
+// (strip_classify's, or the host's), one word per disk.
+@compute @workgroup_size(WG)
+fn set_strips(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let k = gid.x;
+    if k >= sim.n_disks { return; }
+    disks[k].strip = bitcast<i32>(ld(sim.o_per_disk + k));
+}

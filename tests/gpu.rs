@@ -12,6 +12,7 @@ mod common;
 #[path = "gpu_support/mod.rs"]
 mod gpu_support;
 
+use cdlab::backend::reduce::strip_members;
 use cdlab::backend::{Backend, CpuBackend, Loading};
 use cdlab::engine::CpuEngine;
 use cdlab::model::Scene;
@@ -717,6 +718,66 @@ fn gpu_resume_continues_from_the_warm_start() {
 /// CPU twin's (`backend::reduce::strip_outer_edges`) on the same positions: a jittered
 /// lattice with its two outer columns as strips, one step, then the CPU's edges of the
 /// positions the GPU reached. The window waits once: no scene download for the edges.
+#[test]
+fn gpu_strip_members_found_on_the_device_equal_the_scenes() {
+    // A refresh of the strips on the GPU reads back one word per disk, not the scene, and
+    // must find the members backend::reduce::strip_members finds in the scene: an
+    // irregular side (radii 0.4 to 0.7 m on a lattice of pitch 2 m, centres moved by up to
+    // 0.3 m), a strip 2.6 m thick that cuts through the second column and the second last.
+    let mut rng = Rng(11);
+    let mut s = scene(0.3);
+    let n = 20;
+    for a in 0..n {
+        for b in 0..n {
+            let p = DVec2::new(
+                2.0 * a as f64 + rng.range(-0.3, 0.3),
+                2.0 * b as f64 + rng.range(-0.3, 0.3),
+            );
+            s.disks.push(p, rng.range(0.4, 0.7), RHO).unwrap();
+        }
+    }
+    add_box(&mut s, -1.0, 2.0 * n as f64 - 1.0, -1.0, 2.0 * n as f64 - 1.0);
+    let t = 2.6;
+    let (bottom, top) = (0, 1);
+    let params = gpu_params(Method::ColoredGs);
+    let Some(mut g) = gpu_or_skip("strip members", &s, params) else {
+        return;
+    };
+    let first = strip_members(&s, bottom, top, t);
+    let loading = Loading {
+        sigma3: 1.0e3,
+        strip: first.clone(),
+        top,
+        bottom,
+        wall_forces: Vec::new(),
+    };
+    g.run(3, &loading).unwrap();
+    let k0 = g.counters();
+    let device = g.strip_members(bottom, top, t).unwrap();
+    assert_eq!((g.counters() - k0).readbacks, 1, "a refresh reads back once");
+    let scene = g.scene().unwrap();
+    let cpu = strip_members(&scene, bottom, top, t);
+    let side = |m: &[i8], v: i8| m.iter().filter(|&&x| x == v).count();
+    // Both strips hold the first or last column and part of the next one.
+    for v in [-1, 1] {
+        assert!(
+            side(&cpu, v) > n && side(&cpu, v) < 2 * n,
+            "{} disks in strip {v}",
+            side(&cpu, v)
+        );
+    }
+    assert_eq!(device, cpu, "members found on the device and in the scene");
+    // The new members go into the disk records' tags, without a scene round trip.
+    let mut refreshed = loading.clone();
+    refreshed.strip = device.clone();
+    refreshed.strip.swap(0, n * n / 2);
+    let k1 = g.counters();
+    g.run(1, &refreshed).unwrap();
+    assert_eq!((g.counters() - k1).readbacks, 1, "the refresh needs no download");
+    let tags: Vec<i8> = g.raw_disks().unwrap().iter().map(|d| d.strip as i8).collect();
+    assert_eq!(tags, refreshed.strip, "the disk records' tags");
+}
+
 #[test]
 fn gpu_strip_edges_equal_the_cpu_outline_of_the_same_positions() {
     let n = 14;

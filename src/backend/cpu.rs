@@ -78,6 +78,10 @@ impl Backend for CpuBackend {
         Ok(self.scene.clone())
     }
 
+    fn strip_members(&mut self, bottom: usize, top: usize, thickness: f64) -> Result<Vec<i8>> {
+        Ok(super::reduce::strip_members(&self.scene, bottom, top, thickness))
+    }
+
     fn contacts(&mut self) -> Result<Vec<ContactRecord>> {
         let dt = self.engine.params.dt;
         let gap_tol = super::reduce::zero_gap_tolerance(&self.scene);

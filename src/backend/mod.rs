@@ -136,6 +136,15 @@ pub trait Backend {
     /// Advances `steps` steps, recomputing the loads each step, and returns the reductions
     /// (wall forces averaged over the steps; counts and energies of the last step).
     fn run(&mut self, steps: u32, loading: &Loading) -> Result<Reductions>;
+    /// Which disks form the deformable-wall strips of the current state: -1 left, +1 right,
+    /// 0 neither, as [`reduce::strip_members`] says of the scene (walls `bottom` and `top`
+    /// bound the heights, `thickness` in m). A backend that holds the state elsewhere may
+    /// find them there (the GPU's reads back a word per disk, not the scene); its answer
+    /// may differ from the scene's only for a disk within its rounding of a strip's
+    /// inner boundary.
+    fn strip_members(&mut self, bottom: usize, top: usize, thickness: f64) -> Result<Vec<i8>> {
+        Ok(reduce::strip_members(&self.scene()?, bottom, top, thickness))
+    }
     /// Where the time went since the last call, in one line for the user (the GPU: windows
     /// run and run again, the host's recording and waiting, the device's own time), or
     /// `None` where there is nothing to say (the CPU path).
@@ -172,5 +181,8 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     }
     fn activity(&mut self) -> Option<String> {
         (**self).activity()
+    }
+    fn strip_members(&mut self, bottom: usize, top: usize, thickness: f64) -> Result<Vec<i8>> {
+        (**self).strip_members(bottom, top, thickness)
     }
 }

@@ -760,6 +760,18 @@ impl Backend for GpuBackend {
         format!("gpu ({}, {:?})", self.gpu.info.name, self.gpu.info.backend)
     }
 
+    fn strip_members(&mut self, bottom: usize, top: usize, thickness: f64) -> Result<Vec<i8>> {
+        match self.strip_members_on_device(bottom, top, thickness)? {
+            Some(members) => Ok(members),
+            None => Ok(crate::backend::reduce::strip_members(
+                &self.scene()?,
+                bottom,
+                top,
+                thickness,
+            )),
+        }
+    }
+
     fn params(&self) -> StepParams {
         self.params
     }

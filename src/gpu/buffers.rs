@@ -503,8 +503,12 @@ pub const CONV_SLOTS: u32 = 8;
 
 /// The fixed argument slots: 0 the cleared counters, 1 to 3 the prefix sums (cells, disks,
 /// bodies: the region, then its block totals), 4 the grid's bounds (the scratch of its
-/// partial bounds, the disks).
-pub const FIXED_SLOTS: u32 = 5;
+/// partial bounds, the disks), [`STRIP_SLOT`] the strips' thickness.
+pub const FIXED_SLOTS: u32 = 6;
+
+/// Argument slot of the strips' refresh on the device: its `a` is the thickness (f32 bits),
+/// written when a refresh is asked for.
+pub const STRIP_SLOT: u32 = 5;
 
 /// Number of per-dispatch argument slots: [`FIXED_SLOTS`], two per color (unrelaxed and
 /// relaxed sweeps), one per coloring round, [`CONV_SLOTS`] for the convergence tests.

@@ -95,6 +95,9 @@ kernels! {
         OutlineClear = "outline_clear",
         StripOutline = "strip_outline",
         OutlineSum = "outline_sum",
+        FreeOutline = "free_outline",
+        StripClassify = "strip_classify",
+        SetStrips = "set_strips",
     ],
 }
 

@@ -375,23 +375,41 @@ impl GpuBackend {
         Ok(())
     }
 
-    /// Takes a new loading: the wall forces alone are written into the wall records; a new
-    /// set of strips (their disks are tagged in the disk records) goes through the scene.
+    /// Takes a new loading: the wall forces alone are written into the wall records; new
+    /// members of the same strips (a refresh) are written into the disk records' tags; a
+    /// new set of strips (other walls or pressure, or strips put on or off) goes through
+    /// the scene.
     fn apply_loading(&mut self, loading: &Loading) -> Result<()> {
         if *loading == self.loading {
             return Ok(());
         }
-        let strips_same = loading.strip == self.loading.strip
-            && loading.sigma3 == self.loading.sigma3
+        let frame_same = loading.sigma3 == self.loading.sigma3
             && loading.top == self.loading.top
             && loading.bottom == self.loading.bottom;
-        if !strips_same {
+        let refresh = frame_same
+            && !loading.strip.is_empty()
+            && !self.loading.strip.is_empty()
+            && loading.strip.len() == self.scene.disks.len();
+        if loading.strip != self.loading.strip {
+            if !refresh {
+                let mut scene = crate::backend::Backend::scene(self)?;
+                self.loading = loading.clone();
+                loading.apply_wall_forces(&mut scene);
+                return crate::backend::Backend::set_scene(self, &scene);
+            }
+            self.set_strips(&loading.strip)?;
+        } else if !frame_same {
             let mut scene = crate::backend::Backend::scene(self)?;
             self.loading = loading.clone();
             loading.apply_wall_forces(&mut scene);
             return crate::backend::Backend::set_scene(self, &scene);
         }
         self.loading = loading.clone();
+        if refresh {
+            // The strips' sums of radii, which share out their loads, follow the members.
+            self.fill_params();
+            self.write_params();
+        }
         loading.apply_wall_forces(&mut self.scene);
         let at = std::mem::offset_of!(GpuWall, force) as u64;
         for &(w, _) in &loading.wall_forces {
@@ -403,6 +421,66 @@ impl GpuBackend {
             }
         }
         Ok(())
+    }
+
+    /// Writes new strip members into the disk records' tags, through the per-disk scratch
+    /// (one word per disk up, no scene round trip).
+    fn set_strips(&mut self, strip: &[i8]) -> Result<()> {
+        let tags: Vec<u32> = strip.iter().map(|&t| t as i32 as u32).collect();
+        let at = 4 * self.sim.o_per_disk as u64;
+        self.gpu
+            .queue
+            .write_buffer(&self.bufs.ints, at, bytemuck::cast_slice(&tags));
+        let mut r = Rec::new(self);
+        let nd = self.sim.n_disks;
+        r.go(Kernel::SetStrips, 0, groups(nd), nd);
+        let (cmd, _) = r.finish();
+        self.gpu.queue.submit([cmd]);
+        self.counters.submissions += 1;
+        self.gpu.check("writing the strips' members")
+    }
+
+    /// The strips' members found on the device (shaders/reduce.wgsl, `free_outline` and
+    /// `strip_classify`) and read back, one word per disk: what
+    /// [`crate::backend::reduce::strip_members`] finds in the scene, but for a disk within
+    /// the device's rounding of a strip's inner boundary. `None` when the walls asked for
+    /// are not those of the loading in force (the device's heights come from those).
+    pub(super) fn strip_members_on_device(
+        &mut self,
+        bottom: usize,
+        top: usize,
+        thickness: f64,
+    ) -> Result<Option<Vec<i8>>> {
+        let nd = self.sim.n_disks;
+        let nw = self.sim.n_walls as usize;
+        if nd == 0
+            || bottom != self.sim.bottom as usize
+            || top != self.sim.top as usize
+            || bottom.max(top) >= nw
+        {
+            return Ok(None);
+        }
+        let slot = super::buffers::STRIP_SLOT as u64 * ARGS_STRIDE;
+        let t = thickness as f32;
+        self.gpu
+            .queue
+            .write_buffer(&self.bufs.args, slot, bytemuck::bytes_of(&t.to_bits()));
+        let mut r = Rec::new(self);
+        let bins = super::buffers::OUTLINE_BINS;
+        let strip = super::buffers::STRIP_SLOT;
+        r.go(Kernel::OutlineClear, 0, groups(bins), bins);
+        r.go(Kernel::FreeOutline, 0, groups(nd), nd);
+        r.go(Kernel::StripClassify, strip, groups(nd), nd);
+        let (cmd, _) = r.finish();
+        self.gpu.queue.submit([cmd]);
+        self.counters.submissions += 1;
+        self.gpu.check("finding the strips' members")?;
+        let ints = self.bufs.ints.clone();
+        let bytes = self.download(&ints, 4 * self.sim.o_per_disk as u64, 4 * nd as u64)?;
+        let words: &[u32] = bytemuck::cast_slice(&bytes);
+        Ok(Some(
+            words[..nd as usize].iter().map(|&w| w as i32 as i8).collect(),
+        ))
     }
 
     /// Adds the work of a step's logged dispatches to the counters, from its row: the

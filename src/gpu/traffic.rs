@@ -475,6 +475,30 @@ pub const TABLE: &[(Kernel, &[Access])] = &[
             w(Floats, Once, 3 * WORD),
         ],
     ),
+    // Over disks: the disk, the walls' heights; per height it crosses (not counted) the
+    // two outline words (atomic).
+    (
+        Kernel::FreeOutline,
+        &[
+            r(Disks, Item, DISK),
+            r(Walls, Once, 2 * WORD),
+            r(Ints, Item, 0),
+            w(Ints, Item, 0),
+        ],
+    ),
+    // Over disks: the disk, the walls' heights, the outline words of its window (not
+    // counted); its tag.
+    (
+        Kernel::StripClassify,
+        &[
+            r(Disks, Item, DISK),
+            r(Walls, Once, 2 * WORD),
+            r(Ints, Item, 0),
+            w(Ints, Item, WORD),
+        ],
+    ),
+    // Over disks: the tag; the disk's strip word.
+    (Kernel::SetStrips, &[r(Ints, Item, WORD), w(Disks, Item, WORD)]),
 ];
 
 /// The accesses of `kernel` (its [`TABLE`] entry; empty if it has none, which

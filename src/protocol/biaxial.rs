@@ -331,9 +331,8 @@ impl<B: Backend> Lab<B> {
         // A disk that leaves a strip loses its share of the confinement with the next step
         // (the backends zero the forces of free disks outside the strips); one that kept
         // it would go on pushing into the sample for good.
-        let s = self.backend.scene()?;
         let t = self.state.params.strip_thickness;
-        self.state.loading.strip = strip_members(&s, walls::BOTTOM, walls::TOP, t);
+        self.state.loading.strip = self.backend.strip_members(walls::BOTTOM, walls::TOP, t)?;
         self.state.since_strips = 0;
         Ok(())
     }
