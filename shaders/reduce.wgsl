@@ -262,6 +262,22 @@ fn outline_clear(@builtin(global_invocation_id) gid: vec3<u32>) {
     st(sim.o_outline + OUTLINE_BINS + i, 0u);
 }
 
+// The heights y0 + (i + 1/2) h that disk d crosses, as the range [x, y) of i (empty when
+// it crosses none).
+fn crossed_heights(d: Disk, hs: vec3<f32>) -> vec2<u32> {
+    let y = d.y + d.y_lo;
+    let first = max(ceil((y - d.radius - hs.x) / hs.y - 0.5), 0.0);
+    let last = min(floor((y + d.radius - hs.x) / hs.y - 0.5), hs.z - 1.0);
+    if last < first { return vec2<u32>(0u, 0u); }
+    return vec2<u32>(u32(first), u32(last) + 1u);
+}
+
+// Half the chord of disk d along height i.
+fn half_chord(d: Disk, hs: vec3<f32>, i: u32) -> f32 {
+    let dy = hs.x + (f32(i) + 0.5) * hs.y - (d.y + d.y_lo);
+    return sqrt(max(d.radius * d.radius - dy * dy, 0.0));
+}
+
 // One thread per disk of a strip: the heights its disk crosses.
 @compute @workgroup_size(WG)
 fn strip_outline(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -271,13 +287,9 @@ fn strip_outline(@builtin(global_invocation_id) gid: vec3<u32>) {
     if d.strip == 0 { return; }
     let hs = outline_heights();
     let x = d.x + d.x_lo;
-    let y = d.y + d.y_lo;
-    let first = max(ceil((y - d.radius - hs.x) / hs.y - 0.5), 0.0);
-    let last = min(floor((y + d.radius - hs.x) / hs.y - 0.5), hs.z - 1.0);
-    if last < first { return; }
-    for (var i = u32(first); i <= u32(last); i++) {
-        let dy = hs.x + (f32(i) + 0.5) * hs.y - y;
-        let half = sqrt(max(d.radius * d.radius - dy * dy, 0.0));
+    let span = crossed_heights(d, hs);
+    for (var i = span.x; i < span.y; i++) {
+        let half = half_chord(d, hs, i);
         if d.strip < 0 {
             atomicMin(&ints[sim.o_outline + i], sortable(x - half));
         } else {
@@ -322,13 +334,9 @@ fn free_outline(@builtin(global_invocation_id) gid: vec3<u32>) {
     if d.kind != KIND_FREE { return; }
     let hs = outline_heights();
     let x = d.x + d.x_lo;
-    let y = d.y + d.y_lo;
-    let first = max(ceil((y - d.radius - hs.x) / hs.y - 0.5), 0.0);
-    let last = min(floor((y + d.radius - hs.x) / hs.y - 0.5), hs.z - 1.0);
-    if last < first { return; }
-    for (var i = u32(first); i <= u32(last); i++) {
-        let dy = hs.x + (f32(i) + 0.5) * hs.y - y;
-        let half = sqrt(max(d.radius * d.radius - dy * dy, 0.0));
+    let span = crossed_heights(d, hs);
+    for (var i = span.x; i < span.y; i++) {
+        let half = half_chord(d, hs, i);
         atomicMin(&ints[sim.o_outline + i], sortable(x - half));
         atomicMax(&ints[sim.o_outline + OUTLINE_BINS + i], sortable(x + half));
     }
