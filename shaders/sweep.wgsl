@@ -6,7 +6,7 @@
 //
 // These kernels write only velocities, contacts and floats. They are composed with the
 // integer arena, the disks, the walls and the warm-start records bound read-only
-// (pipeline::Access::Sweep): the integers are then plain loads, which a GPU may cache,
+// (pipeline::Binds::Sweep): the integers are then plain loads, which a GPU may cache,
 // instead of atomic ones, since nothing writes them during these dispatches.
 
 // Impulse contribution of contact e to body b's velocity, with impulses (rn, rt).

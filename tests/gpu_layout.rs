@@ -7,7 +7,7 @@
 use std::mem::offset_of;
 
 use cdlab::gpu::buffers::{GpuArgs, GpuContact, GpuDisk, GpuWall, SimParams};
-use cdlab::gpu::pipeline::{Access, BINDINGS, Kernel, wgsl_bindings};
+use cdlab::gpu::pipeline::{BINDINGS, Binds, Kernel, wgsl_bindings};
 use cdlab::gpu::{COMMON_WGSL, SHADERS, compose_file, wgsl_constants, wgsl_prelude};
 use naga::{Scalar, ScalarKind, TypeInner};
 
@@ -355,7 +355,7 @@ fn the_comparison_catches_a_moved_field_and_a_wrong_size() {
     assert_ne!(source, COMMON_WGSL, "the WGSL `Wall` declaration was not found");
     let module = parse(
         "altered common.wgsl",
-        &format!("{}{}{source}", wgsl_prelude(), wgsl_bindings(Access::Shared)),
+        &format!("{}{}{source}", wgsl_prelude(), wgsl_bindings(Binds::Shared)),
     );
     let walls = records().into_iter().find(|r| r.0 == "Wall").unwrap();
     let bad = compare(&module, walls.0, walls.1, walls.2, &walls.3);
@@ -407,7 +407,7 @@ fn every_binding_matches_the_shaders_declaration() {
             };
             assert_eq!(
                 !access.contains(naga::StorageAccess::STORE),
-                Access::of_file(name).read_only(&b),
+                Binds::of_file(name).read_only(&b),
                 "{name}: `{}` read-only",
                 b.name
             );
@@ -420,7 +420,7 @@ fn every_binding_matches_the_shaders_declaration() {
                 let atomic = matches!(module.types[base].inner, TypeInner::Atomic(_));
                 assert_eq!(
                     atomic,
-                    !Access::of_file(name).read_only(&b),
+                    !Binds::of_file(name).read_only(&b),
                     "{name}: `ints` atomic"
                 );
             }

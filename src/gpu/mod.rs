@@ -287,20 +287,20 @@ pub fn wgsl_prelude() -> String {
 
 /// A phase shader with the shared WGSL in front of it: the generated constants
 /// ([`wgsl_prelude`]), the bindings with every buffer read-write
-/// ([`pipeline::wgsl_bindings`] under [`pipeline::Access::Shared`]), then `common.wgsl`
+/// ([`pipeline::wgsl_bindings`] under [`pipeline::Binds::Shared`]), then `common.wgsl`
 /// (plain concatenation: WGSL has no includes, and one shared prefix is all the
 /// composition the phases need).
 pub fn compose(phase: &str) -> String {
-    compose_with(pipeline::Access::Shared, phase)
+    compose_with(pipeline::Binds::Shared, phase)
 }
 
 /// [`compose`] for the phase file `file`, its buffers bound as its access says
-/// ([`pipeline::Access::of_file`]): what the pipelines compile.
+/// ([`pipeline::Binds::of_file`]): what the pipelines compile.
 pub fn compose_file(file: &str, phase: &str) -> String {
-    compose_with(pipeline::Access::of_file(file), phase)
+    compose_with(pipeline::Binds::of_file(file), phase)
 }
 
-fn compose_with(access: pipeline::Access, phase: &str) -> String {
+fn compose_with(access: pipeline::Binds, phase: &str) -> String {
     format!(
         "{}{}{COMMON_WGSL}\n{phase}",
         wgsl_prelude(),

@@ -34,7 +34,7 @@ use super::buffers::float_slot::{
     RED_STRIP_X_RIGHT, RED_TRANSLATIONAL, RED_ZERO_FORCE,
 };
 use super::buffers::{ARGS_STRIDE, GpuWall, SCAN_BLOCK, color_slot, conv_slot, disp, round_slot, status};
-use super::pipeline::{Access, Kernel};
+use super::pipeline::{Binds, Kernel};
 use super::traffic::{self, Counts};
 use crate::backend::{Loading, Reductions};
 use crate::error::{Error, Result};
@@ -184,7 +184,7 @@ struct Rec<'a> {
     /// The pipeline, argument slot and group 0's access bound in the open pass: a dispatch
     /// that needs the same ones sets none again (the host's recording sets the pace of small
     /// samples, docs/gpu.md, "Measured on hardware").
-    bound: (Option<Kernel>, Option<u32>, Option<Access>),
+    bound: (Option<Kernel>, Option<u32>, Option<Binds>),
 }
 
 impl<'a> Rec<'a> {
@@ -247,7 +247,7 @@ impl<'a> Rec<'a> {
     fn bind_args(&mut self, kernel: Kernel, slot: u32) {
         let b = self.b;
         let (kernel_was, slot_was, access_was) = self.bound;
-        let access = Access::of_file(kernel.file());
+        let access = Binds::of_file(kernel.file());
         let pass = self.pass();
         if access_was != Some(access) {
             pass.set_bind_group(0, &b.bind.group0[access as usize], &[]);
