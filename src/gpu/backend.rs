@@ -210,8 +210,8 @@ pub struct GpuBackend {
     /// margin past `peak_iters` (more contacts); the results are the same either way.
     pub overflow_sweeps: bool,
     /// The most contacts for which iterations past the typical count are swept by one
-    /// workgroup ([`step::ONE_WORKGROUP_CONTACTS`](super::step::ONE_WORKGROUP_CONTACTS) unless
-    /// a test lowers it to try the rule of larger samples on a small one).
+    /// workgroup (32,768, `step::ONE_WORKGROUP_CONTACTS`, unless a test lowers it to try
+    /// the rule of larger samples on a small one).
     pub one_workgroup_contacts: u32,
     /// The blocks of a solve (`step::schedule`) for the parameters and `conv_every` it
     /// was made for.
