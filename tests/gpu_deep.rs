@@ -174,7 +174,7 @@ fn gpu_deep_phase_dispatches_depend_on_neither_sweeps_nor_colors() {
 /// contacts: starting from the impulses and velocities the iterations reached (a step
 /// without local updates from the same scene: the iterations are the same and come first),
 /// `deep_sweeps` sweeps over the colors in increasing order, each deep contact of a color
-/// given the exact local update of solve.wgsl (`gs_update`, unrelaxed), replayed here in
+/// given the exact local update of common.wgsl (`gs_update`, unrelaxed), replayed here in
 /// f32 with the GPU's own colors and deep marks, give the GPU's impulses and velocities.
 /// Within a color the order does not matter (the contacts share no movable body), across
 /// colors it does: a kernel that let colors overlap, or missed a contact, would differ.
@@ -269,7 +269,7 @@ fn gpu_deep_updates_are_the_color_ordered_sweep_of_the_deep_contacts() {
     );
 }
 
-/// solve.wgsl's `gs_update(k, 1.0)` of a contact with a diagonal block (the deep ones), in
+/// common.wgsl's `gs_update(k, 1.0)` of a contact with a diagonal block (the deep ones), in
 /// f32 and in the kernel's order of operations.
 fn replay_update(c: &mut GpuContact, v: &mut [[f32; 3]]) {
     let (vi, vj) = (v[c.i as usize], v[c.j as usize]);

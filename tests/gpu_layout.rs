@@ -534,7 +534,8 @@ fn no_shader_spells_a_float_region_slot_as_a_literal() {
         assert!(faults.is_empty(), "{faults:#?}");
         uses += n;
     }
-    // grid.wgsl, detect.wgsl, solve.wgsl and reduce.wgsl read or write the regions.
+    // grid.wgsl, detect.wgsl, solve.wgsl, sweep.wgsl and reduce.wgsl read or write the
+    // regions.
     assert!(
         uses >= 20,
         "{uses} uses of the float regions found: the check reads nothing"

@@ -185,8 +185,8 @@ pub struct SimParams {
     pub one: f32,
     /// Offset of the colors in the order the solver sweeps them (`cap.colors` words): the
     /// colors with more than [`super::WG`] contacts first, each swept by a dispatch of its
-    /// own, then the smaller ones, swept together by one workgroup (solve.wgsl,
-    /// `solve_args`, `sweep_tail`).
+    /// own, then the smaller ones, swept together by one workgroup (solve.wgsl `solve_args`,
+    /// sweep.wgsl `sweep_tail`).
     pub o_color_map: u32,
 }
 
