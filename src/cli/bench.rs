@@ -43,7 +43,8 @@ pub struct Args {
     /// (0: the backend's choice, `GpuBackend::recording_threads`).
     #[arg(long, value_delimiter = ',', default_value = "0")]
     pub record_threads: Vec<u32>,
-    /// GPU: whether iterations past the typical count are swept by one workgroup each
+    /// GPU: whether iterations past the typical count (up to 32,768 contacts) or in the
+    /// recording margin (more contacts) are swept by one workgroup each
     /// (`GpuBackend::overflow_sweeps`), comma separated to compare (true, false).
     #[arg(long, value_delimiter = ',', default_value = "true")]
     pub sweep_all: Vec<bool>,

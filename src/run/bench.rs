@@ -57,7 +57,8 @@ pub struct Case {
     pub check_every: u32,
     /// GPU: host threads that recorded the windows (0 on the CPU).
     pub record_threads: u32,
-    /// GPU: whether iterations past the typical count were swept by one workgroup.
+    /// GPU: whether iterations past the typical count (up to 32,768 contacts) or in the
+    /// recording margin (more contacts) were swept by one workgroup.
     pub sweep_all: bool,
     /// GPU: dispatches with work, submissions and readbacks per step (0 on the CPU).
     pub dispatches_per_step: f64,
