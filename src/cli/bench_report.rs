@@ -8,6 +8,19 @@ fn ms(t: Option<f64>) -> String {
     t.map_or_else(|| "-".to_string(), |t| format!("{t:.2}"))
 }
 
+/// The device's time per phase outside the solve (ms), or "-" without timestamps.
+fn phases(c: &Case) -> String {
+    c.device_phases_ms_per_step.map_or_else(
+        || "-".to_string(),
+        |p| {
+            format!(
+                "{:.3} / {:.3} / {:.3} / {:.3}",
+                p.detection, p.coloring, p.deep_updates, p.integration
+            )
+        },
+    )
+}
+
 /// One case on one line, every figure with its unit.
 pub fn line(c: &Case) -> String {
     format!(
@@ -47,16 +60,16 @@ pub fn markdown(cases: &[Case], tol: f64, warmup: u32, steps: u32) -> String {
         "# cdlab bench\n\nConfined dense sample under shear (deposit closed by walls, top wall at 0.5 m/s, friction 0.3), tolerance {}, {} warm-up and {} measured steps per case.\n\n",
         tol, warmup, steps
     );
-    s.push_str("| backend | method | disks | contacts | check every (it) | iterations/step | ms/step | ns/contact update | colors | coloring rounds/step | windows redone | dispatches/step | fixed dispatches/step | empty dispatches/step | submissions/step | waits/window | host recording (ms/step) | recording threads | device (ms/step) | device solve (ms/step) | device traffic (MB/step) | host peak (MiB) | device (MiB) |\n");
+    s.push_str("| backend | method | disks | contacts | check every (it) | iterations/step | ms/step | ns/contact update | colors | coloring rounds/step | windows redone | dispatches/step | fixed dispatches/step | empty dispatches/step | submissions/step | waits/window | host recording (ms/step) | recording threads | device (ms/step) | device solve (ms/step) | device detection / coloring / deep updates / integration (ms/step) | device traffic (MB/step) | host peak (MiB) | device (MiB) |\n");
     s.push_str(
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
     );
     for c in cases {
         s.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {} | {} | {} | {:.1} | {:.1} | {:.1} |\n",
+            "| {} | {} | {} | {} | {} | {:.1} | {:.2} | {:.2} | {:.1} | {:.1} | {} | {:.1} | {:.1} | {:.1} | {:.2} | {:.2} | {:.2} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} |\n",
             c.backend, c.method, c.disks, c.contacts, c.check_every, c.iterations_per_step, c.ms_per_step, c.ns_per_contact_update, c.colors_per_step,
             c.color_rounds_per_step, c.redone_steps,
-            c.dispatches_per_step, c.fixed_dispatches_per_step, c.empty_dispatches_per_step, c.submissions_per_step, c.readbacks_per_window, c.host_record_ms_per_step, c.record_threads, ms(c.device_ms_per_step), ms(c.device_solve_ms_per_step), c.traffic_mb_per_step, c.host_peak_mib, c.device_mib
+            c.dispatches_per_step, c.fixed_dispatches_per_step, c.empty_dispatches_per_step, c.submissions_per_step, c.readbacks_per_window, c.host_record_ms_per_step, c.record_threads, ms(c.device_ms_per_step), ms(c.device_solve_ms_per_step), phases(c), c.traffic_mb_per_step, c.host_peak_mib, c.device_mib
         ));
     }
     s.push_str("\nCost per contact update against the smallest size (linear scaling keeps it flat; the cost per step at 50k within 11x of 5k asks for the same):\n\n");
