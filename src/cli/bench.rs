@@ -93,7 +93,12 @@ pub fn run(args: &Args) -> Result<()> {
     let mut cases = Vec::new();
     let mut failures = Vec::new();
     for &n in &args.disks {
+        // The geometric deposit of a large sample takes a while (about half a minute at
+        // 50,000 disks on one core): say so before it starts.
+        eprintln!("{n} disks: depositing the sample");
+        let t = std::time::Instant::now();
         let scene = sheared_sample(n)?;
+        eprintln!("{n} disks: sample ready in {:.1} s", t.elapsed().as_secs_f64());
         let combos = args.backend.iter().flat_map(|b| {
             // Recording threads and sweep_all are the GPU's: the CPU runs each case once.
             let gpu = b == "gpu";
