@@ -49,17 +49,18 @@ fn grid_partial(
     }
 }
 
-// Part 2, one workgroup: the box of the args.b partial boxes, and the grid built on it,
-// written to floats[f_grid..]: origin x, y, cell side, nx, ny (bits). Same sizing rule as
-// the CPU: a cell at least the largest diameter plus the alert distance, enlarged so the
-// cells stay within capacity.
+// Part 2, one workgroup: the box of part 1's boxes (one per 256 of the args.b disks), and
+// the grid built on it, written to floats[f_grid..]: origin x, y, cell side, nx, ny (bits).
+// Same sizing rule as the CPU: a cell at least the largest diameter plus the alert
+// distance, enlarged so the cells stay within capacity.
 @compute @workgroup_size(256)
 fn grid_bounds(@builtin(local_invocation_index) t: u32) {
     var lx = 3.0e38;
     var ly = 3.0e38;
     var hx = -3.0e38;
     var hy = -3.0e38;
-    for (var b = t; b < args.b; b += 256u) {
+    let boxes = (args.b + 255u) / 256u;
+    for (var b = t; b < boxes; b += 256u) {
         let at = args.a + 4u * b;
         lx = min(lx, bitcast<f32>(ld(at)));
         ly = min(ly, bitcast<f32>(ld(at + 1u)));
