@@ -456,9 +456,7 @@ impl GpuBackend {
         if keep > 0 {
             enc.copy_buffer_to_buffer(&old.floats, 0, &bufs.floats, 0, keep.next_multiple_of(4));
         }
-        self.gpu.queue.submit([enc.finish()]);
-        self.counters.submissions += 1;
-        self.gpu.check("copying the state into the grown buffers")?;
+        self.submit_now(enc.finish(), "copying the state into the grown buffers")?;
         self.bufs = bufs;
         self.sim = sim;
         self.cap = cap;
@@ -550,9 +548,15 @@ impl GpuBackend {
         for (live, backup, n) in self.backup_pairs() {
             enc.copy_buffer_to_buffer(&backup, 0, &live, 0, n.min(live.size()));
         }
-        self.gpu.queue.submit([enc.finish()]);
+        self.submit_now(enc.finish(), "putting back the state of the window's start")
+    }
+
+    /// Submits one command buffer outside the windows' steps, counted, and turns a wgpu
+    /// error it raised into one that says what was being done.
+    pub(super) fn submit_now(&mut self, cmd: wgpu::CommandBuffer, what: &str) -> Result<()> {
+        self.gpu.queue.submit([cmd]);
         self.counters.submissions += 1;
-        self.gpu.check("putting back the state of the window's start")
+        self.gpu.check(what)
     }
 
     /// Copies `size` bytes of `src` from `offset` to the host (one map-and-wait).

@@ -386,23 +386,20 @@ impl GpuBackend {
         let frame_same = loading.sigma3 == self.loading.sigma3
             && loading.top == self.loading.top
             && loading.bottom == self.loading.bottom;
+        let members_new = loading.strip != self.loading.strip;
         let refresh = frame_same
+            && members_new
             && !loading.strip.is_empty()
             && !self.loading.strip.is_empty()
             && loading.strip.len() == self.scene.disks.len();
-        if loading.strip != self.loading.strip {
-            if !refresh {
-                let mut scene = crate::backend::Backend::scene(self)?;
-                self.loading = loading.clone();
-                loading.apply_wall_forces(&mut scene);
-                return crate::backend::Backend::set_scene(self, &scene);
-            }
-            self.set_strips(&loading.strip)?;
-        } else if !frame_same {
+        if !frame_same || (members_new && !refresh) {
             let mut scene = crate::backend::Backend::scene(self)?;
             self.loading = loading.clone();
             loading.apply_wall_forces(&mut scene);
             return crate::backend::Backend::set_scene(self, &scene);
+        }
+        if refresh {
+            self.set_strips(&loading.strip)?;
         }
         self.loading = loading.clone();
         if refresh {
@@ -435,9 +432,7 @@ impl GpuBackend {
         let nd = self.sim.n_disks;
         r.go(Kernel::SetStrips, 0, groups(nd), nd);
         let (cmd, _) = r.finish();
-        self.gpu.queue.submit([cmd]);
-        self.counters.submissions += 1;
-        self.gpu.check("writing the strips' members")
+        self.submit_now(cmd, "writing the strips' members")
     }
 
     /// The strips' members found on the device (shaders/reduce.wgsl, `free_outline` and
@@ -472,9 +467,7 @@ impl GpuBackend {
         r.go(Kernel::FreeOutline, 0, groups(nd), nd);
         r.go(Kernel::StripClassify, strip, groups(nd), nd);
         let (cmd, _) = r.finish();
-        self.gpu.queue.submit([cmd]);
-        self.counters.submissions += 1;
-        self.gpu.check("finding the strips' members")?;
+        self.submit_now(cmd, "finding the strips' members")?;
         let ints = self.bufs.ints.clone();
         let bytes = self.download(&ints, 4 * self.sim.o_per_disk as u64, 4 * nd as u64)?;
         let words: &[u32] = bytemuck::cast_slice(&bytes);
