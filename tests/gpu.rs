@@ -71,27 +71,13 @@ fn compare_contact_sets(test: &str, s: &Scene) {
     assert_eq!(gpu, cpu, "{test}: contact sets differ");
 }
 
-/// Near-touching disks on a jittered square lattice: gaps spread over [-0.01, 0.03] m
-/// around the alert distance (0.01 m), some overlapping, some beyond it. 576 disks: each
-/// prefix sum of the detection and coloring (cells, disks, bodies) and the grid's bounds
-/// span several blocks of 256, the pieces shaders/scan.wgsl and shaders/grid.wgsl cut them
-/// into.
+/// The random cloud of the contact-set and grid tests: near-touching disks on a jittered
+/// square lattice (gpu_support::lattice), gaps spread over [-0.01, 0.03] m around the alert
+/// distance (0.01 m), some overlapping, some beyond it. 576 disks: each prefix sum of the
+/// detection and coloring (cells, disks, bodies) and the grid's bounds span several blocks
+/// of 256, the pieces shaders/scan.wgsl and shaders/grid.wgsl cut them into.
 fn random_cloud() -> Scene {
-    let mut rng = Rng(7);
-    let mut s = scene(0.3);
-    for a in 0..24 {
-        for b in 0..24 {
-            let r = 1.0 - 0.01 * rng.uniform();
-            let p = DVec2::new(
-                2.0 * a as f64 + rng.range(-0.004, 0.004),
-                2.0 * b as f64 + rng.range(-0.004, 0.004),
-            );
-            let k = s.disks.push(p, r, RHO).unwrap();
-            s.disks.vel[k] = DVec2::new(rng.range(-0.1, 0.1), rng.range(-0.1, 0.1));
-        }
-    }
-    add_box(&mut s, -1.005, 47.0, -1.0, 47.0);
-    s
+    lattice(24, 7)
 }
 
 #[test]
