@@ -24,9 +24,10 @@ fn reduce_box(t: u32, lx: f32, ly: f32, hx: f32, hy: f32) {
 
 // Bounding box of the centres, part 1: a workgroup per 256 disks writes its box (x and y
 // lows, then highs, as bits) to ints[args.a + 4 * workgroup]. One workgroup walking every
-// disk took a 50,000-disk step about a tenth of a millisecond on an H200, each thread
-// waiting on 200 loads in turn (docs/gpu.md, "Measured on hardware"). Minima and maxima
-// are exact, so the box does not depend on how the disks are cut.
+// disk left each of its threads waiting on some 200 loads in turn at 50,000 disks, one of
+// the single-workgroup walks that made most of a step's detection time on an H200
+// (docs/gpu.md, "Where the device's time goes"). Minima and maxima are exact, so the box
+// does not depend on how the disks are cut.
 @compute @workgroup_size(256)
 fn grid_partial(
     @builtin(local_invocation_index) t: u32,
