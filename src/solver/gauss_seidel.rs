@@ -11,8 +11,8 @@ use super::color::{Coloring, Node, color};
 use super::convergence::VelocityTest;
 use super::ctx::Ctx;
 use super::lanes::{avx, proper_colors, sweep_color_chunk};
-use super::quads::{pack_quads, unpack_quads};
-use super::rows::{self, BodyProps, FULL, Row, opening, store};
+use super::quads::{for_each_impulse, gather_packed, row_at, set_impulses};
+use super::rows::{self, BodyProps, FULL, Row, opening};
 use super::update::{CHUNK, sweep_chunk, update};
 use super::{Method, SolveStats, SolverParams, team};
 use crate::contact::Contact;
@@ -61,16 +61,20 @@ pub struct Workspace {
     deep: Vec<u32>,
     /// The place of each swept contact in the color order, when there are deep contacts.
     inverse: Vec<u32>,
+    /// The deep contacts' rows, updated as plain rows while the others stay packed.
+    deep_copies: Vec<Row>,
 }
 
 /// The swept rows of the deep contacts `candidates` (contact indices, ascending) that carry
-/// a normal impulse, in sweep order: the rows whose contact is deeper than the threshold.
+/// a normal impulse (rows packed by `pack_quads` in the first `packed` color ranges), in
+/// sweep order: the rows whose contact is deeper than the threshold.
 /// Found through the candidates rather than by a pass over every row, which read each
 /// row's contact in color order, out of the cache at 50,000 disks (docs/benchmarks.md,
 /// "Sample size").
 fn deep_rows(
     candidates: &[u32],
     rows: &[Row],
+    (ranges, packed): (&[u32], usize),
     order: Option<&[u32]>,
     active: Option<&[u32]>,
     inverse: &mut Vec<u32>,
@@ -95,7 +99,7 @@ fn deep_rows(
             };
             Some(if order.is_some() { inverse[k] as usize } else { k })
         })
-        .filter(|&m| rows[m].rn > 0.0)
+        .filter(|&m| row_at(rows, ranges, packed, m).rn > 0.0)
         .collect();
     deep.sort_unstable();
     deep
@@ -186,25 +190,25 @@ pub(super) fn solve(
             }
         });
         color(nodes, n_bodies, &mut work.coloring);
-        work.sorted.clear();
-        work.sorted
-            .extend(work.coloring.order.iter().map(|&k| work.rows[k as usize]));
     }
     let proper_colors = if colored {
         proper_colors(&work.coloring.ranges, work.coloring.serial_last)
     } else {
         0
     };
+    let quads = colored && avx();
+    if colored {
+        // The rows in color order, packed as they are copied when the sweeps take quads.
+        let c = &work.coloring;
+        let packed = if quads { proper_colors } else { 0 };
+        gather_packed(&work.rows, &c.order, &c.ranges, packed, &mut work.sorted);
+    }
     let (rows, ranges, serial_last) = if colored {
         let c = &work.coloring;
         (&mut work.sorted, &c.ranges[..], c.serial_last)
     } else {
         (&mut work.rows, &whole[..], false)
     };
-    let quads = colored && avx();
-    if quads {
-        pack_quads(rows, ranges, proper_colors);
-    }
     let ctx = Ctx {
         gv: gv.as_mut_ptr(),
         props: work.props.as_ptr(),
@@ -250,32 +254,51 @@ pub(super) fn solve(
         }
     }
     let t_deep = Instant::now();
-    if quads {
-        unpack_quads(rows, ranges, proper_colors);
-    }
-    let t_unpacked = Instant::now();
+    // The rows stay packed: the deep updates and the store read their quads in place.
+    let packed = if quads { proper_colors } else { 0 };
     let order = colored.then_some(&work.coloring.order[..]);
     let active = parking.then_some(&work.active[..]);
     if params.deep_updates() {
-        let deep = deep_rows(&work.deep, rows, order, active, &mut work.inverse);
+        let deep = deep_rows(
+            &work.deep,
+            rows,
+            (ranges, packed),
+            order,
+            active,
+            &mut work.inverse,
+        );
         stats.deep = deep.len() as u32;
         let ctx = Ctx { relax: 1.0, ..ctx };
+        // Updated as plain copies, in the same order, then their impulses put back.
+        let copies = &mut work.deep_copies;
+        copies.clear();
+        copies.extend(deep.iter().map(|&m| row_at(rows, ranges, packed, m)));
         for _ in 0..params.deep_sweeps {
-            for &m in &deep {
+            for r in copies.iter_mut() {
                 // SAFETY: no other sweep runs; the row's bodies are in range (checked in rows::build).
                 unsafe {
-                    update::<false>(&mut rows[m], ctx);
+                    update::<false>(r, ctx);
                 }
             }
         }
+        for (&m, r) in deep.iter().zip(copies.iter()) {
+            set_impulses(rows, ranges, packed, m, r.rn, r.rt);
+        }
     }
     let t_store = Instant::now();
-    store(rows, order, active, contacts);
+    for_each_impulse(rows, ranges, packed, |m, j, rn, rt| {
+        // Rows marked FULL were updated in their contact.
+        if j != FULL {
+            let c = &mut contacts[rows::contact_of(m, order, active)];
+            c.rn = rn;
+            c.rt = rt;
+        }
+    });
     work.times = SolveTimes {
         setup: (t_sweeps - t_setup).as_secs_f64(),
         sweeps: (t_deep - t_sweeps).as_secs_f64(),
-        deep: (t_store - t_unpacked).as_secs_f64(),
-        store: (t_unpacked - t_deep).as_secs_f64() + t_store.elapsed().as_secs_f64(),
+        deep: (t_store - t_deep).as_secs_f64(),
+        store: t_store.elapsed().as_secs_f64(),
     };
     if parking && work.parked.iter().any(|r| opening(r, gv) < 0.0) {
         // A parked contact would close: solve again with every contact, from the

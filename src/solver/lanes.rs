@@ -100,7 +100,9 @@ mod tests {
     use glam::DVec3;
 
     use super::*;
-    use crate::solver::quads::{pack_quads, unpack_quads};
+    use crate::solver::quads::{
+        for_each_impulse, gather_packed, pack_quads, row_at, set_impulses, unpack_quads,
+    };
     use crate::solver::rows::BodyProps;
     use crate::solver::update::{CHUNK, sweep_chunk};
 
@@ -263,5 +265,59 @@ mod tests {
         );
         unpack_quads(&mut packed, &[0, 67], 1);
         assert_eq!(format!("{packed:?}"), format!("{rows:?}"));
+    }
+
+    /// Packed rows read and written in place (as the solve keeps them for the deep updates
+    /// and the store) equal the plain rows: every row read back, every row's body j and
+    /// impulses in order, and impulses set on some rows change those rows only. Over colors
+    /// with remainders, an empty color and a last range left plain (the serial group).
+    #[test]
+    fn packed_rows_read_and_written_in_place_equal_the_plain_rows() {
+        let (rows, _, _) = color_of(67, 3);
+        let (ranges, colors) = ([0, 13, 13, 40, 67], 3);
+        let mut packed = rows.clone();
+        pack_quads(&mut packed, &ranges, colors);
+        // Gathered in an order and packed in one pass, as the solve copies its rows: the
+        // bytes of a copy in that order packed afterwards.
+        let order: Vec<u32> = (0..67).map(|m| (m * 29 % 67) as u32).collect();
+        let mut copy: Vec<Row> = order.iter().map(|&k| rows[k as usize]).collect();
+        pack_quads(&mut copy, &ranges, colors);
+        let mut gathered = Vec::new();
+        gather_packed(&rows, &order, &ranges, colors, &mut gathered);
+        let bits = |rows: &[Row]| -> Vec<u64> {
+            rows.iter()
+                .flat_map(|r| {
+                    let f = [
+                        r.nx, r.ny, r.inv_wnn, r.inv_wtt, r.mu, r.bias_n, r.bias_t, r.rn, r.rt,
+                    ];
+                    std::iter::once(((r.i as u64) << 32) | r.j as u64).chain(f.map(f64::to_bits))
+                })
+                .collect()
+        };
+        assert_eq!(bits(&gathered), bits(&copy));
+        for (m, r) in rows.iter().enumerate() {
+            let got = row_at(&packed, &ranges, colors, m);
+            assert_eq!(format!("{got:?}"), format!("{r:?}"), "row {m}");
+        }
+        let mut seen = Vec::new();
+        for_each_impulse(&packed, &ranges, colors, |m, j, rn, rt| {
+            seen.push((m, j, rn.to_bits(), rt.to_bits()))
+        });
+        let want: Vec<_> = (rows.iter().enumerate())
+            .map(|(m, r)| (m, r.j, r.rn.to_bits(), r.rt.to_bits()))
+            .collect();
+        assert_eq!(seen, want);
+        let set = [0, 5, 12, 13, 38, 39, 40, 66];
+        for &m in &set {
+            set_impulses(&mut packed, &ranges, colors, m, 1.5 + m as f64, -2.5);
+        }
+        unpack_quads(&mut packed, &ranges, colors);
+        for (m, r) in rows.iter().enumerate() {
+            let mut r = *r;
+            if set.contains(&m) {
+                (r.rn, r.rt) = (1.5 + m as f64, -2.5);
+            }
+            assert_eq!(format!("{:?}", packed[m]), format!("{r:?}"), "row {m}");
+        }
     }
 }

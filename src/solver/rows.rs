@@ -150,21 +150,9 @@ fn row(
     }
 }
 
-/// Copies the impulses of the rows back into their contacts: row `m` is row `order[m]` (or
-/// `m` without an order) of the swept rows, which belongs to contact `active[..]` of that
-/// (or to the contact of the same index when every contact was swept). Rows marked
-/// [`FULL`] were updated in place.
-pub(super) fn store(rows: &[Row], order: Option<&[u32]>, active: Option<&[u32]>, contacts: &mut [Contact]) {
-    for (m, r) in rows.iter().enumerate() {
-        if r.j != FULL {
-            let c = &mut contacts[contact_of(m, order, active)];
-            c.rn = r.rn;
-            c.rt = r.rt;
-        }
-    }
-}
-
-/// The contact of swept row `m` (see [`store`]).
+/// The contact of swept row `m`: row `m` is row `order[m]` (or `m` without an order) of the
+/// swept rows, which belongs to contact `active[..]` of that (or to the contact of the same
+/// index when every contact was swept).
 pub(super) fn contact_of(m: usize, order: Option<&[u32]>, active: Option<&[u32]>) -> usize {
     let k = order.map_or(m, |o| o[m] as usize);
     active.map_or(k, |a| a[k] as usize)
