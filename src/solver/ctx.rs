@@ -33,7 +33,7 @@ pub(super) struct Ctx {
     /// Gauss-Seidel relaxation of the current iteration.
     pub(super) relax: f64,
     /// Whether the rows of the proper colors are packed four at a time
-    /// ([`super::quads::pack_quads`]), to be swept in AVX registers.
+    /// ([`super::quads::gather_packed`]), to be swept in AVX registers.
     pub(super) quads: bool,
 }
 // SAFETY: see the module documentation: members of a team write disjoint bodies and

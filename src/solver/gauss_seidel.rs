@@ -66,7 +66,7 @@ pub struct Workspace {
 }
 
 /// The swept rows of the deep contacts `candidates` (contact indices, ascending) that carry
-/// a normal impulse (rows packed by `pack_quads` in the first `packed` color ranges), in
+/// a normal impulse (rows packed four at a time in the first `packed` color ranges), in
 /// sweep order: the rows whose contact is deeper than the threshold.
 /// Found through the candidates rather than by a pass over every row, which read each
 /// row's contact in color order, out of the cache at 50,000 disks (docs/benchmarks.md,
@@ -106,8 +106,7 @@ fn deep_rows(
 }
 
 /// Wall time of the parts of one Gauss-Seidel solve (s): the fixed parts (`setup`: rows,
-/// parking, coloring, color order and vector packing; `store`: unpacking and the impulses
-/// written back) beside the iterations (`sweeps`) and the deep contacts' updates (`deep`).
+/// parking, coloring, color order and vector packing; `store`: the impulses written back) beside the iterations (`sweeps`) and the deep contacts' updates (`deep`).
 /// Other methods count their whole solve as `sweeps`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SolveTimes {
@@ -117,7 +116,7 @@ pub struct SolveTimes {
     pub sweeps: f64,
     /// The deep contacts: finding them and their local updates.
     pub deep: f64,
-    /// Unpacking and writing the impulses back to the contacts.
+    /// Writing the impulses back to the contacts.
     pub store: f64,
 }
 

@@ -53,7 +53,10 @@ pub(super) fn pack_quads(rows: &mut [Row], ranges: &[u32], colors: usize) {
 /// instead of two.
 pub(super) fn gather_packed(rows: &[Row], order: &[u32], ranges: &[u32], colors: usize, out: &mut Vec<Row>) {
     let n = order.len();
-    assert!(ranges.last().is_none_or(|&e| e as usize <= n), "ranges beyond the rows");
+    assert!(
+        ranges.last().is_none_or(|&e| e as usize <= n),
+        "ranges beyond the rows"
+    );
     out.clear();
     out.reserve(n);
     let slots = &mut out.spare_capacity_mut()[..n];
