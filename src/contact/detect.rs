@@ -216,7 +216,11 @@ fn emit_all(
         }
         partners.clear();
         near(p, &mut partners);
-        partners.sort_unstable_by_key(|e| e.0);
+        // The kept list gives them sorted already (1.4% of a 50,000-disk step went to
+        // sorting them again); the grid search does not.
+        if !partners.is_sorted_by_key(|e| e.0) {
+            partners.sort_unstable_by_key(|e| e.0);
+        }
         for &(q, gap, n) in &partners {
             let q = q as usize;
             if free_p {
