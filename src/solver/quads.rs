@@ -22,6 +22,25 @@ pub(super) struct Quad {
     pub(super) rt: [f64; 4],
 }
 
+impl Quad {
+    /// Row `l` (0 to 3) of the four.
+    fn lane(&self, l: usize) -> Row {
+        Row {
+            i: self.i[l],
+            j: self.j[l],
+            nx: self.nx[l],
+            ny: self.ny[l],
+            inv_wnn: self.inv_wnn[l],
+            inv_wtt: self.inv_wtt[l],
+            mu: self.mu[l],
+            bias_n: self.bias_n[l],
+            bias_t: self.bias_t[l],
+            rn: self.rn[l],
+            rt: self.rt[l],
+        }
+    }
+}
+
 const _: () = assert!(std::mem::size_of::<Quad>() == 4 * std::mem::size_of::<Row>());
 const _: () = assert!(std::mem::align_of::<Quad>() <= std::mem::align_of::<Row>());
 const _: () = assert!(CHUNK.is_multiple_of(4), "chunks must hold whole quads");
@@ -48,9 +67,9 @@ pub(super) fn pack_quads(rows: &mut [Row], ranges: &[u32], colors: usize) {
     }
 }
 
-/// Copies `rows[order[m]]` into `out[m]` for every `m`, packed as [`pack_quads`] packs the
-/// first `colors` ranges: the same rows as a copy followed by `pack_quads`, in one pass
-/// instead of two.
+/// Copies `rows[order[m]]` into `out[m]` for every `m`, the whole quads of the first
+/// `colors` ranges packed field by field ([`Quad`]): one pass for what was a copy and then
+/// a packing pass.
 pub(super) fn gather_packed(rows: &[Row], order: &[u32], ranges: &[u32], colors: usize, out: &mut Vec<Row>) {
     let n = order.len();
     assert!(
@@ -97,7 +116,7 @@ fn packed(r: &[Row; 4]) -> Quad {
     }
 }
 
-/// Where row `m` of rows packed by [`pack_quads`] with these ranges lies: the first row of
+/// Where row `m` of rows packed by [`gather_packed`] with these ranges lies: the first row of
 /// its quad and its lane, or `None` when it is stored as a plain [`Row`].
 fn lane_of(ranges: &[u32], colors: usize, m: usize) -> Option<(usize, usize)> {
     let c = ranges.partition_point(|&x| x as usize <= m).checked_sub(1)?;
@@ -108,7 +127,7 @@ fn lane_of(ranges: &[u32], colors: usize, m: usize) -> Option<(usize, usize)> {
     (m < a + (b - a) / 4 * 4).then(|| (a + (m - a) / 4 * 4, (m - a) % 4))
 }
 
-/// Row `m` of rows packed by [`pack_quads`] with these ranges, as a plain [`Row`].
+/// Row `m` of rows packed by [`gather_packed`] with these ranges, as a plain [`Row`].
 pub(super) fn row_at(rows: &[Row], ranges: &[u32], colors: usize, m: usize) -> Row {
     let Some((k, l)) = lane_of(ranges, colors, m) else {
         return rows[m];
@@ -116,22 +135,10 @@ pub(super) fn row_at(rows: &[Row], ranges: &[u32], colors: usize, m: usize) -> R
     assert!(k + 4 <= rows.len(), "a quad beyond the rows");
     // SAFETY: rows k..k + 4 hold a packed quad (in bounds, asserted).
     let q = unsafe { rows.as_ptr().add(k).cast::<Quad>().read() };
-    Row {
-        i: q.i[l],
-        j: q.j[l],
-        nx: q.nx[l],
-        ny: q.ny[l],
-        inv_wnn: q.inv_wnn[l],
-        inv_wtt: q.inv_wtt[l],
-        mu: q.mu[l],
-        bias_n: q.bias_n[l],
-        bias_t: q.bias_t[l],
-        rn: q.rn[l],
-        rt: q.rt[l],
-    }
+    q.lane(l)
 }
 
-/// Sets the impulses of row `m` of rows packed by [`pack_quads`] with these ranges.
+/// Sets the impulses of row `m` of rows packed by [`gather_packed`] with these ranges.
 pub(super) fn set_impulses(rows: &mut [Row], ranges: &[u32], colors: usize, m: usize, rn: f64, rt: f64) {
     let Some((k, l)) = lane_of(ranges, colors, m) else {
         rows[m].rn = rn;
@@ -145,7 +152,7 @@ pub(super) fn set_impulses(rows: &mut [Row], ranges: &[u32], colors: usize, m: u
     q.rt[l] = rt;
 }
 
-/// Calls `f(m, j, rn, rt)` for every row `m` of rows packed by [`pack_quads`] with these
+/// Calls `f(m, j, rn, rt)` for every row `m` of rows packed by [`gather_packed`] with these
 /// ranges, in order, reading the packed quads where they lie: what the solve keeps of its
 /// rows, without unpacking them (a pass that rewrote every row, 0.6 ms a step at 50,000
 /// disks).
@@ -182,19 +189,7 @@ pub(super) fn unpack_quads(rows: &mut [Row], ranges: &[u32], colors: usize) {
         // SAFETY: as in `pack_quads`; these rows hold a packed quad.
         let q = unsafe { rows.as_ptr().add(k).cast::<Quad>().read() };
         for (l, r) in rows[k..k + 4].iter_mut().enumerate() {
-            *r = Row {
-                i: q.i[l],
-                j: q.j[l],
-                nx: q.nx[l],
-                ny: q.ny[l],
-                inv_wnn: q.inv_wnn[l],
-                inv_wtt: q.inv_wtt[l],
-                mu: q.mu[l],
-                bias_n: q.bias_n[l],
-                bias_t: q.bias_t[l],
-                rn: q.rn[l],
-                rt: q.rt[l],
-            };
+            *r = q.lane(l);
         }
     }
 }
