@@ -416,7 +416,7 @@ impl GpuBackend {
         put(1, s.o_cell_start, s.cap_cells, sums, blocks(s.cap_cells));
         put(2, s.o_dcount, s.n_disks, sums, blocks(s.n_disks));
         put(3, s.o_inc_count, s.n_bodies, sums, blocks(s.n_bodies));
-        put(4, sums, s.n_disks, 0, 0);
+        put(super::buffers::GRID_SLOT, sums, s.n_disks, 0, 0);
         for c in 0..self.cap.colors {
             put(color_slot(self.cap, c, false), c, 0, 0, 0);
             put(color_slot(self.cap, c, true), c, 1, 0, 0);

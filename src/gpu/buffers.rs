@@ -502,9 +502,12 @@ pub struct Buffers {
 pub const CONV_SLOTS: u32 = 8;
 
 /// The fixed argument slots: 0 the cleared counters, 1 to 3 the prefix sums (cells, disks,
-/// bodies: the region, then its block totals), 4 the grid's bounds (the scratch of its
-/// partial bounds, the disks), [`STRIP_SLOT`] the strips' thickness.
+/// bodies: the region, then its block totals), [`GRID_SLOT`] the grid's bounds,
+/// [`STRIP_SLOT`] the strips' thickness.
 pub const FIXED_SLOTS: u32 = 6;
+
+/// Argument slot of the grid's bounds: the scratch of its partial bounds, and the disks.
+pub const GRID_SLOT: u32 = 4;
 
 /// Argument slot of the strips' refresh on the device: its `a` is the thickness (f32 bits),
 /// written when a refresh is asked for.

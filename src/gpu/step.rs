@@ -33,7 +33,9 @@ use super::buffers::float_slot::{
     RED_OVERLAP_SUM, RED_ROLLING, RED_SLIDING, RED_STRIP_N_LEFT, RED_STRIP_N_RIGHT, RED_STRIP_X_LEFT,
     RED_STRIP_X_RIGHT, RED_TRANSLATIONAL, RED_ZERO_FORCE,
 };
-use super::buffers::{ARGS_STRIDE, GpuWall, SCAN_BLOCK, color_slot, conv_slot, disp, round_slot, status};
+use super::buffers::{
+    ARGS_STRIDE, GRID_SLOT, GpuWall, SCAN_BLOCK, color_slot, conv_slot, disp, round_slot, status,
+};
 use super::pipeline::{Binds, Kernel};
 use super::traffic::{self, Counts};
 use crate::backend::{Loading, Reductions};
@@ -875,8 +877,9 @@ impl GpuBackend {
         r.block = None;
         r.go(Kernel::ClearInts, 0, groups(clear), clear);
         r.go(Kernel::FreeVelocity, 0, groups(nb), nb);
-        r.go(Kernel::GridPartial, 4, nd.div_ceil(SCAN_BLOCK), nd);
-        r.go(Kernel::GridBounds, 4, 1, nd.div_ceil(SCAN_BLOCK));
+        let boxes = nd.div_ceil(SCAN_BLOCK);
+        r.go(Kernel::GridPartial, GRID_SLOT, boxes, nd);
+        r.go(Kernel::GridBounds, GRID_SLOT, 1, boxes);
         r.go(Kernel::GridCount, 0, groups(nd), nd);
         r.scan(1, self.sim.cap_cells);
         r.go(Kernel::GridScatter, 0, groups(nd), nd);

@@ -106,8 +106,9 @@ fn deep_rows(
 }
 
 /// Wall time of the parts of one Gauss-Seidel solve (s): the fixed parts (`setup`: rows,
-/// parking, coloring, color order and vector packing; `store`: the impulses written back) beside the iterations (`sweeps`) and the deep contacts' updates (`deep`).
-/// Other methods count their whole solve as `sweeps`.
+/// parking, coloring, color order and vector packing; `store`: the impulses written back)
+/// beside the iterations (`sweeps`) and the deep contacts' updates (`deep`). Other methods
+/// count their whole solve as `sweeps`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SolveTimes {
     /// Rows, parking, coloring, color order, vector packing.
@@ -196,10 +197,11 @@ pub(super) fn solve(
         0
     };
     let quads = colored && avx();
+    // The color ranges whose rows are packed four at a time, from the copy in color order
+    // to the store: the sweeps, the deep updates and the store read them in place.
+    let packed = if quads { proper_colors } else { 0 };
     if colored {
-        // The rows in color order, packed as they are copied when the sweeps take quads.
         let c = &work.coloring;
-        let packed = if quads { proper_colors } else { 0 };
         gather_packed(&work.rows, &c.order, &c.ranges, packed, &mut work.sorted);
     }
     let (rows, ranges, serial_last) = if colored {
@@ -253,8 +255,6 @@ pub(super) fn solve(
         }
     }
     let t_deep = Instant::now();
-    // The rows stay packed: the deep updates and the store read their quads in place.
-    let packed = if quads { proper_colors } else { 0 };
     let order = colored.then_some(&work.coloring.order[..]);
     let active = parking.then_some(&work.active[..]);
     if params.deep_updates() {
