@@ -66,6 +66,8 @@ pub mod fsio;
 #[doc(hidden)]
 pub mod gpu;
 #[doc(hidden)]
+pub mod hugepages;
+#[doc(hidden)]
 pub mod interrupt;
 #[doc(hidden)]
 pub mod model;

@@ -1,3 +1,8 @@
+/// Large samples' steps walk tens of megabytes; huge pages make them faster where the kernel
+/// gives them only on request (src/hugepages.rs).
+#[global_allocator]
+static ALLOCATOR: cdlab::hugepages::HugePages = cdlab::hugepages::HugePages;
+
 fn main() {
     // Mesa's Vulkan drivers probe Wayland while wgpu lists adapters and, on a headless
     // machine without XDG_RUNTIME_DIR, print "error: XDG_RUNTIME_DIR is invalid or not set"

@@ -25,6 +25,12 @@ use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 
+/// The library's allocator: large samples' steps walk tens of megabytes, and huge pages make
+/// them faster where the kernel gives them only on request (src/hugepages.rs). It fixes the
+/// C allocator's threshold for mapping large blocks at 4 MiB for the whole process.
+#[global_allocator]
+static ALLOCATOR: cdlab::hugepages::HugePages = cdlab::hugepages::HugePages;
+
 create_exception!(
     cdlab,
     CdlabError,
