@@ -77,11 +77,11 @@ unsafe impl GlobalAlloc for HugePages {
     }
 }
 
-/// glibc serves a block from its heap, already written, once its sliding threshold for
-/// mapping blocks of their own has risen past the block's size, and advice comes too late
-/// for memory already written: with the threshold fixed, every large block after the first
-/// is mapped afresh and advised before its first write.
-/// Called before a block of `len` bytes is allocated.
+/// Fixes glibc's threshold for mapping a block of its own at [`HUGE_FROM`], before the
+/// first large block: the threshold otherwise rises as mapped blocks are freed, and glibc
+/// then serves large blocks from its heap, in memory already written, which advice no
+/// longer turns into huge pages. With it fixed, every large block is mapped afresh and
+/// advised before its first write. Called before a block of `len` bytes is allocated.
 #[inline]
 fn fix_threshold(len: usize) {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
