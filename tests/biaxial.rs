@@ -174,7 +174,7 @@ fn damaged_checkpoints_are_rejected() {
     lab.advance(&mut c).unwrap();
     let bytes = {
         let scene = cdlab::backend::Backend::scene(&mut lab.backend).unwrap();
-        cdlab::protocol::checkpoint::encode(&lab.state, &scene, &[], &[])
+        cdlab::protocol::checkpoint::encode(&lab.state, &scene, &[], &[], None)
     };
     assert!(decode(&bytes).is_ok());
     for cut in [9, 20, bytes.len() / 2, bytes.len() - 1] {

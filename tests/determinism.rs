@@ -198,6 +198,86 @@ fn a_non_finite_state_stops_the_run() {
     assert!(msg.contains("non-finite") && msg.contains("disk 0"), "{msg}");
 }
 
+/// In color order (colored Gauss-Seidel), the kept list gives the grid search's records
+/// bit for bit, only grouped by color: within a color no two contacts share a body an
+/// impulse can move, and the contacts with a force-driven wall's single degree of freedom
+/// (those of the disks glued to it) are the last, serial, range. Checked while disks move,
+/// after a column is glued to a wall that becomes force-driven, and after a radius changes.
+#[test]
+fn kept_pair_list_in_color_order_is_the_grid_search_records_properly_colored() {
+    use cdlab::contact::detect::{CellGrid, Neighbours, detect};
+    use cdlab::model::WallDrive;
+    let mut s = dense(4);
+    let mut e = cdlab::engine::CpuEngine::new(tight(Method::ColoredGs)).unwrap();
+    let alert = 0.05;
+    let mut list = Neighbours::default();
+    let (mut grid, mut full, mut kept) = (CellGrid::default(), Vec::new(), Vec::new());
+    let mut serial_steps = 0;
+    for step in 0..120 {
+        if step == 40 {
+            // The left column (disks 0-49, at x = 0) glued to the left wall (wall 2 of
+            // add_box), which is then driven by a force.
+            for k in 0..50 {
+                s.disks.glue(k, 2);
+            }
+            s.walls[2].drive = WallDrive::Force {
+                mass: 50.0,
+                force: 0.0,
+            };
+        }
+        if step == 80 {
+            s.disks.radius[1234] *= 0.9;
+        }
+        detect(&s, alert, &mut grid, &mut full).unwrap();
+        list.detect_kept(&s, alert, 0.02, true, None, &mut kept, |_, _| {})
+            .unwrap();
+        let mut by_key = kept.clone();
+        by_key.sort_by_key(|c| c.key());
+        assert_eq!(full, by_key, "step {step}");
+        let ranges = list.contact_ranges();
+        assert_eq!(ranges.first(), Some(&0));
+        assert_eq!(ranges.last(), Some(&(kept.len() as u32)), "step {step}");
+        let proper = ranges.len() - 1 - usize::from(list.serial_last());
+        for (c, w) in ranges.windows(2).enumerate() {
+            let part = &kept[w[0] as usize..w[1] as usize];
+            if c >= proper {
+                assert!(
+                    part.iter().all(|k| k.ma != 0.0),
+                    "step {step}: a plain contact in the serial range"
+                );
+                serial_steps += usize::from(!part.is_empty());
+                continue;
+            }
+            let mut moved: Vec<u32> = part
+                .iter()
+                .flat_map(|k| {
+                    assert!(k.ma == 0.0, "step {step}: a serial contact in color {c}");
+                    [k.moves_i().then_some(k.i), k.moves_j().then_some(k.j)]
+                })
+                .flatten()
+                .collect();
+            let n = moved.len();
+            moved.sort_unstable();
+            moved.dedup();
+            assert_eq!(
+                moved.len(),
+                n,
+                "step {step}: two contacts of color {c} move one body"
+            );
+        }
+        e.step(&mut s).unwrap();
+    }
+    assert!(
+        serial_steps >= 60,
+        "the glued column's contacts formed a serial range in {serial_steps} steps"
+    );
+    assert!(
+        list.rebuilds > 3 && list.rebuilds < 100,
+        "rebuilds {}",
+        list.rebuilds
+    );
+}
+
 /// The pair list kept across steps must give exactly the records of the full grid search
 /// (same pairs, same order, same bits) while disks move, after disks are glued to a wall
 /// (a pair of two non-free disks drops out, and a glued disk's pairs are keyed by their

@@ -671,7 +671,7 @@ fn an_archive_that_overlaps_its_sources_is_refused() {
     let mut rec = cdlab::record::Recorder::create(&test, &cdlab::config::Config::default()).unwrap();
     rec.snapshot(&cdlab::run::snapshot(0.001, &scene, &[], &[]))
         .unwrap();
-    rec.checkpoint(100, 0.0, &checkpoint::encode(&state, &scene, &[], &[]))
+    rec.checkpoint(100, 0.0, &checkpoint::encode(&state, &scene, &[], &[], None))
         .unwrap();
     rec.finish().unwrap();
     let record = test.join("run.mcap");

@@ -2,6 +2,7 @@
 
 use super::reduce::Accumulator;
 use super::{Backend, ContactRecord, Loading, Reductions};
+use crate::contact::detect::ListOrigin;
 use crate::engine::{CpuEngine, StepParams};
 use crate::error::Result;
 use crate::model::Scene;
@@ -99,6 +100,15 @@ impl Backend for CpuBackend {
                 .iter()
                 .map(|c| (((c.i as u64) << 32) | c.j as u64, c.rn, c.rt)),
         );
+        Ok(())
+    }
+
+    fn pair_list_origin(&mut self) -> Result<Option<ListOrigin>> {
+        Ok(self.engine.pair_list_origin(&self.scene))
+    }
+
+    fn start_pair_list_from(&mut self, origin: ListOrigin) -> Result<()> {
+        self.engine.start_pair_list_from(origin);
         Ok(())
     }
 

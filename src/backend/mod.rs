@@ -8,6 +8,7 @@ pub mod reduce;
 
 use glam::DVec2;
 
+use crate::contact::detect::ListOrigin;
 use crate::engine::StepParams;
 use crate::error::Result;
 use crate::model::Scene;
@@ -133,6 +134,19 @@ pub trait Backend {
     /// Replaces the warm-start impulses by those of `contacts` (as downloaded by
     /// [`Backend::contacts`]): with the scene, this restores a checkpoint exactly.
     fn set_warm_start(&mut self, contacts: &[ContactRecord]) -> Result<()>;
+    /// Where the CPU's kept pair list was built, when its next step keeps it
+    /// ([`crate::engine::CpuEngine::pair_list_origin`]): a checkpoint holds it, so that a
+    /// resumed run builds the same list and goes on bit for bit. `None` for backends
+    /// without one.
+    fn pair_list_origin(&mut self) -> Result<Option<ListOrigin>> {
+        Ok(None)
+    }
+    /// Makes the next step build the kept pair list at `origin` (from a checkpoint);
+    /// backends without one ignore it.
+    fn start_pair_list_from(&mut self, origin: ListOrigin) -> Result<()> {
+        let _ = origin;
+        Ok(())
+    }
     /// Advances `steps` steps, recomputing the loads each step, and returns the reductions
     /// (wall forces averaged over the steps; counts and energies of the last step).
     fn run(&mut self, steps: u32, loading: &Loading) -> Result<Reductions>;
@@ -175,6 +189,12 @@ impl<B: Backend + ?Sized> Backend for Box<B> {
     }
     fn set_warm_start(&mut self, contacts: &[ContactRecord]) -> Result<()> {
         (**self).set_warm_start(contacts)
+    }
+    fn pair_list_origin(&mut self) -> Result<Option<ListOrigin>> {
+        (**self).pair_list_origin()
+    }
+    fn start_pair_list_from(&mut self, origin: ListOrigin) -> Result<()> {
+        (**self).start_pair_list_from(origin)
     }
     fn run(&mut self, steps: u32, loading: &Loading) -> Result<Reductions> {
         (**self).run(steps, loading)

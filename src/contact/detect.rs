@@ -9,6 +9,7 @@ use glam::DVec2;
 use super::Contact;
 use crate::error::{Error, Result};
 use crate::model::{BodyKind, NOT_GLUED, Scene, WallDrive};
+use crate::solver::color::{Coloring, Node, color};
 
 /// A uniform grid of square cells holding disk indices, built by counting sort so that the
 /// order of disks inside a cell is their index order (deterministic).
@@ -165,20 +166,31 @@ pub fn detect(scene: &Scene, alert: f64, grid: &mut CellGrid, out: &mut Vec<Cont
     Ok(())
 }
 
-/// Adds `(q, gap, n)` to `partners` when disks p and q are within `alert` and at least one
-/// of them is free.
+/// The gap and normal (from q to p) of disks p and q when they are within `alert` and at
+/// least one of them is free.
 #[inline]
-fn push_if_near(scene: &Scene, p: usize, q: usize, alert: f64, partners: &mut Vec<(u32, f64, DVec2)>) {
+fn near(scene: &Scene, p: usize, q: usize, alert: f64) -> Option<(f64, DVec2)> {
     let d = &scene.disks;
     if d.kind[p] != BodyKind::Free && d.kind[q] != BodyKind::Free {
-        return;
+        return None;
     }
     let delta = d.pos[p] - d.pos[q];
     let reach = d.radius[p] + d.radius[q] + alert;
     let dist2 = delta.length_squared();
     if dist2 < reach * reach && dist2 > 0.0 {
         let dist = dist2.sqrt();
-        partners.push((q as u32, dist - d.radius[p] - d.radius[q], delta / dist));
+        Some((dist - d.radius[p] - d.radius[q], delta / dist))
+    } else {
+        None
+    }
+}
+
+/// Adds `(q, gap, n)` to `partners` when disks p and q are within `alert` and at least one
+/// of them is free.
+#[inline]
+fn push_if_near(scene: &Scene, p: usize, q: usize, alert: f64, partners: &mut Vec<(u32, f64, DVec2)>) {
+    if let Some((gap, n)) = near(scene, p, q, alert) {
+        partners.push((q as u32, gap, n));
     }
 }
 
@@ -237,26 +249,7 @@ fn emit_all(
         for &(w, wall) in &active {
             let gap = wall.distance(xp) - rp;
             if gap < alert {
-                let si = disk_side(scene, p);
-                let mut c = Contact {
-                    i: si.body,
-                    j: (nd + w) as u32,
-                    disk_j: (nd + w) as u32,
-                    n: wall.normal,
-                    gap,
-                    ri: si.lever,
-                    mi: si.inv_mass,
-                    ki: si.k,
-                    ma: if matches!(wall.drive, WallDrive::Force { .. }) {
-                        wall.inv_mass()
-                    } else {
-                        0.0
-                    },
-                    a: wall.normal,
-                    mu: scene.material.mu_wall,
-                    ..Default::default()
-                };
-                c.compute_delassus();
+                let c = wall_contact(scene, p, w, gap);
                 out.push(c);
             }
         }
@@ -268,85 +261,448 @@ fn emit_all(
     debug_assert!(out.windows(2).all(|w| w[0].key() < w[1].key()));
 }
 
-/// A list of nearby disk pairs (a Verlet list) kept across steps: every pair closer than
-/// the alert distance plus a skin when the list was built. It stays exact until some disk
-/// has moved half the skin from where it was then, so the grid search runs every few
-/// hundred steps instead of every step; in between, a step only measures the listed pairs.
-/// The records are the same, bit for bit and in the same order, as [`detect`]'s.
+/// A list of nearby pairs (a Verlet list) kept across steps: every disk pair, and every
+/// free disk and active wall, closer than the alert distance plus a skin when the list was
+/// built. It stays exact until some disk has moved half the skin from where it was then, or
+/// a wall half the skin along its normal, so the grid search runs every few hundred steps
+/// instead of every step; in between, a step only measures the listed pairs. Bodies glued,
+/// freed or resized, and walls switched on, off or to another drive, rebuild it too.
+///
+/// The list also keeps what a pair's contact carries from one step to the next, so that
+/// the step need not find it again: the impulses it had at the end of the last step (the
+/// warm start, [`Neighbours::keep_impulses`]) and, for colored Gauss-Seidel, a coloring of
+/// the whole list. Pairs that share no movable body share none in any subset either, so
+/// a step's contacts come out of [`Neighbours::detect_kept`] already sorted by color, and
+/// the solver neither colors nor reorders them (docs/benchmarks.md, "The kept list").
 #[derive(Clone, Debug, Default)]
 pub struct Neighbours {
     grid: CellGrid,
-    /// `pairs[start[p]..start[p + 1]]`: the disks q > p near p, by increasing index.
-    start: Vec<u32>,
-    pairs: Vec<u32>,
-    built_at: Vec<DVec2>,
-    radius: Vec<f64>,
-    alert: f64,
-    skin: f64,
+    /// The listed pairs: by key, or by color and then key.
+    slots: Vec<Slot>,
+    /// `slots[ranges[c]..ranges[c + 1]]` is color `c`; a single range when not colored.
+    ranges: Vec<u32>,
+    /// The last range holds the contacts with a force-driven wall ([`crate::solver::color::color`]).
+    serial_last: bool,
+    colored: bool,
+    built: Built,
+    coloring: Coloring,
+    /// The slot of each contact of the last detection.
+    emitted: Vec<u32>,
+    /// Color ranges of the contacts of the last detection.
+    contact_ranges: Vec<u32>,
+    /// Where the next detection builds the list ([`Self::start_from`]).
+    origin: Option<ListOrigin>,
     /// Grid searches made so far (the tests check that the list is both rebuilt and reused).
     pub rebuilds: u64,
 }
 
+/// The positions of the disks and the walls' points at which a kept pair list was built
+/// ([`Neighbours::origin`]): with the scene, all it takes to build the same list again.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ListOrigin {
+    /// Disk positions (m).
+    pub pos: Vec<DVec2>,
+    /// Wall points (m), in the scene's wall order.
+    pub wall_points: Vec<DVec2>,
+}
+
+/// What the list depends on, as it was when the list was built.
+#[derive(Clone, Debug, Default)]
+struct Built {
+    pos: Vec<DVec2>,
+    radius: Vec<f64>,
+    kind: Vec<BodyKind>,
+    glued_to: Vec<u32>,
+    /// Point, normal, active, force-driven.
+    walls: Vec<(DVec2, DVec2, bool, bool)>,
+    alert: f64,
+    skin: f64,
+}
+
+/// A listed pair and the impulses of its contact at the end of the last step (zero when
+/// the pair was no contact then).
+#[derive(Clone, Copy, Debug, Default)]
+struct Slot {
+    /// Disk p.
+    p: u32,
+    /// Disk q > p, or `n_disks + w` for wall w.
+    q: u32,
+    rn: f64,
+    rt: f64,
+}
+
+impl Slot {
+    /// The key of the pair's contact ([`Contact::key`]): keyed by its free disk.
+    fn key(&self, kind: &[BodyKind]) -> u64 {
+        let (p, q) = (self.p as u64, self.q as u64);
+        let swapped = (q as usize) < kind.len() && kind[p as usize] != BodyKind::Free;
+        if swapped { (q << 32) | p } else { (p << 32) | q }
+    }
+}
+
 impl Neighbours {
-    /// Same contract as [`detect`]; `skin` (m) is the margin of the kept list.
+    /// Same contract as [`detect`] (records by key, impulses at zero until
+    /// [`Self::keep_impulses`] keeps some); `skin` (m) is the margin of the kept list.
     pub fn detect(&mut self, scene: &Scene, alert: f64, skin: f64, out: &mut Vec<Contact>) -> Result<()> {
-        if self.stale(scene, alert, skin) {
-            self.rebuild(scene, alert, skin)?;
+        self.detect_kept(scene, alert, skin, false, None, out, |_, _| {})
+    }
+
+    /// The contact records of the listed pairs closer than `alert`, in the list's order:
+    /// by key, or with `colored` by color and then key ([`Self::contact_ranges`]). Each
+    /// carries the impulses its pair kept from the last step, or, with `warm`, those of
+    /// its key there (`(key, R_n, R_t)` sorted by key, e.g. from a checkpoint; zero for a
+    /// key not listed). Impulses are those kept, not clamped to the friction cone.
+    /// `each(k, contact)` sees contact `k` before it is stored, while it is in the cache:
+    /// at 50,000 disks a pass over the 21 MB of records cost about a millisecond.
+    #[allow(clippy::too_many_arguments)]
+    pub fn detect_kept(
+        &mut self,
+        scene: &Scene,
+        alert: f64,
+        skin: f64,
+        colored: bool,
+        warm: Option<&[(u64, f64, f64)]>,
+        out: &mut Vec<Contact>,
+        each: impl FnMut(usize, &mut Contact),
+    ) -> Result<()> {
+        if let Some(o) = self.origin.take()
+            && o.pos.len() == scene.disks.len()
+            && o.wall_points.len() == scene.walls.len()
+        {
+            self.rebuild(scene, (&o.pos, &o.wall_points), (alert, skin), colored)?;
         }
-        let (start, pairs) = (&self.start, &self.pairs);
-        emit_all(scene, alert, out, |p, partners| {
-            for &q in &pairs[start[p] as usize..start[p + 1] as usize] {
-                push_if_near(scene, p, q as usize, alert, partners);
-            }
-        });
+        if self.stale(scene, alert, skin, colored) {
+            let points: Vec<DVec2> = scene.walls.iter().map(|w| w.point).collect();
+            self.rebuild(scene, (&scene.disks.pos, &points), (alert, skin), colored)?;
+        }
+        if let Some(w) = warm {
+            self.load(&scene.disks.kind, w);
+        }
+        self.emit(scene, alert, out, each);
         Ok(())
     }
 
-    fn stale(&self, scene: &Scene, alert: f64, skin: f64) -> bool {
+    /// Where the list was built, if it still serves `scene` with these settings: with the
+    /// scene (and the same settings) this gives back the same list
+    /// ([`Self::start_from`]), so that a checkpoint can hold it and a resumed run go on as
+    /// this one. `None` when the next detection would build the list anyway.
+    pub fn origin(&self, scene: &Scene, alert: f64, skin: f64, colored: bool) -> Option<ListOrigin> {
+        // Not built yet since a start from an origin: that origin is still where it starts.
+        if let Some(o) = &self.origin {
+            return Some(o.clone());
+        }
+        (self.rebuilds > 0 && !self.stale(scene, alert, skin, colored)).then(|| ListOrigin {
+            pos: self.built.pos.clone(),
+            wall_points: self.built.walls.iter().map(|w| w.0).collect(),
+        })
+    }
+
+    /// Makes the next detection start from the list built at `origin` (from
+    /// [`Self::origin`]) with the scene it is then given, instead of from the scene's
+    /// positions. It is ignored if its sizes are not the scene's.
+    pub fn start_from(&mut self, origin: ListOrigin) {
+        self.origin = Some(origin);
+    }
+
+    /// Color ranges of the last detection's contacts (`ranges[c]..ranges[c + 1]`), a
+    /// single range when not colored; some may be empty.
+    pub fn contact_ranges(&self) -> &[u32] {
+        &self.contact_ranges
+    }
+
+    /// True when the last of [`Self::contact_ranges`] is the serial group: the contacts
+    /// with a force-driven wall, which one thread sweeps in order.
+    pub fn serial_last(&self) -> bool {
+        self.serial_last
+    }
+
+    /// Keeps the impulses of `contacts` (the last detection's records, in its order) for
+    /// the next step's warm start; `each` sees every contact in the same pass.
+    pub fn keep_impulses(&mut self, contacts: &[Contact], mut each: impl FnMut(&Contact)) {
+        assert_eq!(
+            contacts.len(),
+            self.emitted.len(),
+            "not the last detection's contacts"
+        );
+        for (c, &s) in contacts.iter().zip(&self.emitted) {
+            let slot = &mut self.slots[s as usize];
+            slot.rn = c.rn;
+            slot.rt = c.rt;
+            each(c);
+        }
+    }
+
+    /// The impulses kept, as `(key, R_n, R_t)` for the pairs with a normal impulse, by key.
+    fn kept(&self) -> Vec<(u64, f64, f64)> {
+        let mut k: Vec<(u64, f64, f64)> = self
+            .slots
+            .iter()
+            .filter(|s| s.rn > 0.0)
+            .map(|s| (s.key(&self.built.kind), s.rn, s.rt))
+            .collect();
+        k.sort_unstable_by_key(|e| e.0);
+        k
+    }
+
+    /// Gives each slot the impulses of its key in `warm` (sorted by key), zero if absent.
+    fn load(&mut self, kind: &[BodyKind], warm: &[(u64, f64, f64)]) {
+        for s in &mut self.slots {
+            let key = s.key(kind);
+            (s.rn, s.rt) = match warm.binary_search_by_key(&key, |e| e.0) {
+                Ok(m) => (warm[m].1, warm[m].2),
+                Err(_) => (0.0, 0.0),
+            };
+        }
+    }
+
+    fn emit(
+        &mut self,
+        scene: &Scene,
+        alert: f64,
+        out: &mut Vec<Contact>,
+        mut each: impl FnMut(usize, &mut Contact),
+    ) {
         let d = &scene.disks;
-        if self.built_at.len() != d.len()
-            || self.alert != alert
-            || self.skin != skin
-            || self.radius != d.radius
+        let nd = d.len();
+        let mu_disk = scene.material.mu_disk;
+        out.clear();
+        self.emitted.clear();
+        self.contact_ranges.clear();
+        self.contact_ranges.push(0);
+        for w in self.ranges.windows(2) {
+            for s in w[0]..w[1] {
+                let slot = &mut self.slots[s as usize];
+                let (p, q) = (slot.p as usize, slot.q as usize);
+                let found = if q >= nd {
+                    let gap = scene.walls[q - nd].distance(d.pos[p]) - d.radius[p];
+                    (gap < alert).then(|| wall_contact(scene, p, q - nd, gap))
+                } else {
+                    near(scene, p, q, alert).map(|(gap, n)| {
+                        if d.kind[p] == BodyKind::Free {
+                            make_contact(scene, p, q, n, gap, mu_disk)
+                        } else {
+                            make_contact(scene, q, p, -n, gap, mu_disk)
+                        }
+                    })
+                };
+                match found {
+                    Some(mut c) => {
+                        if slot.rn > 0.0 {
+                            c.rn = slot.rn;
+                            c.rt = slot.rt;
+                        }
+                        each(out.len(), &mut c);
+                        out.push(c);
+                        self.emitted.push(s);
+                    }
+                    None => {
+                        // A pair that parts loses its impulses: it starts from zero if it
+                        // closes again, as a new contact would.
+                        slot.rn = 0.0;
+                        slot.rt = 0.0;
+                    }
+                }
+            }
+            self.contact_ranges.push(out.len() as u32);
+        }
+    }
+
+    fn stale(&self, scene: &Scene, alert: f64, skin: f64, colored: bool) -> bool {
+        let d = &scene.disks;
+        let b = &self.built;
+        if b.pos.len() != d.len()
+            || b.alert != alert
+            || b.skin != skin
+            || self.colored != colored
+            || b.radius != d.radius
+            || b.kind != d.kind
+            || b.glued_to != d.glued_to
+            || b.walls.len() != scene.walls.len()
         {
             return true;
         }
-        let limit2 = 0.25 * skin * skin;
+        let half = 0.5 * skin;
+        let wall_moved = scene
+            .walls
+            .iter()
+            .zip(&b.walls)
+            .any(|(w, &(point, normal, active, force))| {
+                let moved = (w.point - point).dot(normal).abs();
+                // A NaN position counts as moved.
+                w.active != active
+                    || w.normal != normal
+                    || is_force(w) != force
+                    || moved.is_nan()
+                    || moved > half
+            });
+        if wall_moved {
+            return true;
+        }
+        let limit2 = half * half;
         // Written so that a NaN position also counts as moved (the rebuild then reports it).
-        d.pos.iter().zip(&self.built_at).any(|(x, x0)| {
+        d.pos.iter().zip(&b.pos).any(|(x, x0)| {
             let moved2 = (*x - *x0).length_squared();
             moved2.is_nan() || moved2 > limit2
         })
     }
 
-    fn rebuild(&mut self, scene: &Scene, alert: f64, skin: f64) -> Result<()> {
+    /// Builds the list for `scene` as if its disks and walls were at `at` (positions, wall
+    /// points).
+    fn rebuild(
+        &mut self,
+        scene: &Scene,
+        at: (&[DVec2], &[DVec2]),
+        (alert, skin): (f64, f64),
+        colored: bool,
+    ) -> Result<()> {
         let d = &scene.disks;
+        let nd = d.len();
+        let (pos, points) = at;
+        // The impulses kept move to the new list by key (lost if the disks changed).
+        let carried = if self.built.pos.len() == nd {
+            self.kept()
+        } else {
+            Vec::new()
+        };
         let r_max = d.radius.iter().cloned().fold(0.0, f64::max);
         let margin = alert + skin;
-        self.grid.build(&d.pos, 2.0 * r_max + margin)?;
-        self.start.clear();
-        self.pairs.clear();
-        self.start.push(0);
-        for p in 0..d.len() {
-            let first = self.pairs.len();
-            let (xp, rp) = (d.pos[p], d.radius[p]);
-            let pairs = &mut self.pairs;
+        self.grid.build(pos, 2.0 * r_max + margin)?;
+        let mut slots = std::mem::take(&mut self.slots);
+        slots.clear();
+        let active: Vec<(usize, &crate::model::Wall)> =
+            scene.walls.iter().enumerate().filter(|(_, w)| w.active).collect();
+        for p in 0..nd {
+            let (xp, rp) = (pos[p], d.radius[p]);
             self.grid.for_neighbours(p, |q| {
                 let reach = rp + d.radius[q] + margin;
-                if q > p && (xp - d.pos[q]).length_squared() < reach * reach {
-                    pairs.push(q as u32);
+                if q > p && (xp - pos[q]).length_squared() < reach * reach {
+                    slots.push(Slot {
+                        p: p as u32,
+                        q: q as u32,
+                        ..Default::default()
+                    });
                 }
             });
-            self.pairs[first..].sort_unstable();
-            self.start.push(self.pairs.len() as u32);
+            if d.kind[p] == BodyKind::Free {
+                for &(w, wall) in &active {
+                    if (xp - points[w]).dot(wall.normal) - rp < margin {
+                        slots.push(Slot {
+                            p: p as u32,
+                            q: (nd + w) as u32,
+                            ..Default::default()
+                        });
+                    }
+                }
+            }
         }
-        self.built_at.clone_from(&d.pos);
-        self.radius.clone_from(&d.radius);
-        self.alert = alert;
-        self.skin = skin;
+        slots.sort_unstable_by_key(|s| s.key(&d.kind));
+        self.ranges.clear();
+        self.ranges.push(0);
+        self.serial_last = false;
+        if colored {
+            let nodes = slots.iter().map(|s| node(scene, s));
+            color(nodes, nd + scene.walls.len(), &mut self.coloring);
+            self.slots.clear();
+            self.slots
+                .extend(self.coloring.order.iter().map(|&k| slots[k as usize]));
+            self.ranges.extend_from_slice(&self.coloring.ranges[1..]);
+            self.serial_last = self.coloring.serial_last;
+        } else {
+            self.slots = slots;
+            self.ranges.push(self.slots.len() as u32);
+        }
+        self.load(&d.kind, &carried);
+        let b = &mut self.built;
+        b.pos.clear();
+        b.pos.extend_from_slice(pos);
+        b.radius.clone_from(&d.radius);
+        b.kind.clone_from(&d.kind);
+        b.glued_to.clone_from(&d.glued_to);
+        b.walls.clear();
+        b.walls.extend(
+            scene
+                .walls
+                .iter()
+                .zip(points)
+                .map(|(w, &point)| (point, w.normal, w.active, is_force(w))),
+        );
+        b.alert = alert;
+        b.skin = skin;
+        self.colored = colored;
         self.rebuilds += 1;
         Ok(())
     }
+}
+
+fn is_force(w: &crate::model::Wall) -> bool {
+    matches!(w.drive, WallDrive::Force { .. })
+}
+
+/// A listed pair as the coloring sees its contact: the bodies an impulse acts on (a glued
+/// disk's is its wall), which of them it can move, and whether it needs the serial group
+/// (a force-driven wall moves along an axis oblique to the contact frame).
+fn node(scene: &Scene, s: &Slot) -> Node {
+    let d = &scene.disks;
+    let nd = d.len();
+    let (p, q) = (s.p as usize, s.q as usize);
+    let moves = |side: &Side| side.inv_mass != 0.0 || side.k != 0.0 || side.axial != 0.0;
+    if q >= nd {
+        let si = disk_side(scene, p);
+        let force = is_force(&scene.walls[q - nd]);
+        return Node {
+            i: si.body,
+            j: q as u32,
+            moves_i: moves(&si),
+            moves_j: force,
+            serial: force,
+        };
+    }
+    let (a, b) = if d.kind[p] == BodyKind::Free {
+        (p, q)
+    } else {
+        (q, p)
+    };
+    if d.kind[a] != BodyKind::Free {
+        // Never a contact while the list lasts: no impulse can move either disk.
+        return Node {
+            i: a as u32,
+            j: b as u32,
+            moves_i: false,
+            moves_j: false,
+            serial: false,
+        };
+    }
+    let (si, sj) = (disk_side(scene, a), disk_side(scene, b));
+    Node {
+        i: si.body,
+        j: sj.body,
+        moves_i: moves(&si),
+        moves_j: moves(&sj),
+        serial: sj.axial != 0.0,
+    }
+}
+
+/// The record of the contact between free disk `p` and wall `w` at `gap` (m).
+fn wall_contact(scene: &Scene, p: usize, w: usize, gap: f64) -> Contact {
+    let wall = &scene.walls[w];
+    let nd = scene.disks.len();
+    let si = disk_side(scene, p);
+    let mut c = Contact {
+        i: si.body,
+        j: (nd + w) as u32,
+        disk_j: (nd + w) as u32,
+        n: wall.normal,
+        gap,
+        ri: si.lever,
+        mi: si.inv_mass,
+        ki: si.k,
+        ma: if is_force(wall) { wall.inv_mass() } else { 0.0 },
+        a: wall.normal,
+        mu: scene.material.mu_wall,
+        ..Default::default()
+    };
+    c.compute_delassus();
+    c
 }
 
 fn make_contact(scene: &Scene, a: usize, b: usize, n: DVec2, gap: f64, mu: f64) -> Contact {

@@ -5,11 +5,11 @@
 use glam::{DVec2, DVec3};
 
 use crate::contact::Contact;
-use crate::contact::detect::Neighbours;
+use crate::contact::detect::{ListOrigin, Neighbours};
 use crate::error::{Error, Result, check_non_negative, check_positive, check_range};
 use crate::model::{BodyKind, NOT_GLUED, Scene, WallDrive};
 use crate::solver::captured::Captured;
-use crate::solver::{SolveStats, SolverParams, sweep};
+use crate::solver::{Method, SolveStats, SolverParams, sweep};
 
 /// Parameters of the time stepping.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -120,7 +120,9 @@ pub struct CpuEngine {
     /// Time stepping parameters.
     pub params: StepParams,
     contacts: Vec<Contact>,
-    previous: Vec<(u64, f64, f64)>,
+    /// Warm-start impulses given by [`Self::set_warm_start`] for the next step, by key;
+    /// otherwise the kept list carries each contact's impulses from step to step.
+    warm: Option<Vec<(u64, f64, f64)>>,
     neighbours: Neighbours,
     gv_minus: Vec<DVec3>,
     gv0: Vec<DVec3>,
@@ -140,7 +142,7 @@ impl CpuEngine {
         Ok(CpuEngine {
             params,
             contacts: Vec::new(),
-            previous: Vec::new(),
+            warm: None,
             neighbours: Neighbours::default(),
             gv_minus: Vec::new(),
             gv0: Vec::new(),
@@ -152,20 +154,22 @@ impl CpuEngine {
         })
     }
 
-    /// The contacts of the last step, with their impulses, in key order
-    /// ([`Contact::key`]).
+    /// The contacts of the last step, with their impulses: in key order ([`Contact::key`]),
+    /// or for colored Gauss-Seidel by color ([`Self::color_ranges`]) and then key.
     pub fn contacts(&self) -> &[Contact] {
         &self.contacts
     }
 
-    /// Color ranges of the last step (`ranges[c]..ranges[c+1]`) in [`Self::color_order`],
-    /// empty unless colored.
+    /// Color ranges of the last step's swept rows (`ranges[c]..ranges[c+1]`), empty unless
+    /// colored. The rows are the contacts in their order, less the open candidates left
+    /// out of the sweeps ([`crate::solver::SolverParams::open_skip`]).
     pub fn color_ranges(&self) -> &[u32] {
         &self.work.coloring().ranges
     }
 
-    /// Indices into [`Self::contacts`] sorted by color (the order of the colored sweeps),
-    /// empty unless colored.
+    /// Indices of the swept rows sorted by color (the order of the colored sweeps) when the
+    /// solver colored them itself; empty when they came colored from the kept list (the
+    /// engine's own steps), or unless colored.
     pub fn color_order(&self) -> &[u32] {
         &self.work.coloring().order
     }
@@ -178,9 +182,9 @@ impl CpuEngine {
 
     /// Replaces the warm-start impulses by `(key, R_n, R_t)` triples (see [`Contact::key`]).
     pub fn set_warm_start(&mut self, impulses: impl Iterator<Item = (u64, f64, f64)>) {
-        self.previous.clear();
-        self.previous.extend(impulses.filter(|e| e.1 > 0.0));
-        self.previous.sort_unstable_by_key(|e| e.0);
+        let mut warm: Vec<_> = impulses.filter(|e| e.1 > 0.0).collect();
+        warm.sort_unstable_by_key(|e| e.0);
+        self.warm = Some(warm);
     }
 
     /// Where the steps' time went, summed over every step of this engine.
@@ -188,9 +192,23 @@ impl CpuEngine {
         self.times
     }
 
+    /// Where the kept pair list (and its coloring) was built, if the next step keeps it:
+    /// with the scene and the contacts' impulses, what a checkpoint needs for a resumed
+    /// run to go on bit for bit as this one ([`Neighbours::origin`]).
+    pub fn pair_list_origin(&self, scene: &Scene) -> Option<ListOrigin> {
+        let p = &self.params;
+        self.neighbours
+            .origin(scene, p.alert, skin(p), p.solver.method == Method::ColoredGs)
+    }
+
+    /// Makes the next step build the kept pair list at `origin` (from a checkpoint).
+    pub fn start_pair_list_from(&mut self, origin: ListOrigin) {
+        self.neighbours.start_from(origin);
+    }
+
     /// Forgets the warm-start impulses (e.g. after the scene was edited by hand).
     pub fn reset_warm_start(&mut self) {
-        self.previous.clear();
+        self.warm = Some(Vec::new());
     }
 
     /// Keeps (or stops keeping) a copy of each step's contact problem as the solver
@@ -211,15 +229,34 @@ impl CpuEngine {
         let (dt, theta) = (p.dt, p.theta);
         let t0 = std::time::Instant::now();
         follow_walls(scene);
-        let t_detect = std::time::Instant::now();
-        // A skin of twice the alert distance: the pair list is rebuilt after a disk has moved
-        // one alert distance, every few hundred steps at the test's velocities.
-        self.neighbours
-            .detect(scene, p.alert, 2.0 * p.alert, &mut self.contacts)
-            .map_err(|e| at_step(e, scene.step))?;
         let t_contacts = std::time::Instant::now();
         self.velocities(scene);
-        let worst = self.prepare_contacts(scene);
+        let t_detect = std::time::Instant::now();
+        let colored = p.solver.method == Method::ColoredGs;
+        let warm = self.warm.take();
+        self.gv.clone_from(&self.gv0);
+        let mut prepare = Prepare {
+            gv_minus: &self.gv_minus,
+            gv: &mut self.gv,
+            e_n: scene.material.e_n,
+            e_t: scene.material.e_t,
+            dt,
+            theta,
+            worst: None,
+            deepest: 0.0,
+        };
+        self.neighbours
+            .detect_kept(
+                scene,
+                p.alert,
+                skin(&p),
+                colored,
+                warm.as_deref(),
+                &mut self.contacts,
+                |k, c| prepare.contact(k, c),
+            )
+            .map_err(|e| at_step(e, scene.step))?;
+        let worst = prepare.worst;
         let max_overlap = self.check_overlap(worst, scene)?;
         if let Some(c) = self.captured.as_deref_mut() {
             c.contacts.clone_from(&self.contacts);
@@ -227,12 +264,17 @@ impl CpuEngine {
             c.gv.clone_from(&self.gv);
         }
         let t_solve = std::time::Instant::now();
+        let given = colored.then(|| sweep::Colors {
+            ranges: self.neighbours.contact_ranges(),
+            serial_last: self.neighbours.serial_last(),
+        });
         let solve = sweep::solve(
             &p.solver,
             &mut self.contacts,
             &self.gv0,
             &mut self.gv,
             &mut self.work,
+            given,
         );
         let t_integrate = std::time::Instant::now();
         let solve_seconds = (t_integrate - t_solve).as_secs_f64();
@@ -244,8 +286,8 @@ impl CpuEngine {
         let w = self.work.times();
         let t = &mut self.times;
         t.steps += 1;
-        t.detect += (t_contacts - t_detect).as_secs_f64();
-        t.contacts += (t_solve - t_contacts).as_secs_f64();
+        t.detect += (t_solve - t_detect).as_secs_f64();
+        t.contacts += (t_detect - t_contacts).as_secs_f64();
         t.setup += w.setup;
         t.deep += w.deep;
         t.store += w.store;
@@ -309,43 +351,6 @@ impl CpuEngine {
         }
     }
 
-    /// Start-of-step velocities, law offsets and warm start for every contact; leaves in
-    /// `gv` the free velocities plus the warm-start impulses. Returns the contact with the
-    /// largest overlap, if any overlaps (found in the same pass: every pass over the
-    /// 192-byte records costs about 1% of a 5000-disk compression step).
-    fn prepare_contacts(&mut self, scene: &Scene) -> Option<usize> {
-        let (dt, theta) = (self.params.dt, self.params.theta);
-        let m = &scene.material;
-        let mut prev = self.previous.iter().peekable();
-        self.gv.clone_from(&self.gv0);
-        let mut worst = None;
-        let mut deepest = 0.0;
-        for (k, c) in self.contacts.iter_mut().enumerate() {
-            if c.gap < deepest {
-                deepest = c.gap;
-                worst = Some(k);
-            }
-            let (un, ut) = c.relative_velocity(&self.gv_minus);
-            c.un0 = un;
-            c.ut0 = ut;
-            c.bias_n = normal_bias(c.gap, un, theta, dt, m.e_n);
-            c.bias_t = m.e_t * ut;
-            // Both lists are sorted by key: a merge finds the previous impulses.
-            let key = c.key();
-            while prev.peek().is_some_and(|q| q.0 < key) {
-                prev.next();
-            }
-            if let Some(&&(k, rn, rt)) = prev.peek()
-                && k == key
-            {
-                c.rn = rn;
-                c.rt = rt.clamp(-c.mu * rn, c.mu * rn);
-                c.apply(&mut self.gv, c.rn, c.rt);
-            }
-        }
-        worst
-    }
-
     fn check_finite(&self, scene: &Scene) -> Result<()> {
         if let Some(k) = self.gv.iter().position(|v| !v.is_finite()) {
             let culprit = self
@@ -406,24 +411,19 @@ impl CpuEngine {
         }
     }
 
-    /// Keeps the impulses of the step for the next one's warm start and sums the
-    /// impulses on each wall, in one pass over the contacts.
+    /// Keeps the impulses of the step in the kept list for the next one's warm start and
+    /// sums the impulses on each wall.
     fn remember_impulses(&mut self, nd: usize, n_walls: usize) {
-        self.previous.clear();
         self.wall_impulse.clear();
         self.wall_impulse.resize(n_walls, DVec2::ZERO);
-        for c in &self.contacts {
-            if c.rn > 0.0 {
-                self.previous.push((c.key(), c.rn, c.rt));
-            }
+        let walls = &mut self.wall_impulse;
+        self.neighbours.keep_impulses(&self.contacts, |c| {
             let j = c.j as usize;
             if j >= nd {
                 let t = crate::contact::tangent(c.n);
-                self.wall_impulse[j - nd] -= c.rn * c.n + c.rt * t;
+                walls[j - nd] -= c.rn * c.n + c.rt * t;
             }
-        }
-        // Detection lists contacts by key and the sweeps never reorder them.
-        debug_assert!(self.previous.is_sorted_by_key(|e| e.0));
+        });
     }
 
     /// Total impulse exerted on each wall by the contacts of the last step (N s/m),
@@ -431,6 +431,47 @@ impl CpuEngine {
     pub fn wall_impulses(&self) -> &[DVec2] {
         &self.wall_impulse
     }
+}
+
+/// What a step does to each contact as detection makes it: start-of-step velocities, law
+/// offsets and warm start, leaving in `gv` the free velocities plus the warm-start
+/// impulses; and it finds the contact with the largest overlap.
+struct Prepare<'a> {
+    gv_minus: &'a [DVec3],
+    gv: &'a mut [DVec3],
+    e_n: f64,
+    e_t: f64,
+    dt: f64,
+    theta: f64,
+    worst: Option<usize>,
+    deepest: f64,
+}
+
+impl Prepare<'_> {
+    #[inline]
+    fn contact(&mut self, k: usize, c: &mut Contact) {
+        if c.gap < self.deepest {
+            self.deepest = c.gap;
+            self.worst = Some(k);
+        }
+        let (un, ut) = c.relative_velocity(self.gv_minus);
+        c.un0 = un;
+        c.ut0 = ut;
+        c.bias_n = normal_bias(c.gap, un, self.theta, self.dt, self.e_n);
+        c.bias_t = self.e_t * ut;
+        // Detection gave each contact the impulses its pair kept from the last step.
+        if c.rn > 0.0 {
+            c.rt = c.rt.clamp(-c.mu * c.rn, c.mu * c.rn);
+            c.apply(self.gv, c.rn, c.rt);
+        }
+    }
+}
+
+/// The margin of the kept pair list (m): twice the alert distance, so that the list is
+/// rebuilt after a disk has moved one alert distance, every few hundred steps at the
+/// test's velocities.
+fn skin(p: &StepParams) -> f64 {
+    2.0 * p.alert
 }
 
 /// Glued disks take their wall's velocity and stop spinning before the step.

@@ -148,6 +148,9 @@ impl<B: Backend> Lab<B> {
         ck.state.params.validate()?;
         backend.set_scene(&ck.scene)?;
         backend.set_warm_start(&ck.warm)?;
+        if let Some(o) = ck.origin {
+            backend.start_pair_list_from(o)?;
+        }
         Ok(Lab {
             backend,
             state: ck.state,
@@ -566,7 +569,8 @@ impl<B: Backend> Lab<B> {
         // Reset before encoding: a resumed run counts to its next checkpoint as the
         // uninterrupted run does.
         self.state.since_checkpoint = 0;
-        let bytes = encode(&self.state, &scene, &self.reference, &warm);
+        let origin = self.backend.pair_list_origin()?;
+        let bytes = encode(&self.state, &scene, &self.reference, &warm, origin.as_ref());
         obs.checkpoint(scene.step, &bytes)?;
         Ok(scene.step)
     }

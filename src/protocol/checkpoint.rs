@@ -2,13 +2,15 @@
 //! in one byte string, so that a resumed CPU run continues bit-identically.
 //!
 //! Layout (little endian): magic `CDLABCK1`, u64 JSON length, JSON of [`LabState`], then
-//! the scene (disks, walls, material, clock), the reference positions, and the warm-start
-//! impulses.
+//! the scene (disks, walls, material, clock), the reference positions, the warm-start
+//! impulses, and where the CPU's kept pair list was built (a count of 0 when none; absent
+//! from checkpoints written before it, which resume with the list built afresh).
 
 use glam::DVec2;
 
 use super::LabState;
 use crate::backend::{ContactClass, ContactRecord};
+use crate::contact::detect::ListOrigin;
 use crate::error::{Error, Result};
 use crate::model::{BodyKind, Disks, Material, NOT_GLUED, Scene, Wall, WallDrive};
 
@@ -25,6 +27,8 @@ pub struct Checkpoint {
     pub reference: Vec<DVec2>,
     /// Impulses of the last step, for the warm start.
     pub warm: Vec<ContactRecord>,
+    /// Where the CPU's kept pair list was built ([`ListOrigin`]), when the next step keeps it.
+    pub origin: Option<ListOrigin>,
 }
 
 struct W(Vec<u8>);
@@ -122,7 +126,13 @@ impl R<'_> {
 }
 
 /// Encodes a checkpoint.
-pub fn encode(state: &LabState, scene: &Scene, reference: &[DVec2], warm: &[ContactRecord]) -> Vec<u8> {
+pub fn encode(
+    state: &LabState,
+    scene: &Scene,
+    reference: &[DVec2],
+    warm: &[ContactRecord],
+    origin: Option<&ListOrigin>,
+) -> Vec<u8> {
     let mut w = W(MAGIC.to_vec());
     let json = serde_json::to_vec(state).expect("the protocol state serializes");
     w.u(json.len() as u64);
@@ -177,6 +187,15 @@ pub fn encode(state: &LabState, scene: &Scene, reference: &[DVec2], warm: &[Cont
         w.u(((c.i as u64) << 32) | c.j as u64);
         w.f(c.rn);
         w.f(c.rt);
+    }
+    match origin {
+        None => w.u(0),
+        Some(o) => {
+            w.u(o.pos.len() as u64);
+            for p in o.pos.iter().chain(&o.wall_points) {
+                w.v(*p);
+            }
+        }
     }
     w.0
 }
@@ -349,12 +368,39 @@ pub fn decode(bytes: &[u8]) -> Result<Checkpoint> {
             class: ContactClass::Open,
         });
     }
+    // Checkpoints written before the kept pair list end here.
+    let origin = if r.0.is_empty() {
+        None
+    } else {
+        let at = r.at();
+        match r.count("pair-list origin")? {
+            0 => None,
+            n if n == nd => Some(ListOrigin {
+                pos: (0..nd)
+                    .map(|k| r.finite_v(&|| format!("pair-list origin of disk {k}")))
+                    .collect::<Result<_>>()?,
+                wall_points: (0..nw)
+                    .map(|k| r.finite_v(&|| format!("pair-list origin of wall {k}")))
+                    .collect::<Result<_>>()?,
+            }),
+            n => {
+                return Err(Error::BadCheckpoint {
+                    offset: at,
+                    message: format!("checkpoint: a pair list built for {n} disks ({nd} or 0 expected)"),
+                });
+            }
+        }
+    };
+    if !r.0.is_empty() {
+        return Err(r.bad(format!("checkpoint: {} bytes after its end", r.0.len())));
+    }
     scene.validate()?;
     Ok(Checkpoint {
         state,
         scene,
         reference,
         warm,
+        origin,
     })
 }
 
@@ -375,7 +421,7 @@ mod tests {
                 .unwrap();
         }
         let state = LabState::new(params, Default::default(), Default::default(), 0.0);
-        let bytes = encode(&state, &scene, &[], &[]);
+        let bytes = encode(&state, &scene, &[], &[], None);
         assert!(decode(&bytes).is_ok());
         let mut foreign = bytes.clone();
         foreign[0] ^= 0xff;
@@ -436,15 +482,24 @@ mod tests {
             f_t: 0.0,
             class: ContactClass::Open,
         };
-        let good = encode(&state, &scene, &[DVec2::ZERO; 4], &[warm(0, 5, 1.0)]);
+        let good = encode(&state, &scene, &[DVec2::ZERO; 4], &[warm(0, 5, 1.0)], None);
         let back = decode(&good).unwrap();
         assert_eq!(back.scene.disks.glued_to, scene.disks.glued_to);
         assert_eq!(back.warm.len(), 1);
+        assert_eq!(back.origin, None);
+        // Where a kept pair list was built: every disk and every wall.
+        let origin = |disks: usize, walls: usize, x: f64| ListOrigin {
+            pos: (0..disks).map(|k| DVec2::new(x, k as f64)).collect(),
+            wall_points: (0..walls).map(|k| DVec2::new(k as f64, 0.5)).collect(),
+        };
+        let kept = origin(4, 2, 0.25);
+        let with_origin = encode(&state, &scene, &[], &[], Some(&kept));
+        assert_eq!(decode(&with_origin).unwrap().origin, Some(kept));
 
         let edited = |edit: &dyn Fn(&mut Scene)| {
             let mut s = scene.clone();
             edit(&mut s);
-            encode(&state, &s, &[], &[])
+            encode(&state, &s, &[], &[], None)
         };
         let cases: Vec<(Vec<u8>, &str)> = vec![
             (edited(&|s| s.disks.glued_to[0] = 2), "disk 0 glued_to = 2"),
@@ -477,16 +532,28 @@ mod tests {
             (edited(&|s| s.gravity.y = f64::NAN), "gravity"),
             (edited(&|s| s.time = f64::INFINITY), "time"),
             (
-                encode(&state, &scene, &[DVec2::ZERO; 3], &[]),
+                encode(&state, &scene, &[DVec2::ZERO; 3], &[], None),
                 "3 reference positions for 4 disks",
             ),
             (
-                encode(&state, &scene, &[], &[warm(0, 6, 1.0)]),
+                encode(&state, &scene, &[], &[warm(0, 6, 1.0)], None),
                 "warm-start contact 0 between bodies 0 and 6",
             ),
             (
-                encode(&state, &scene, &[], &[warm(0, 1, f64::NAN)]),
+                encode(&state, &scene, &[], &[warm(0, 1, f64::NAN)], None),
                 "warm-start contact 0 normal impulse",
+            ),
+            (
+                encode(&state, &scene, &[], &[], Some(&origin(3, 2, 0.0))),
+                "a pair list built for 3 disks",
+            ),
+            (
+                encode(&state, &scene, &[], &[], Some(&origin(4, 2, f64::NAN))),
+                "pair-list origin of disk 0",
+            ),
+            (
+                [encode(&state, &scene, &[], &[], None), vec![0; 8]].concat(),
+                "8 bytes after its end",
             ),
         ];
         // Byte offsets of the layout (see `encode`): 15 words per disk, 10 per wall.

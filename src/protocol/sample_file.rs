@@ -50,7 +50,7 @@ pub struct PreparedSample {
 
 /// The bytes of a sample file holding `state` and `scene`.
 pub fn encode_sample(state: &LabState, scene: &Scene) -> Vec<u8> {
-    let payload = checkpoint::encode(state, scene, &[], &[]);
+    let payload = checkpoint::encode(state, scene, &[], &[], None);
     let mut out = Vec::with_capacity(HEADER_LEN + payload.len());
     out.extend_from_slice(MAGIC);
     out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
@@ -306,7 +306,7 @@ mod tests {
     #[test]
     fn old_format_is_refused_with_the_fix() {
         let (state, scene) = tiny();
-        let v1 = checkpoint::encode(&state, &scene, &[], &[]);
+        let v1 = checkpoint::encode(&state, &scene, &[], &[], None);
         let e = decode_sample(&v1, Path::new("old.bin")).unwrap_err();
         let text = e.to_string();
         assert!(
@@ -363,7 +363,7 @@ mod tests {
             }
         );
         assert_eq!(problem(b"PNG and not a sample at all"), SampleProblem::NotASample);
-        let v1 = checkpoint::encode(&state, &scene, &[], &[]);
+        let v1 = checkpoint::encode(&state, &scene, &[], &[], None);
         assert_eq!(problem(&v1), SampleProblem::OldFormat { version: 1 });
     }
 }

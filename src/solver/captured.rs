@@ -27,7 +27,7 @@ impl Captured {
     pub fn solve(&self, params: &super::SolverParams) -> (Captured, super::SolveStats) {
         let mut out = self.clone();
         let mut work = super::sweep::Workspace::default();
-        let stats = super::sweep::solve(params, &mut out.contacts, &self.gv0, &mut out.gv, &mut work);
+        let stats = super::sweep::solve(params, &mut out.contacts, &self.gv0, &mut out.gv, &mut work, None);
         (out, stats)
     }
 

@@ -13,6 +13,7 @@ use super::ctx::Ctx;
 use super::lanes::{avx, proper_colors, sweep_color_chunk};
 use super::quads::{for_each_impulse, gather_packed, row_at, set_impulses};
 use super::rows::{self, BodyProps, FULL, Row, opening};
+use super::sweep::Colors;
 use super::update::{CHUNK, sweep_chunk, update};
 use super::{Method, SolveStats, SolverParams, team};
 use crate::contact::Contact;
@@ -150,6 +151,7 @@ pub(super) fn solve(
     contacts: &mut [Contact],
     gv: &mut [DVec3],
     work: &mut Workspace,
+    given: Option<Colors>,
 ) -> SolveStats {
     let t_setup = Instant::now();
     work.clear_coloring();
@@ -166,6 +168,8 @@ pub(super) fn solve(
         active: &mut work.active,
         parked: &mut work.parked,
     });
+    let colored = params.method == Method::ColoredGs;
+    let given = given.filter(|_| colored);
     rows::build(
         contacts,
         n_bodies,
@@ -174,10 +178,24 @@ pub(super) fn solve(
         &mut work.props,
         &mut work.deep,
         parked,
+        given.map(|g| rows::ColorRows {
+            ranges: g.ranges,
+            // Every color but the serial group, packed for the AVX sweeps.
+            packed: if avx() {
+                g.ranges.len().saturating_sub(1 + usize::from(g.serial_last))
+            } else {
+                0
+            },
+            out: &mut work.coloring.ranges,
+        }),
     );
     let whole = [0, work.rows.len() as u32];
-    let colored = params.method == Method::ColoredGs;
-    if colored {
+    if let Some(g) = given {
+        // Colors left empty by the parking go: each costs the team a barrier.
+        let r = &mut work.coloring.ranges;
+        work.coloring.serial_last = g.serial_last && r.len() > 1 && r[r.len() - 1] > r[r.len() - 2];
+        r.dedup();
+    } else if colored {
         let props = &work.props;
         let nodes = work.rows.iter().map(|r| {
             let serial = r.j == FULL;
@@ -200,11 +218,15 @@ pub(super) fn solve(
     // The color ranges whose rows are packed four at a time, from the copy in color order
     // to the store: the sweeps, the deep updates and the store read them in place.
     let packed = if quads { proper_colors } else { 0 };
-    if colored {
+    // Rows given in color order were packed as they were built.
+    if colored && given.is_none() {
         let c = &work.coloring;
         gather_packed(&work.rows, &c.order, &c.ranges, packed, &mut work.sorted);
     }
-    let (rows, ranges, serial_last) = if colored {
+    let (rows, ranges, serial_last) = if given.is_some() {
+        let c = &work.coloring;
+        (&mut work.rows, &c.ranges[..], c.serial_last)
+    } else if colored {
         let c = &work.coloring;
         (&mut work.sorted, &c.ranges[..], c.serial_last)
     } else {
@@ -255,7 +277,8 @@ pub(super) fn solve(
         }
     }
     let t_deep = Instant::now();
-    let order = colored.then_some(&work.coloring.order[..]);
+    // Rows given in color order are swept where they were built.
+    let order = (colored && given.is_none()).then_some(&work.coloring.order[..]);
     let active = parking.then_some(&work.active[..]);
     if params.deep_updates() {
         let deep = deep_rows(
@@ -307,7 +330,7 @@ pub(super) fn solve(
             ..*params
         };
         let first = work.times;
-        let again = solve(&every, contacts, gv, work);
+        let again = solve(&every, contacts, gv, work, given);
         let t = &mut work.times;
         t.setup += first.setup;
         t.sweeps += first.sweeps;

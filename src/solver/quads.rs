@@ -55,7 +55,9 @@ fn quads_of(ranges: &[u32], colors: usize) -> impl Iterator<Item = usize> + '_ {
 }
 
 /// Packs the rows of the first `colors` color ranges four at a time ([`Quad`]) for the AVX
-/// sweeps; [`unpack_quads`] undoes it. The solve packs as it copies ([`gather_packed`]).
+/// sweeps; [`unpack_quads`] undoes it. A solve that colors packs as it copies into color
+/// order ([`gather_packed`]); one given contacts in color order packs as it builds the rows
+/// ([`push_quad`]).
 #[cfg(test)]
 pub(super) fn pack_quads(rows: &mut [Row], ranges: &[u32], colors: usize) {
     for k in quads_of(ranges, colors) {
@@ -64,6 +66,19 @@ pub(super) fn pack_quads(rows: &mut [Row], ranges: &[u32], colors: usize) {
         // SAFETY: a Quad fills the bytes of four rows exactly and needs no more alignment
         // (asserted above); the four rows are in bounds.
         unsafe { rows.as_mut_ptr().add(k).cast::<Quad>().write(q) };
+    }
+}
+
+/// Appends four rows packed field by field ([`Quad`]).
+#[inline]
+pub(super) fn push_quad(rows: &mut Vec<Row>, r: &[Row; 4]) {
+    let k = rows.len();
+    rows.reserve(4);
+    // SAFETY: the capacity holds rows k..k + 4; a Quad fills the bytes of four rows exactly
+    // and needs no more alignment (asserted above), and any bytes are valid rows.
+    unsafe {
+        rows.as_mut_ptr().add(k).cast::<Quad>().write(packed(r));
+        rows.set_len(k + 4);
     }
 }
 

@@ -45,7 +45,7 @@ pub fn save(path: &Path, config: &Config, scene: &Scene) {
         true,
     )
     .unwrap();
-    let bytes = cdlab::protocol::checkpoint::encode(&lab.state, scene, &[], &[]);
+    let bytes = cdlab::protocol::checkpoint::encode(&lab.state, scene, &[], &[], None);
     std::fs::write(path, bytes).unwrap();
 }
 
