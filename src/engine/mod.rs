@@ -75,10 +75,10 @@ pub struct PhaseTimes {
     /// Steps counted.
     pub steps: u64,
     /// Contact detection: the kept pair list (rebuilt on the grid when stale) and the
-    /// contact records.
+    /// contact records, with their start-of-step values (relative velocities, law offsets,
+    /// warm start), filled in as each record is made.
     pub detect: f64,
-    /// Start-of-step and free velocities, the contacts' law offsets and warm start, the
-    /// overlap check.
+    /// The bodies' start-of-step and free velocities, and the overlap check.
     pub contacts: f64,
     /// The solver's setup: rows, parking, coloring, color order, vector packing.
     pub setup: f64,
