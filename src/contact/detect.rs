@@ -234,11 +234,10 @@ fn emit_all(
             partners.sort_unstable_by_key(|e| e.0);
         }
         for &(q, gap, n) in &partners {
-            let q = q as usize;
+            let c = pair_contact(scene, p, q as usize, n, gap, mu_disk);
             if free_p {
-                out.push(make_contact(scene, p, q, n, gap, mu_disk));
+                out.push(c);
             } else {
-                let c = make_contact(scene, q, p, -n, gap, mu_disk);
                 waiting.push(Reverse((c.key(), swapped.len() as u32)));
                 swapped.push(c);
             }
@@ -477,13 +476,7 @@ impl Neighbours {
                     let gap = scene.walls[q - nd].distance(d.pos[p]) - d.radius[p];
                     (gap < alert).then(|| wall_contact(scene, p, q - nd, gap))
                 } else {
-                    near(scene, p, q, alert).map(|(gap, n)| {
-                        if d.kind[p] == BodyKind::Free {
-                            make_contact(scene, p, q, n, gap, mu_disk)
-                        } else {
-                            make_contact(scene, q, p, -n, gap, mu_disk)
-                        }
-                    })
+                    near(scene, p, q, alert).map(|(gap, n)| pair_contact(scene, p, q, n, gap, mu_disk))
                 };
                 match found {
                     Some(mut c) => {
@@ -703,6 +696,17 @@ fn wall_contact(scene: &Scene, p: usize, w: usize, gap: f64) -> Contact {
     };
     c.compute_delassus();
     c
+}
+
+/// The record of the contact between disks p and q (`n` from q to p, as [`near`] gives
+/// it), with its free disk as body i: p when p is free, else q with the normal reversed.
+#[inline]
+fn pair_contact(scene: &Scene, p: usize, q: usize, n: DVec2, gap: f64, mu: f64) -> Contact {
+    if scene.disks.kind[p] == BodyKind::Free {
+        make_contact(scene, p, q, n, gap, mu)
+    } else {
+        make_contact(scene, q, p, -n, gap, mu)
+    }
 }
 
 fn make_contact(scene: &Scene, a: usize, b: usize, n: DVec2, gap: f64, mu: f64) -> Contact {

@@ -170,6 +170,8 @@ pub(super) fn solve(
     });
     let colored = params.method == Method::ColoredGs;
     let given = given.filter(|_| colored);
+    // Colored here, and swept from a copy in color order.
+    let recolored = colored && given.is_none();
     rows::build(
         contacts,
         n_bodies,
@@ -182,7 +184,7 @@ pub(super) fn solve(
             ranges: g.ranges,
             // Every color but the serial group, packed for the AVX sweeps.
             packed: if avx() {
-                g.ranges.len().saturating_sub(1 + usize::from(g.serial_last))
+                proper_colors(g.ranges, g.serial_last)
             } else {
                 0
             },
@@ -219,16 +221,16 @@ pub(super) fn solve(
     // to the store: the sweeps, the deep updates and the store read them in place.
     let packed = if quads { proper_colors } else { 0 };
     // Rows given in color order were packed as they were built.
-    if colored && given.is_none() {
+    if recolored {
         let c = &work.coloring;
         gather_packed(&work.rows, &c.order, &c.ranges, packed, &mut work.sorted);
     }
-    let (rows, ranges, serial_last) = if given.is_some() {
-        let c = &work.coloring;
-        (&mut work.rows, &c.ranges[..], c.serial_last)
-    } else if colored {
+    let (rows, ranges, serial_last) = if recolored {
         let c = &work.coloring;
         (&mut work.sorted, &c.ranges[..], c.serial_last)
+    } else if colored {
+        let c = &work.coloring;
+        (&mut work.rows, &c.ranges[..], c.serial_last)
     } else {
         (&mut work.rows, &whole[..], false)
     };
@@ -278,7 +280,7 @@ pub(super) fn solve(
     }
     let t_deep = Instant::now();
     // Rows given in color order are swept where they were built.
-    let order = (colored && given.is_none()).then_some(&work.coloring.order[..]);
+    let order = recolored.then_some(&work.coloring.order[..]);
     let active = parking.then_some(&work.active[..]);
     if params.deep_updates() {
         let deep = deep_rows(
