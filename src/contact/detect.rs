@@ -4,7 +4,7 @@
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
-use glam::DVec2;
+use glam::{DVec2, DVec3};
 
 use super::Contact;
 use crate::error::{Error, Result};
@@ -119,6 +119,19 @@ struct Side {
 
 fn disk_side(scene: &Scene, k: usize) -> Side {
     let d = &scene.disks;
+    side(
+        scene,
+        k,
+        d.radius[k],
+        d.inv_mass[k],
+        d.radius[k] * d.inv_inertia[k],
+    )
+}
+
+/// [`disk_side`] from disk k's radius, inverse mass and `r / I` as given.
+#[inline]
+fn side(scene: &Scene, k: usize, radius: f64, inv_mass: f64, r_over_i: f64) -> Side {
+    let d = &scene.disks;
     let g = d.glued_to[k];
     if g != NOT_GLUED {
         let w = &scene.walls[g as usize];
@@ -136,11 +149,11 @@ fn disk_side(scene: &Scene, k: usize) -> Side {
     } else {
         Side {
             body: k as u32,
-            lever: d.radius[k],
-            inv_mass: d.inv_mass[k],
+            lever: radius,
+            inv_mass,
             axial: 0.0,
             axis: DVec2::ZERO,
-            k: d.radius[k] * d.inv_inertia[k],
+            k: r_over_i,
         }
     }
 }
@@ -171,15 +184,28 @@ pub fn detect(scene: &Scene, alert: f64, grid: &mut CellGrid, out: &mut Vec<Cont
 #[inline]
 fn near(scene: &Scene, p: usize, q: usize, alert: f64) -> Option<(f64, DVec2)> {
     let d = &scene.disks;
-    if d.kind[p] != BodyKind::Free && d.kind[q] != BodyKind::Free {
+    near_at(&d.kind, p, q, alert, |k| (d.pos[k], d.radius[k]))
+}
+
+/// [`near`] with each disk's position and radius from `at`.
+#[inline]
+fn near_at(
+    kind: &[BodyKind],
+    p: usize,
+    q: usize,
+    alert: f64,
+    at: impl Fn(usize) -> (DVec2, f64),
+) -> Option<(f64, DVec2)> {
+    if kind[p] != BodyKind::Free && kind[q] != BodyKind::Free {
         return None;
     }
-    let delta = d.pos[p] - d.pos[q];
-    let reach = d.radius[p] + d.radius[q] + alert;
+    let ((xp, rp), (xq, rq)) = (at(p), at(q));
+    let delta = xp - xq;
+    let reach = rp + rq + alert;
     let dist2 = delta.length_squared();
     if dist2 < reach * reach && dist2 > 0.0 {
         let dist = dist2.sqrt();
-        Some((dist - d.radius[p] - d.radius[q], delta / dist))
+        Some((dist - rp - rq, delta / dist))
     } else {
         None
     }
@@ -291,6 +317,8 @@ pub struct Neighbours {
     contact_ranges: Vec<u32>,
     /// Where the next detection builds the list ([`Self::start_from`]).
     origin: Option<ListOrigin>,
+    /// What emission reads of each disk, one cache line per disk ([`Line`]).
+    lines: Vec<Line>,
     /// Grid searches made so far (the tests check that the list is both rebuilt and reused).
     pub rebuilds: u64,
 }
@@ -304,6 +332,25 @@ pub struct ListOrigin {
     /// Wall points (m), in the scene's wall order.
     pub wall_points: Vec<DVec2>,
 }
+
+/// What the kept list's emission reads of a disk, gathered in one 64-byte line per step:
+/// read from the scene's arrays (position, radius, inverse mass and inertia, kind, glue,
+/// and the start-of-step velocity), a disk met in color order cost a cache miss in each
+/// (docs/benchmarks.md, "One line per disk"). The values are copies, so the records are
+/// the same bit for bit.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(64))]
+struct Line {
+    pos: DVec2,
+    radius: f64,
+    inv_mass: f64,
+    /// `r / I`, as [`disk_side`] computes it.
+    k: f64,
+    /// Start-of-step velocity (vx, vy, spin).
+    v: DVec3,
+}
+
+const _: () = assert!(std::mem::size_of::<Line>() == 64);
 
 /// What the list depends on, as it was when the list was built.
 #[derive(Clone, Debug, Default)]
@@ -343,7 +390,7 @@ impl Neighbours {
     /// Same contract as [`detect`] (records by key, impulses at zero until
     /// [`Self::keep_impulses`] keeps some); `skin` (m) is the margin of the kept list.
     pub fn detect(&mut self, scene: &Scene, alert: f64, skin: f64, out: &mut Vec<Contact>) -> Result<()> {
-        self.detect_kept(scene, alert, skin, false, None, out, |_, _| {})
+        self.detect_kept(scene, alert, skin, false, None, out, &[], |_, _, _| {})
     }
 
     /// The contact records of the listed pairs closer than `alert`, in the list's order:
@@ -351,8 +398,10 @@ impl Neighbours {
     /// carries the impulses its pair kept from the last step, or, with `warm`, those of
     /// its key there (`(key, R_n, R_t)` sorted by key, e.g. from a checkpoint; zero for a
     /// key not listed). Impulses are those kept, not clamped to the friction cone.
-    /// `each(k, contact)` sees contact `k` before it is stored, while it is in the cache:
-    /// at 50,000 disks a pass over the 21 MB of records cost about a millisecond.
+    /// `each(contact, v_i, v_j)` sees each contact before it is stored, while it is in the
+    /// cache (at 50,000 disks a pass over the 21 MB of records cost about a millisecond),
+    /// with the start-of-step velocities of its bodies i and j taken from `velocities`
+    /// (every body's, disks then walls; zero when `velocities` is empty).
     #[allow(clippy::too_many_arguments)]
     pub fn detect_kept(
         &mut self,
@@ -362,7 +411,8 @@ impl Neighbours {
         colored: bool,
         warm: Option<&[(u64, f64, f64)]>,
         out: &mut Vec<Contact>,
-        each: impl FnMut(usize, &mut Contact),
+        velocities: &[DVec3],
+        each: impl FnMut(&mut Contact, DVec3, DVec3),
     ) -> Result<()> {
         if let Some(o) = self.origin.take()
             && o.pos.len() == scene.disks.len()
@@ -377,7 +427,7 @@ impl Neighbours {
         if let Some(w) = warm {
             self.load(&scene.disks.kind, w);
         }
-        self.emit(scene, alert, out, each);
+        self.emit(scene, alert, out, velocities, each);
         Ok(())
     }
 
@@ -459,11 +509,32 @@ impl Neighbours {
         scene: &Scene,
         alert: f64,
         out: &mut Vec<Contact>,
-        mut each: impl FnMut(usize, &mut Contact),
+        velocities: &[DVec3],
+        mut each: impl FnMut(&mut Contact, DVec3, DVec3),
     ) {
         let d = &scene.disks;
         let nd = d.len();
         let mu_disk = scene.material.mu_disk;
+        let moving = velocities.len() == nd + scene.walls.len();
+        self.lines.clear();
+        self.lines.extend((0..nd).map(|k| Line {
+            pos: d.pos[k],
+            radius: d.radius[k],
+            inv_mass: d.inv_mass[k],
+            k: d.radius[k] * d.inv_inertia[k],
+            v: if moving { velocities[k] } else { DVec3::ZERO },
+        }));
+        let lines = &self.lines[..];
+        let at = |k: usize| (lines[k].pos, lines[k].radius);
+        let side = |k: usize| {
+            let l = &lines[k];
+            side(scene, k, l.radius, l.inv_mass, l.k)
+        };
+        let velocity = |b: u32| match lines.get(b as usize) {
+            Some(l) => l.v,
+            None if moving => velocities[b as usize],
+            None => DVec3::ZERO,
+        };
         out.clear();
         self.emitted.clear();
         self.contact_ranges.clear();
@@ -473,10 +544,12 @@ impl Neighbours {
                 let slot = &mut self.slots[s as usize];
                 let (p, q) = (slot.p as usize, slot.q as usize);
                 let found = if q >= nd {
-                    let gap = scene.walls[q - nd].distance(d.pos[p]) - d.radius[p];
-                    (gap < alert).then(|| wall_contact(scene, p, q - nd, gap))
+                    let (x, r) = at(p);
+                    let gap = scene.walls[q - nd].distance(x) - r;
+                    (gap < alert).then(|| wall_contact_of(scene, side(p), q - nd, gap))
                 } else {
-                    near(scene, p, q, alert).map(|(gap, n)| pair_contact(scene, p, q, n, gap, mu_disk))
+                    near_at(&d.kind, p, q, alert, at)
+                        .map(|(gap, n)| pair_contact_of(&d.kind, p, q, n, gap, mu_disk, side))
                 };
                 match found {
                     Some(mut c) => {
@@ -484,7 +557,8 @@ impl Neighbours {
                             c.rn = slot.rn;
                             c.rt = slot.rt;
                         }
-                        each(out.len(), &mut c);
+                        let (vi, vj) = (velocity(c.i), velocity(c.j));
+                        each(&mut c, vi, vj);
                         out.push(c);
                         self.emitted.push(s);
                     }
@@ -677,9 +751,14 @@ fn node(scene: &Scene, s: &Slot) -> Node {
 
 /// The record of the contact between free disk `p` and wall `w` at `gap` (m).
 fn wall_contact(scene: &Scene, p: usize, w: usize, gap: f64) -> Contact {
+    wall_contact_of(scene, disk_side(scene, p), w, gap)
+}
+
+/// [`wall_contact`] from the disk's side.
+#[inline]
+fn wall_contact_of(scene: &Scene, si: Side, w: usize, gap: f64) -> Contact {
     let wall = &scene.walls[w];
     let nd = scene.disks.len();
-    let si = disk_side(scene, p);
     let mut c = Contact {
         i: si.body,
         j: (nd + w) as u32,
@@ -702,16 +781,30 @@ fn wall_contact(scene: &Scene, p: usize, w: usize, gap: f64) -> Contact {
 /// it), with its free disk as body i: p when p is free, else q with the normal reversed.
 #[inline]
 fn pair_contact(scene: &Scene, p: usize, q: usize, n: DVec2, gap: f64, mu: f64) -> Contact {
-    if scene.disks.kind[p] == BodyKind::Free {
-        make_contact(scene, p, q, n, gap, mu)
+    pair_contact_of(&scene.disks.kind, p, q, n, gap, mu, |k| disk_side(scene, k))
+}
+
+/// [`pair_contact`] with each disk's side from `side`.
+#[inline]
+fn pair_contact_of(
+    kind: &[BodyKind],
+    p: usize,
+    q: usize,
+    n: DVec2,
+    gap: f64,
+    mu: f64,
+    side: impl Fn(usize) -> Side,
+) -> Contact {
+    if kind[p] == BodyKind::Free {
+        make_contact(side(p), side(q), q, n, gap, mu)
     } else {
-        make_contact(scene, q, p, -n, gap, mu)
+        make_contact(side(q), side(p), p, -n, gap, mu)
     }
 }
 
-fn make_contact(scene: &Scene, a: usize, b: usize, n: DVec2, gap: f64, mu: f64) -> Contact {
-    let si = disk_side(scene, a);
-    let sj = disk_side(scene, b);
+/// The record of the contact between the disks of sides `si` and `sj` (disk `b`).
+#[inline]
+fn make_contact(si: Side, sj: Side, b: usize, n: DVec2, gap: f64, mu: f64) -> Contact {
     let mut c = Contact {
         i: si.body,
         j: sj.body,

@@ -236,8 +236,8 @@ impl CpuEngine {
         let warm = self.warm.take();
         self.gv.clone_from(&self.gv0);
         let mut prepare = Prepare {
-            gv_minus: &self.gv_minus,
             gv: &mut self.gv,
+            count: 0,
             e_n: scene.material.e_n,
             e_t: scene.material.e_t,
             dt,
@@ -253,7 +253,8 @@ impl CpuEngine {
                 colored,
                 warm.as_deref(),
                 &mut self.contacts,
-                |k, c| prepare.contact(k, c),
+                &self.gv_minus,
+                |c, vi, vj| prepare.contact(c, vi, vj),
             )
             .map_err(|e| at_step(e, scene.step))?;
         let worst = prepare.worst;
@@ -268,6 +269,11 @@ impl CpuEngine {
             ranges: self.neighbours.contact_ranges(),
             serial_last: self.neighbours.serial_last(),
         });
+        if matches!(p.solver.method, Method::Gs | Method::ColoredGs) {
+            let d = &scene.disks;
+            let disks = (0..d.len()).map(|k| (d.inv_mass[k], d.radius[k] * d.inv_inertia[k], d.radius[k]));
+            self.work.give_bodies(disks, scene.walls.len());
+        }
         let solve = sweep::solve(
             &p.solver,
             &mut self.contacts,
@@ -437,8 +443,9 @@ impl CpuEngine {
 /// offsets and warm start, leaving in `gv` the free velocities plus the warm-start
 /// impulses; and it finds the contact with the largest overlap.
 struct Prepare<'a> {
-    gv_minus: &'a [DVec3],
     gv: &'a mut [DVec3],
+    /// Contacts seen so far.
+    count: usize,
     e_n: f64,
     e_t: f64,
     dt: f64,
@@ -449,12 +456,13 @@ struct Prepare<'a> {
 
 impl Prepare<'_> {
     #[inline]
-    fn contact(&mut self, k: usize, c: &mut Contact) {
+    fn contact(&mut self, c: &mut Contact, vi: DVec3, vj: DVec3) {
         if c.gap < self.deepest {
             self.deepest = c.gap;
-            self.worst = Some(k);
+            self.worst = Some(self.count);
         }
-        let (un, ut) = c.relative_velocity(self.gv_minus);
+        self.count += 1;
+        let (un, ut) = c.relative_velocity_of(vi, vj);
         c.un0 = un;
         c.ut0 = ut;
         c.bias_n = normal_bias(c.gap, un, self.theta, self.dt, self.e_n);

@@ -64,6 +64,8 @@ pub struct Workspace {
     inverse: Vec<u32>,
     /// The deep contacts' rows, updated as plain rows while the others stay packed.
     deep_copies: Vec<Row>,
+    /// The body table was given for the next solve ([`Workspace::give_bodies`]).
+    props_given: bool,
 }
 
 /// The swept rows of the deep contacts `candidates` (contact indices, ascending) that carry
@@ -133,6 +135,20 @@ impl Workspace {
         self.times
     }
 
+    /// Gives the next solve its table of body properties: each disk's inverse mass, `r / I`
+    /// and radius from `disks`, then `n_walls` walls (which no row of the table moves).
+    /// Filled in one pass over the bodies, not by the rows' build at two scattered bodies
+    /// per contact (docs/benchmarks.md, "One line per disk"). The contacts must take their
+    /// disks' values from the same figures, as detection does.
+    pub fn give_bodies(&mut self, disks: impl Iterator<Item = (f64, f64, f64)>, n_walls: usize) {
+        self.props.clear();
+        self.props
+            .extend(disks.map(|(inv_mass, k, lever)| BodyProps::of(inv_mass, k, lever)));
+        self.props
+            .resize(self.props.len() + n_walls, BodyProps::default());
+        self.props_given = true;
+    }
+
     /// Forgets the coloring of the last solve, as a solve by another method must.
     pub(super) fn clear_coloring(&mut self) {
         self.times = SolveTimes::default();
@@ -170,6 +186,10 @@ pub(super) fn solve(
     });
     let colored = params.method == Method::ColoredGs;
     let given = given.filter(|_| colored);
+    assert!(
+        !work.props_given || work.props.len() == n_bodies,
+        "a body table given for other bodies"
+    );
     // Colored here, and swept from a copy in color order.
     let recolored = colored && given.is_none();
     rows::build(
@@ -177,7 +197,7 @@ pub(super) fn solve(
         n_bodies,
         deep_gap,
         &mut work.rows,
-        &mut work.props,
+        (!std::mem::take(&mut work.props_given)).then_some(&mut work.props),
         &mut work.deep,
         parked,
         given.map(|g| rows::ColorRows {

@@ -44,6 +44,19 @@ pub(super) struct BodyProps {
     pub(super) movable: f64,
 }
 
+impl BodyProps {
+    /// The entry of a disk with inverse mass `inv_mass`, `r / I` `k` and radius `lever`,
+    /// as a contact's side gives it ([`Contact::moves_i`]); a wall's entry is the default.
+    pub(super) fn of(inv_mass: f64, k: f64, lever: f64) -> Self {
+        BodyProps {
+            inv_mass,
+            k,
+            lever,
+            movable: if inv_mass != 0.0 || k != 0.0 { 1.0 } else { 0.0 },
+        }
+    }
+}
+
 fn inverse(w: f64) -> f64 {
     if w > 0.0 { 1.0 / w } else { 0.0 }
 }
@@ -71,14 +84,18 @@ pub(super) fn build(
     n_bodies: usize,
     deep_gap: f64,
     rows: &mut Vec<Row>,
-    props: &mut Vec<BodyProps>,
+    props: Option<&mut Vec<BodyProps>>,
     deep: &mut Vec<u32>,
     mut parking: Option<Parking>,
     colors: Option<ColorRows>,
 ) {
     deep.clear();
-    props.clear();
-    props.resize(n_bodies, BodyProps::default());
+    // Without a table to fill, the one given for the step ([`BodyProps::of`]) serves.
+    let mut props = props;
+    if let Some(p) = props.as_mut() {
+        p.clear();
+        p.resize(n_bodies, BodyProps::default());
+    }
     rows.clear();
     if let Some(p) = parking.as_mut() {
         p.active.clear();
@@ -102,7 +119,14 @@ pub(super) fn build(
         let (a, b) = (w[0] as usize, w[1] as usize);
         let pack = color < packed;
         for (k, c) in (a..b).zip(&contacts[a..b]) {
-            let r = row(k, c, n_bodies, deep_gap, props, deep);
+            let r = row(
+                k,
+                c,
+                n_bodies,
+                deep_gap,
+                props.as_deref_mut().map(|p| &mut p[..]),
+                deep,
+            );
             match parking.as_mut() {
                 Some(p) if r.j != FULL && r.rn == 0.0 && r.rt == 0.0 && opening(&r, p.gv) > p.open_skip => {
                     p.parked.push(r)
@@ -167,7 +191,7 @@ fn row(
     c: &Contact,
     n_bodies: usize,
     deep_gap: f64,
-    props: &mut [BodyProps],
+    props: Option<&mut [BodyProps]>,
     deep: &mut Vec<u32>,
 ) -> Row {
     // The sweeps index the velocities without bounds checks: this pass over every
@@ -188,18 +212,20 @@ fn row(
     }
     // Every contact of a body sees the same inverse mass, r / I and lever (detection
     // takes them from the body), so later contacts only rewrite the same values.
-    props[c.i as usize] = BodyProps {
-        inv_mass: c.mi,
-        k: c.ki,
-        lever: c.ri,
-        movable: if c.moves_i() { 1.0 } else { 0.0 },
-    };
-    props[c.j as usize] = BodyProps {
-        inv_mass: c.mj,
-        k: c.kj,
-        lever: c.rj,
-        movable: if c.moves_j() { 1.0 } else { 0.0 },
-    };
+    if let Some(props) = props {
+        props[c.i as usize] = BodyProps {
+            inv_mass: c.mi,
+            k: c.ki,
+            lever: c.ri,
+            movable: if c.moves_i() { 1.0 } else { 0.0 },
+        };
+        props[c.j as usize] = BodyProps {
+            inv_mass: c.mj,
+            k: c.kj,
+            lever: c.rj,
+            movable: if c.moves_j() { 1.0 } else { 0.0 },
+        };
+    }
     Row {
         i: c.i,
         j: c.j,
