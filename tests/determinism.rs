@@ -28,6 +28,20 @@ fn dense(seed: u64) -> Scene {
     s
 }
 
+/// [`dense`] with its right wall pushing on the sample with a column of glued disks:
+/// their contacts share the wall and form the serial group of the colored sweeps.
+fn pushed(seed: u64) -> Scene {
+    let mut s = dense(seed);
+    s.walls[3].drive = cdlab::model::WallDrive::Force {
+        mass: 5e4,
+        force: 2e5,
+    };
+    for b in 0..50 {
+        s.disks.glue(49 * 50 + b, 3);
+    }
+    s
+}
+
 fn run(seed: u64, method: Method, parallel: bool) -> (Scene, usize) {
     run_on(seed, method, parallel, 0, None)
 }
@@ -41,16 +55,7 @@ fn run_on(
     threads: usize,
     relax: Option<(f64, u32, f64)>,
 ) -> (Scene, usize) {
-    let mut s = dense(seed);
-    // The right wall pushes on the sample with its column of glued disks: their contacts
-    // share the wall and form the serial group of the colored sweeps.
-    s.walls[3].drive = cdlab::model::WallDrive::Force {
-        mass: 5e4,
-        force: 2e5,
-    };
-    for b in 0..50 {
-        s.disks.glue(49 * 50 + b, 3);
-    }
+    let mut s = pushed(seed);
     let mut p = tight(method);
     p.alert = 0.2;
     p.solver.tol = 1e-6;
@@ -333,14 +338,7 @@ fn kept_pair_list_gives_the_grid_search_records_bit_for_bit() {
 #[test]
 fn the_body_table_given_by_the_engine_is_the_one_the_contacts_give() {
     for method in [Method::Gs, Method::ColoredGs] {
-        let mut s = dense(6);
-        s.walls[3].drive = cdlab::model::WallDrive::Force {
-            mass: 5e4,
-            force: 2e5,
-        };
-        for b in 0..50 {
-            s.disks.glue(49 * 50 + b, 3);
-        }
+        let mut s = pushed(6);
         let mut p = tight(method);
         p.alert = 0.2;
         p.solver.tol = 1e-6;
