@@ -334,10 +334,11 @@ pub struct ListOrigin {
 }
 
 /// What the kept list's emission reads of a disk, gathered in one 64-byte line per step:
-/// read from the scene's arrays (position, radius, inverse mass and inertia, kind, glue,
-/// and the start-of-step velocity), a disk met in color order cost a cache miss in each
-/// (docs/benchmarks.md, "One line per disk"). The values are copies, so the records are
-/// the same bit for bit.
+/// read from the scene's arrays (position, radius, inverse mass, inverse inertia) and the
+/// start-of-step velocities, a disk met in color order cost a cache miss in each
+/// (docs/benchmarks.md, "One line per disk"); only its kind and glue, small arrays, are
+/// still read where they lie. The values are copies, so the records are the same bit for
+/// bit.
 #[derive(Clone, Copy, Debug, Default)]
 #[repr(C, align(64))]
 struct Line {
