@@ -412,7 +412,7 @@ impl Neighbours {
     /// Same contract as [`detect`] (records by key, impulses at zero until
     /// [`Self::keep_impulses`] keeps some); `skin` (m) is the margin of the kept list.
     pub fn detect(&mut self, scene: &Scene, alert: f64, skin: f64, out: &mut Vec<Contact>) -> Result<()> {
-        self.detect_kept(scene, alert, skin, false, None, out, &[], |_, _, _| {})
+        self.detect_kept(scene, alert, skin, false, None, out, &[], |_, _, _, _| {})
     }
 
     /// The contact records of the listed pairs closer than `alert`, in the list's order:
@@ -420,7 +420,7 @@ impl Neighbours {
     /// carries the impulses its pair kept from the last step, or, with `warm`, those of
     /// its key there (`(key, R_n, R_t)` sorted by key, e.g. from a checkpoint; zero for a
     /// key not listed). Impulses are those kept, not clamped to the friction cone.
-    /// `each(contact, v_i, v_j)` sees each contact before it is stored, while it is in the
+    /// `each(k, contact, v_i, v_j)` sees contact `k` before it is stored, while it is in the
     /// cache (at 50,000 disks a pass over the 21 MB of records cost about a millisecond),
     /// with the start-of-step velocities of its bodies i and j taken from `velocities`
     /// (every body's, disks then walls; zero when `velocities` is empty).
@@ -434,7 +434,7 @@ impl Neighbours {
         warm: Option<&[(u64, f64, f64)]>,
         out: &mut Vec<Contact>,
         velocities: &[DVec3],
-        each: impl FnMut(&mut Contact, DVec3, DVec3),
+        each: impl FnMut(usize, &mut Contact, DVec3, DVec3),
     ) -> Result<()> {
         if let Some(o) = self.origin.take()
             && o.pos.len() == scene.disks.len()
@@ -473,6 +473,13 @@ impl Neighbours {
     /// positions. It is ignored if its sizes are not the scene's.
     pub fn start_from(&mut self, origin: ListOrigin) {
         self.origin = Some(origin);
+    }
+
+    /// Each disk's inverse mass, `r / I` and radius as the last detection read them (the
+    /// figures its records' sides carry), for the solver's body table
+    /// (`crate::solver::sweep::Workspace::give_bodies`).
+    pub fn disk_figures(&self) -> impl Iterator<Item = (f64, f64, f64)> + '_ {
+        self.lines.iter().map(|l| (l.inv_mass, l.k, l.radius))
     }
 
     /// Color ranges of the last detection's contacts (`ranges[c]..ranges[c + 1]`), a
@@ -532,7 +539,7 @@ impl Neighbours {
         alert: f64,
         out: &mut Vec<Contact>,
         velocities: &[DVec3],
-        mut each: impl FnMut(&mut Contact, DVec3, DVec3),
+        mut each: impl FnMut(usize, &mut Contact, DVec3, DVec3),
     ) {
         let d = &scene.disks;
         let nd = d.len();
@@ -584,7 +591,7 @@ impl Neighbours {
                             c.rt = slot.rt;
                         }
                         let (vi, vj) = (velocity(c.i), velocity(c.j));
-                        each(&mut c, vi, vj);
+                        each(out.len(), &mut c, vi, vj);
                         out.push(c);
                         self.emitted.push(s);
                     }

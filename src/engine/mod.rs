@@ -237,7 +237,6 @@ impl CpuEngine {
         self.gv.clone_from(&self.gv0);
         let mut prepare = Prepare {
             gv: &mut self.gv,
-            count: 0,
             e_n: scene.material.e_n,
             e_t: scene.material.e_t,
             dt,
@@ -254,7 +253,7 @@ impl CpuEngine {
                 warm.as_deref(),
                 &mut self.contacts,
                 &self.gv_minus,
-                |c, vi, vj| prepare.contact(c, vi, vj),
+                |k, c, vi, vj| prepare.contact(k, c, vi, vj),
             )
             .map_err(|e| at_step(e, scene.step))?;
         let worst = prepare.worst;
@@ -270,9 +269,9 @@ impl CpuEngine {
             serial_last: self.neighbours.serial_last(),
         });
         if matches!(p.solver.method, Method::Gs | Method::ColoredGs) {
-            let d = &scene.disks;
-            let disks = (0..d.len()).map(|k| (d.inv_mass[k], d.radius[k] * d.inv_inertia[k], d.radius[k]));
-            self.work.give_bodies(disks, scene.walls.len());
+            // The figures the records were made from, so that the table and the rows agree.
+            self.work
+                .give_bodies(self.neighbours.disk_figures(), scene.walls.len());
         }
         let solve = sweep::solve(
             &p.solver,
@@ -444,8 +443,6 @@ impl CpuEngine {
 /// impulses; and it finds the contact with the largest overlap.
 struct Prepare<'a> {
     gv: &'a mut [DVec3],
-    /// Contacts seen so far.
-    count: usize,
     e_n: f64,
     e_t: f64,
     dt: f64,
@@ -456,12 +453,11 @@ struct Prepare<'a> {
 
 impl Prepare<'_> {
     #[inline]
-    fn contact(&mut self, c: &mut Contact, vi: DVec3, vj: DVec3) {
+    fn contact(&mut self, k: usize, c: &mut Contact, vi: DVec3, vj: DVec3) {
         if c.gap < self.deepest {
             self.deepest = c.gap;
-            self.worst = Some(self.count);
+            self.worst = Some(k);
         }
-        self.count += 1;
         let (un, ut) = c.relative_velocity_of(vi, vj);
         c.un0 = un;
         c.ut0 = ut;

@@ -138,8 +138,9 @@ impl Workspace {
     /// Gives the next solve its table of body properties: each disk's inverse mass, `r / I`
     /// and radius from `disks`, then `n_walls` walls (which no row of the table moves).
     /// Filled in one pass over the bodies, not by the rows' build at two scattered bodies
-    /// per contact (docs/benchmarks.md, "One line per disk"). The contacts must take their
-    /// disks' values from the same figures, as detection does.
+    /// per contact (docs/benchmarks.md, "One line per disk"). The contacts' records must
+    /// carry the same figures: the engine passes those detection made them from
+    /// (`contact::detect::Neighbours::disk_figures`).
     pub fn give_bodies(&mut self, disks: impl Iterator<Item = (f64, f64, f64)>, n_walls: usize) {
         self.props.clear();
         self.props

@@ -84,14 +84,13 @@ pub(super) fn build(
     n_bodies: usize,
     deep_gap: f64,
     rows: &mut Vec<Row>,
-    props: Option<&mut Vec<BodyProps>>,
+    mut props: Option<&mut Vec<BodyProps>>,
     deep: &mut Vec<u32>,
     mut parking: Option<Parking>,
     colors: Option<ColorRows>,
 ) {
     deep.clear();
     // Without a table to fill, the one given for the step ([`BodyProps::of`]) serves.
-    let mut props = props;
     if let Some(p) = props.as_mut() {
         p.clear();
         p.resize(n_bodies, BodyProps::default());
