@@ -153,12 +153,66 @@ fn bench_writes_its_report_and_rejects_bad_sizes() {
             );
         }
     }
-    for bad in [["--disks", "0"], ["--steps", "0"]] {
+    for bad in [["--disks", "0"], ["--steps", "0"], ["--rounds", "0"]] {
         let (ok, text) = run(&["bench", bad[0], bad[1], "--out", out.to_str().unwrap()]);
         assert!(
             !ok && text.contains(bad[0]) && !text.contains("panicked"),
             "{text}"
         );
     }
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+/// `--rounds`: every case again per round, sizes in turn, and the ratio between sizes given
+/// per round and as the median over the rounds, computed here again from `bench.json`.
+#[test]
+fn bench_rounds_give_each_ratio_within_a_round_and_its_median() {
+    let out = std::env::temp_dir().join(format!("cdlab-bench-rounds-{}", std::process::id()));
+    let (ok, text) = cdlab(&[
+        "bench",
+        "--disks",
+        "200,300",
+        "--steps",
+        "3",
+        "--window",
+        "3",
+        "--warmup",
+        "1",
+        "--backend",
+        "cpu",
+        "--rounds",
+        "3",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(ok, "{text}");
+    let cases: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("bench.json")).unwrap()).unwrap();
+    let cases = cases.as_array().expect("an array of cases");
+    let order: Vec<(u64, u64)> = cases
+        .iter()
+        .map(|c| (c["round"].as_u64().unwrap(), c["disks"].as_u64().unwrap()))
+        .collect();
+    assert_eq!(
+        order,
+        [(1, 200), (1, 300), (2, 200), (2, 300), (3, 200), (3, 300)]
+    );
+    let ms = |k: usize| cases[k]["ms_per_step"].as_f64().unwrap();
+    let fixed = |k: usize| cases[k]["cpu_phases"]["fixed_ns_per_disk"].as_f64().unwrap();
+    let mut step: Vec<f64> = (0..3).map(|r| ms(2 * r + 1) / ms(2 * r)).collect();
+    let mut per_disk: Vec<f64> = (0..3).map(|r| fixed(2 * r + 1) / fixed(2 * r)).collect();
+    step.sort_by(f64::total_cmp);
+    per_disk.sort_by(f64::total_cmp);
+    let md = std::fs::read_to_string(out.join("bench.md")).unwrap();
+    let backend = cases[0]["backend"].as_str().unwrap();
+    // The median of three is the middle one; the range runs from the smallest to the largest.
+    let want = format!(
+        "- {backend} colored-gs: 300 against 200 disks: time per step x{:.2} (x{:.2}-x{:.2}, 3 rounds); fixed part per disk x{:.2} (x{:.2}-x{:.2}, 3 rounds)",
+        step[1], step[0], step[2], per_disk[1], per_disk[0], per_disk[2]
+    );
+    assert!(md.contains(&want), "no {want:?} in {md}");
+    // Each round's ratio is against that round's first size, not the first round's.
+    let third = format!("round 3: 200 -> 300 disks: time per step x{:.2}", ms(5) / ms(4));
+    assert!(md.contains(&third), "no {third:?} in {md}");
     let _ = std::fs::remove_dir_all(&out);
 }

@@ -48,6 +48,11 @@ pub struct Args {
     /// (`GpuBackend::overflow_sweeps`), comma separated to compare (true, false).
     #[arg(long, value_delimiter = ',', default_value = "true")]
     pub sweep_all: Vec<bool>,
+    /// Rounds: every case is measured this many times, the sizes in turn, and the ratios
+    /// between sizes are given per round with their median (on a shared machine one
+    /// round's ratio moves with the load).
+    #[arg(long, default_value_t = 1)]
+    pub rounds: u32,
     /// Output directory.
     #[arg(long, default_value = "out/bench")]
     pub out: PathBuf,
@@ -67,6 +72,9 @@ pub fn run(args: &Args) -> Result<()> {
     }
     if args.steps == 0 {
         return Err(Error::invalid("--steps", 0, "must be >= 1"));
+    }
+    if args.rounds == 0 {
+        return Err(Error::invalid("--rounds", 0, "must be >= 1"));
     }
     if args.window == 0 {
         return Err(Error::invalid("--window", 0, "must be >= 1"));
@@ -90,15 +98,22 @@ pub fn run(args: &Args) -> Result<()> {
         record_threads: 0,
         sweep_all: true,
     };
-    let mut cases = Vec::new();
-    let mut failures = Vec::new();
+    let mut scenes = Vec::new();
     for &n in &args.disks {
         // The geometric deposit of a large sample takes a while (about half a minute at
         // 50,000 disks on one core): say so before it starts.
         eprintln!("{n} disks: depositing the sample");
         let t = std::time::Instant::now();
-        let scene = sheared_sample(n)?;
+        scenes.push((n, sheared_sample(n)?));
         eprintln!("{n} disks: sample ready in {:.1} s", t.elapsed().as_secs_f64());
+    }
+    let mut cases = Vec::new();
+    let mut failures = Vec::new();
+    for (round, (n, scene)) in (1..=args.rounds).flat_map(|r| scenes.iter().map(move |s| (r, s))) {
+        let n = *n;
+        if args.rounds > 1 {
+            eprintln!("round {round} of {}, {n} disks", args.rounds);
+        }
         let combos = args.backend.iter().flat_map(|b| {
             // Recording threads and sweep_all are the GPU's: the CPU runs each case once.
             let gpu = b == "gpu";
@@ -129,7 +144,7 @@ pub fn run(args: &Args) -> Result<()> {
             let mut params = params;
             params.solver.check_every = every;
             params.solver.method = method.parse()?;
-            let case = match b.as_str() {
+            let mut case = match b.as_str() {
                 "cpu" => measure_cpu(scene.clone(), params, n, run)?,
                 "gpu" => match measure_gpu(scene.clone(), params, n, run) {
                     Ok(c) => c,
@@ -146,6 +161,7 @@ pub fn run(args: &Args) -> Result<()> {
                 },
                 other => return Err(Error::invalid("--backend", other, "cpu or gpu")),
             };
+            case.round = round;
             eprintln!("{}", line(&case));
             cases.push(case);
         }

@@ -97,6 +97,10 @@ pub struct Case {
     pub device_mib: f64,
     /// CPU: where a step's time went, per step ([`CpuPhases`]); none on the GPU.
     pub cpu_phases: Option<CpuPhases>,
+    /// Round of the measurement (1 to `cdlab bench --rounds`): each round measures every
+    /// case again in the same order, so that sizes are compared within a round, on the
+    /// machine as it was then.
+    pub round: u32,
 }
 
 /// Wall time of a CPU step's phases, per measured step (ms), from
@@ -281,6 +285,7 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, run: Run) ->
         host_peak_mib: host_peak_mib(),
         device_mib: (probe.device_mib)(backend),
         cpu_phases,
+        round: 1,
     })
 }
 
