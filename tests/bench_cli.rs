@@ -8,6 +8,13 @@ mod gpu_support;
 
 use common::cdlab;
 
+/// The cases of the `bench.json` that `cdlab bench` wrote to `out`.
+fn cases_in(out: &std::path::Path) -> Vec<serde_json::Value> {
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("bench.json")).unwrap()).unwrap();
+    json.as_array().expect("an array of cases").clone()
+}
+
 #[test]
 fn bench_writes_its_report_and_rejects_bad_sizes() {
     let out = std::env::temp_dir().join(format!("cdlab-bench-{}", std::process::id()));
@@ -36,9 +43,7 @@ fn bench_writes_its_report_and_rejects_bad_sizes() {
         out.to_str().unwrap(),
     ]);
     assert!(ok, "{text}");
-    let cases: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("bench.json")).unwrap()).unwrap();
-    let cases = cases.as_array().expect("an array of cases");
+    let cases = cases_in(&out);
     assert_eq!(cases.len(), if gpu { 4 } else { 2 }, "{cases:?}");
     let md = std::fs::read_to_string(out.join("bench.md")).unwrap();
     // The table's header names every column with its unit.
@@ -54,7 +59,7 @@ fn bench_writes_its_report_and_rejects_bad_sizes() {
         assert!(md.contains(head), "no {head:?} in {md}");
     }
     let f = |c: &serde_json::Value, k: &str| c[k].as_f64().unwrap_or_else(|| panic!("{k}: {c}"));
-    for c in cases {
+    for c in &cases {
         let disks = c["disks"].as_u64().unwrap();
         assert!(disks == 200 || disks == 300, "{c}");
         let contacts = f(c, "contacts");
@@ -186,9 +191,7 @@ fn bench_rounds_give_each_ratio_within_a_round_and_its_median() {
         out.to_str().unwrap(),
     ]);
     assert!(ok, "{text}");
-    let cases: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("bench.json")).unwrap()).unwrap();
-    let cases = cases.as_array().expect("an array of cases");
+    let cases = cases_in(&out);
     let order: Vec<(u64, u64)> = cases
         .iter()
         .map(|c| (c["round"].as_u64().unwrap(), c["disks"].as_u64().unwrap()))
