@@ -144,7 +144,7 @@ fn against_first(cases: &[Case]) -> impl Iterator<Item = (&Case, &Case)> {
 
 /// The median of `v` (the mean of the middle two for an even count) and its range; `None`
 /// when `v` is empty.
-pub fn median_range(v: &[f64]) -> Option<(f64, f64, f64)> {
+fn median_range(v: &[f64]) -> Option<(f64, f64, f64)> {
     let mut v = v.to_vec();
     v.sort_by(f64::total_cmp);
     let n = v.len();
