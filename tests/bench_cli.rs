@@ -14,6 +14,30 @@ fn cases_in(out: &std::path::Path) -> Vec<serde_json::Value> {
     serde_json::from_str(&text).expect("an array of cases")
 }
 
+/// The row of `bench.md`'s machine table for round `round`, from its probe's figures in
+/// `bench.json`, after checking that they can be figures of a machine: positive and
+/// finite, and the round trip between threads given where the test runs on two cores or
+/// more.
+fn machine_row(round: u64, m: &serde_json::Value) -> String {
+    let f = |k: &str| {
+        let v = m[k].as_f64().unwrap_or_else(|| panic!("{k}: {m}"));
+        assert!(v.is_finite() && v > 0.0, "{k}: {m}");
+        v
+    };
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let trip = m["round_trip_ns"].as_f64();
+    assert_eq!(trip.is_some(), cores > 1, "{m}");
+    assert!(trip.is_none_or(|t| t.is_finite() && t > 0.0), "{m}");
+    format!(
+        "| {round} | {:.1} | {:.0} | {} | {:.1} | {:.1} |",
+        f("fill_gb_s"),
+        f("load_ns"),
+        trip.map_or_else(|| "-".to_string(), |t| format!("{t:.0}")),
+        f("thread_start_us"),
+        f("wake_us")
+    )
+}
+
 #[test]
 fn bench_writes_its_report_and_rejects_bad_sizes() {
     let out = std::env::temp_dir().join(format!("cdlab-bench-{}", std::process::id()));
@@ -77,6 +101,8 @@ fn bench_writes_its_report_and_rejects_bad_sizes() {
             "ns per contact update {ns}, from ms/step {expected}: {c}"
         );
         assert!(f(c, "host_peak_mib") > 1.0, "{c}");
+        let row = machine_row(1, &c["machine"]);
+        assert!(md.contains(&row), "no machine row {row:?} in {md}");
         // The markdown row shows the same figures, with the table's precision.
         let backend = c["backend"].as_str().unwrap();
         assert_eq!(f(c, "window"), 3.0, "{c}");
@@ -216,5 +242,17 @@ fn bench_rounds_give_each_ratio_within_a_round_and_its_median() {
     // Each round's ratio is against that round's first size, not the first round's.
     let third = format!("round 3: 200 -> 300 disks: time per step x{:.2}", ms(5) / ms(4));
     assert!(md.contains(&third), "no {third:?} in {md}");
+    // Each round has its own probe of the machine, which both its cases carry and the
+    // table shows in the round's row.
+    for r in 0..3 {
+        assert_eq!(
+            cases[2 * r]["machine"],
+            cases[2 * r + 1]["machine"],
+            "round {}",
+            r + 1
+        );
+        let row = machine_row(r as u64 + 1, &cases[2 * r]["machine"]);
+        assert!(md.contains(&row), "no {row:?} in {md}");
+    }
     let _ = std::fs::remove_dir_all(&out);
 }

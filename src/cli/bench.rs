@@ -5,7 +5,7 @@
 
 use std::path::PathBuf;
 
-use super::bench_report::{line, markdown};
+use super::bench_report::{line, machine_table, markdown};
 use crate::error::{Error, Result};
 use crate::run::bench::{measure_cpu, measure_gpu, sheared_sample};
 
@@ -109,10 +109,18 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let mut cases = Vec::new();
     let mut failures = Vec::new();
+    let mut machines = Vec::new();
     for (round, (n, scene)) in (1..=args.rounds).flat_map(|r| scenes.iter().map(move |s| (r, s))) {
         let n = *n;
         if args.rounds > 1 {
             eprintln!("round {round} of {}, {n} disks", args.rounds);
+        }
+        // The machine moves from round to round on a shared host: each round gets its own
+        // probe, before its first size.
+        if machines.len() < round as usize {
+            let m = crate::run::machine::probe();
+            eprintln!("round {round}: {}", m.line());
+            machines.push(m);
         }
         let combos = args.backend.iter().flat_map(|b| {
             // Recording threads and sweep_all are the GPU's: the CPU runs each case once.
@@ -162,6 +170,7 @@ pub fn run(args: &Args) -> Result<()> {
                 other => return Err(Error::invalid("--backend", other, "cpu or gpu")),
             };
             case.round = round;
+            case.machine = Some(machines[round as usize - 1]);
             eprintln!("{}", line(&case));
             cases.push(case);
         }
@@ -171,6 +180,7 @@ pub fn run(args: &Args) -> Result<()> {
     let p = args.out.join("bench.json");
     crate::record::atomic::write_file(&p, json.as_bytes())?;
     let mut md = markdown(&cases, args.tol, args.warmup, args.steps);
+    md.push_str(&machine_table(&machines));
     for f in &failures {
         md.push_str(&format!("\nFAILED: {f}\n"));
     }

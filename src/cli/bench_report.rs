@@ -3,6 +3,7 @@
 //! rounds the median of those ratios.
 
 use crate::run::bench::{Case, CpuPhases};
+use crate::run::machine::Machine;
 
 /// A device time (ms), or "-" without timestamps.
 fn ms(t: Option<f64>) -> String {
@@ -107,6 +108,27 @@ pub fn markdown(cases: &[Case], tol: f64, warmup: u32, steps: u32) -> String {
     }
     s.push_str(&over_rounds(cases));
     s.push_str("\nThe fixed dispatches per step are the dispatches with work left after one per color per solver iteration and one convergence test per check: the same figure at every size and iteration count means each iteration costs exactly one dispatch per color. Empty dispatches launch no workgroup: the blocks of iterations recorded past the solve's end and the colors recorded beyond those holding contacts (the margins the host records without waiting for the device). Waits/window: the blocking reads of the device per window of steps (one series row of a test).\n");
+    s
+}
+
+/// `bench.md`'s table of the machine as each round's probe found it
+/// ([`crate::run::machine`]).
+pub fn machine_table(machines: &[Machine]) -> String {
+    let mut s = String::from(
+        "\nThe machine before each round: writing 64 MiB, a load that depends on the last over 64 MiB, a value handed between two threads and back, starting a thread, waking a parked thread and being woken back (docs/benchmarks.md, \"The machine's day\"):\n\n| round | writing (GB/s) | dependent load (ns) | round trip between threads (ns) | thread start (us) | wake and back (us) |\n| --- | --- | --- | --- | --- | --- |\n",
+    );
+    for (k, m) in machines.iter().enumerate() {
+        s.push_str(&format!(
+            "| {} | {:.1} | {:.0} | {} | {:.1} | {:.1} |\n",
+            k + 1,
+            m.fill_gb_s,
+            m.load_ns,
+            m.round_trip_ns
+                .map_or_else(|| "-".to_string(), |t| format!("{t:.0}")),
+            m.thread_start_us,
+            m.wake_us
+        ));
+    }
     s
 }
 

@@ -101,6 +101,9 @@ pub struct Case {
     /// case again in the same order, so that sizes are compared within a round, on the
     /// machine as it was then.
     pub round: u32,
+    /// The machine as [`super::machine::probe`] found it before the case's round (`cdlab
+    /// bench` probes it once per round); none where nothing probed it.
+    pub machine: Option<super::machine::Machine>,
 }
 
 /// Wall time of a CPU step's phases, per measured step (ms), from
@@ -286,6 +289,7 @@ fn measure<B: Backend>(backend: &mut B, probe: &Probe<B>, n: usize, run: Run) ->
         device_mib: (probe.device_mib)(backend),
         cpu_phases,
         round: 1,
+        machine: None,
     })
 }
 

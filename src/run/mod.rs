@@ -49,6 +49,7 @@
 mod backend;
 pub mod bench;
 mod compare;
+pub mod machine;
 mod open;
 mod recording;
 mod sample;
