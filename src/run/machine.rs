@@ -7,8 +7,9 @@ use std::hint::black_box;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
-/// Bytes written and chased by the memory probes: more than the last-level caches of the
-/// machines the project runs on, so that they measure the memory.
+/// Bytes written and chased by the memory probes: twice the 32 MB last-level cache of the
+/// project's reference machine (docs/benchmarks.md), so that there they measure the memory.
+/// Where the last-level cache is larger, part of the chase hits it.
 const SPAN: usize = 64 << 20;
 
 /// One cache line.
@@ -82,8 +83,9 @@ fn fill(buf: &mut [u8]) -> f64 {
 
 fn chase(buf: &mut [u8]) -> f64 {
     let lines = buf.len() / LINE;
-    // A single cycle through every line in random order (Sattolo's shuffle), from a fixed
-    // seed: each load's address is the value the last one read.
+    // The lines in a shuffled order (from a fixed seed), each pointing to the next in that
+    // order and the last to the first: one cycle through every line, in which each load's
+    // address is the value the last one read, so that no prefetcher can run ahead.
     let mut order: Vec<u32> = (0..lines as u32).collect();
     let mut x = 0x9e37_79b9_7f4a_7c15u64;
     for k in (1..lines).rev() {
