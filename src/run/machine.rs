@@ -109,57 +109,50 @@ fn chase(buf: &mut [u8]) -> f64 {
     t.elapsed().as_secs_f64() * 1e9 / lines as f64
 }
 
+/// Spins until `flag` holds a value that `done` accepts, and gives it; it yields now and
+/// then, so that a descheduled partner is not waited for through whole time slices.
+fn spin_until(flag: &AtomicU64, done: impl Fn(u64) -> bool) -> u64 {
+    let mut spins = 0u32;
+    loop {
+        let v = flag.load(Ordering::Acquire);
+        if done(v) {
+            return v;
+        }
+        spins = spins.wrapping_add(1);
+        if spins.is_multiple_of(4096) {
+            std::thread::yield_now();
+        } else {
+            std::hint::spin_loop();
+        }
+    }
+}
+
 fn round_trip() -> Option<f64> {
     if std::thread::available_parallelism().map_or(1, |n| n.get()) < 2 {
         return None;
     }
     // Odd values are the question, even ones the answer; the other thread stops at u64::MAX.
     let flag = AtomicU64::new(0);
-    let wait_for = |v: u64| {
-        let mut spins = 0u32;
-        while flag.load(Ordering::Acquire) != v {
-            spins = spins.wrapping_add(1);
-            // A descheduled partner must not be waited for through whole time slices.
-            if spins.is_multiple_of(4096) {
-                std::thread::yield_now();
-            } else {
-                std::hint::spin_loop();
-            }
-        }
+    let ask = |k: u64| {
+        flag.store(2 * k + 1, Ordering::Release);
+        spin_until(&flag, |v| v == 2 * k + 2);
     };
     const TRIPS: u64 = 20_000;
     let mut trips = 0;
     let elapsed = std::thread::scope(|s| {
         s.spawn(|| {
             for k in 0.. {
-                let mut spins = 0u32;
-                let v = loop {
-                    let v = flag.load(Ordering::Acquire);
-                    if v == 2 * k + 1 || v == u64::MAX {
-                        break v;
-                    }
-                    spins = spins.wrapping_add(1);
-                    if spins.is_multiple_of(4096) {
-                        std::thread::yield_now();
-                    } else {
-                        std::hint::spin_loop();
-                    }
-                };
-                if v == u64::MAX {
+                if spin_until(&flag, |v| v == 2 * k + 1 || v == u64::MAX) == u64::MAX {
                     return;
                 }
                 flag.store(2 * k + 2, Ordering::Release);
             }
         });
         // The first trips wake the partner; they are not timed.
-        for k in 0..100 {
-            flag.store(2 * k + 1, Ordering::Release);
-            wait_for(2 * k + 2);
-        }
+        (0..100).for_each(ask);
         let t = Instant::now();
         for k in 100..100 + TRIPS {
-            flag.store(2 * k + 1, Ordering::Release);
-            wait_for(2 * k + 2);
+            ask(k);
             trips += 1;
             if t.elapsed() > Duration::from_millis(50) {
                 break;
