@@ -28,12 +28,16 @@ fn machine_row(round: u64, m: &serde_json::Value) -> String {
     let trip = m["round_trip_ns"].as_f64();
     assert_eq!(trip.is_some(), cores > 1, "{m}");
     assert!(trip.is_none_or(|t| t.is_finite() && t > 0.0), "{m}");
+    let job = m["team_job_us"].as_f64();
+    assert_eq!(job.is_some(), cores > 1, "{m}");
+    assert!(job.is_none_or(|t| t.is_finite() && t > 0.0), "{m}");
     format!(
-        "| {round} | {:.1} | {:.0} | {} | {:.1} | {:.1} |",
+        "| {round} | {:.1} | {:.0} | {} | {:.1} | {} | {:.1} |",
         f("fill_gb_s"),
         f("load_ns"),
         trip.map_or_else(|| "-".to_string(), |t| format!("{t:.0}")),
         f("thread_start_us"),
+        job.map_or_else(|| "-".to_string(), |t| format!("{t:.1}")),
         f("wake_us")
     )
 }

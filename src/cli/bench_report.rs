@@ -115,17 +115,19 @@ pub fn markdown(cases: &[Case], tol: f64, warmup: u32, steps: u32) -> String {
 /// ([`crate::run::machine`]).
 pub fn machine_table(machines: &[Machine]) -> String {
     let mut s = String::from(
-        "\nThe machine before each round: writing 64 MiB, a load that depends on the last over 64 MiB, a value handed between two threads and back, starting a thread, waking a parked thread and being woken back (docs/benchmarks.md, \"The machine's day\"):\n\n| round | writing (GB/s) | dependent load (ns) | round trip between threads (ns) | thread start (us) | wake and back (us) |\n| --- | --- | --- | --- | --- | --- |\n",
+        "\nThe machine before each round: writing 64 MiB, a load that depends on the last over 64 MiB, a value handed between two threads and back, starting a thread, handing a job to the solver's resident team of two, waking a parked thread and being woken back (docs/benchmarks.md, \"The machine's day\"):\n\n| round | writing (GB/s) | dependent load (ns) | round trip between threads (ns) | thread start (us) | job to the resident team (us) | wake and back (us) |\n| --- | --- | --- | --- | --- | --- | --- |\n",
     );
     for (k, m) in machines.iter().enumerate() {
         s.push_str(&format!(
-            "| {} | {:.1} | {:.0} | {} | {:.1} | {:.1} |\n",
+            "| {} | {:.1} | {:.0} | {} | {:.1} | {} | {:.1} |\n",
             k + 1,
             m.fill_gb_s,
             m.load_ns,
             m.round_trip_ns
                 .map_or_else(|| "-".to_string(), |t| format!("{t:.0}")),
             m.thread_start_us,
+            m.team_job_us
+                .map_or_else(|| "-".to_string(), |t| format!("{t:.1}")),
             m.wake_us
         ));
     }

@@ -27,9 +27,13 @@ pub struct Machine {
     /// (ns), both spinning; none with a single core available. The team's threads meet
     /// like this at each barrier.
     pub round_trip_ns: Option<f64>,
-    /// Starting and joining a thread, median of 21 (us). The solver's team starts
-    /// its threads once per step.
+    /// Starting and joining a thread, median of 21 (us): what a team started once per
+    /// step would pay each step.
     pub thread_start_us: f64,
+    /// Handing a job to a resident team of two (the solver's, kept from step to step) and
+    /// waiting for its end, each after a millisecond of the caller's own work, as a step's
+    /// fixed part comes between two solves; median of 21 (us). None with a single core.
+    pub team_job_us: Option<f64>,
     /// Waking a parked thread and being woken by it in return, mean of a hundred (us).
     pub wake_us: f64,
 }
@@ -38,12 +42,14 @@ impl Machine {
     /// The figures on one line, each with its unit.
     pub fn line(&self) -> String {
         format!(
-            "writing {:.1} GB/s, dependent load {:.0} ns, round trip between threads {}, thread start {:.1} us, wake and back {:.1} us",
+            "writing {:.1} GB/s, dependent load {:.0} ns, round trip between threads {}, thread start {:.1} us, job to the resident team {}, wake and back {:.1} us",
             self.fill_gb_s,
             self.load_ns,
             self.round_trip_ns
                 .map_or_else(|| "- (one core)".to_string(), |t| format!("{t:.0} ns")),
             self.thread_start_us,
+            self.team_job_us
+                .map_or_else(|| "- (one core)".to_string(), |t| format!("{t:.1} us")),
             self.wake_us
         )
     }
@@ -57,6 +63,7 @@ pub fn probe() -> Machine {
         load_ns: chase(&mut buf),
         round_trip_ns: round_trip(),
         thread_start_us: thread_start(),
+        team_job_us: team_job(),
         wake_us: wake(),
     }
 }
@@ -176,6 +183,30 @@ fn thread_start() -> f64 {
         })
         .collect();
     median(times)
+}
+
+fn team_job() -> Option<f64> {
+    if std::thread::available_parallelism().map_or(1, |n| n.get()) < 2 {
+        return None;
+    }
+    let team = crate::solver::resident::Resident::new(2);
+    team.run(&|t| {
+        black_box(t);
+    });
+    let times = (0..21)
+        .map(|_| {
+            let work = Instant::now();
+            while work.elapsed() < Duration::from_millis(1) {
+                std::hint::spin_loop();
+            }
+            let t = Instant::now();
+            team.run(&|t| {
+                black_box(t);
+            });
+            t.elapsed().as_secs_f64() * 1e6
+        })
+        .collect();
+    Some(median(times))
 }
 
 fn wake() -> f64 {

@@ -12,6 +12,7 @@ use super::convergence::VelocityTest;
 use super::ctx::Ctx;
 use super::lanes::{avx, proper_colors, sweep_color_chunk};
 use super::quads::{for_each_impulse, gather_packed, row_at, set_impulses};
+use super::resident::Slot;
 use super::rows::{self, BodyProps, FULL, Row, opening};
 use super::sweep::Colors;
 use super::update::{CHUNK, sweep_chunk, update};
@@ -66,6 +67,8 @@ pub struct Workspace {
     deep_copies: Vec<Row>,
     /// The body table was given for the next solve ([`Workspace::give_bodies`]).
     props_given: bool,
+    /// The sweeps' thread team, kept from step to step.
+    team: Slot,
 }
 
 /// The swept rows of the deep contacts `candidates` (contact indices, ascending) that carry
@@ -286,7 +289,8 @@ pub(super) fn solve(
         stats.converged
     };
     if colored && threads > 1 && contacts.len() >= params.parallel_min {
-        team::sweep_iterations(rows, ranges, serial_last, ctx, threads, params, done);
+        let team = work.team.get(threads);
+        team::sweep_iterations(rows, ranges, serial_last, ctx, team, params, done);
     } else {
         for it in 1..=params.max_iter {
             let ctx = Ctx {

@@ -13,6 +13,7 @@ mod jacobi;
 mod lanes;
 pub mod law;
 mod quads;
+pub(crate) mod resident;
 mod rows;
 #[cfg(target_arch = "x86_64")]
 mod simd;
@@ -94,7 +95,7 @@ pub struct SolverParams {
     /// Use several threads for colors and Jacobi (results are bit-identical either way).
     pub parallel: bool,
     /// Smallest contact problem worth solving on several threads. Colored Gauss-Seidel
-    /// then runs on a team of `threads` threads started once per step, with a spin barrier
+    /// then runs on a team of `threads` threads kept from step to step, with a spin barrier
     /// between colors; Jacobi on the rayon pool.
     #[serde(default = "default_parallel_min")]
     pub parallel_min: usize,

@@ -1,10 +1,9 @@
-//! Colored Gauss-Seidel on a team of threads that lives for the whole solve.
+//! Colored Gauss-Seidel on a team of threads that meet at a barrier after each color.
 //!
 //! Forking and joining a thread pool once per color costs more than the color's work on
 //! samples of a few thousand disks (docs/benchmarks.md, "Thread team"). Here the threads
-//! are started once per step; each sweeps
-//! a fixed contiguous share of every color and waits for the others at a barrier between
-//! colors.
+//! are those of a team kept from step to step ([`super::resident`]); each sweeps a fixed
+//! contiguous share of every color and waits for the others at a barrier between colors.
 //!
 //! The result is bit-identical to the sequential sweep: contacts of one color share no
 //! movable body, so their updates commute, and the convergence sums are the per-chunk
@@ -17,6 +16,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use super::SolverParams;
 use super::ctx::Ctx;
 use super::lanes::{proper_colors, sweep_color_chunk};
+use super::resident::Resident;
 use super::rows::Row;
 use super::update::{CHUNK, sweep_chunk};
 
@@ -68,6 +68,18 @@ impl SpinBarrier {
                 std::thread::park();
             }
         }
+    }
+}
+
+/// What only member 0 touches: it runs on the calling thread ([`Resident::run`]), so the
+/// caller's convergence test need not be sendable.
+struct CallerOnly<T>(std::cell::RefCell<T>);
+// SAFETY: only member 0 reaches the cell, and member 0 is the calling thread.
+unsafe impl<T> Sync for CallerOnly<T> {}
+
+impl<T> CallerOnly<T> {
+    fn with<R>(&self, f: impl FnOnce(&mut T) -> R) -> R {
+        f(&mut self.0.borrow_mut())
     }
 }
 
@@ -132,10 +144,11 @@ pub(super) fn sweep_iterations(
     ranges: &[u32],
     serial_last: bool,
     ctx: Ctx,
-    threads: usize,
+    team: &Resident,
     params: &SolverParams,
-    mut done: impl FnMut(u32, f64, f64) -> bool,
+    done: impl FnMut(u32, f64, f64) -> bool,
 ) {
+    let threads = team.size();
     let max_iter = params.max_iter;
     let layout = Layout::new(ranges, serial_last);
     let n_colors = ranges.len().saturating_sub(1);
@@ -148,6 +161,9 @@ pub(super) fn sweep_iterations(
         partial: partial.as_mut_ptr(),
     };
     let barrier = SpinBarrier::new(threads);
+    let handles = std::iter::once(std::thread::current()).chain(team.threads().cloned());
+    barrier.members.set(handles.collect()).expect("set once");
+    let done = CallerOnly(std::cell::RefCell::new(done));
     let stop = AtomicBool::new(false);
     let n_chunks = layout.chunks.len();
 
@@ -194,24 +210,12 @@ pub(super) fn sweep_iterations(
         }
     };
 
-    std::thread::scope(|scope| {
-        let mut handles = vec![std::thread::current()];
-        for t in 1..threads {
-            let member = &member;
-            let barrier = &barrier;
-            let h = scope.spawn(move || {
-                // Sleepers need every member's handle before the first wait.
-                while barrier.members.get().is_none() {
-                    std::thread::park();
-                }
-                member(t, &mut |_, _, _| false)
-            });
-            handles.push(h.thread().clone());
+    team.run(&|t| {
+        if t == 0 {
+            // Only the caller's share reports: `done` is the caller's.
+            done.with(|done| member(0, done));
+        } else {
+            member(t, &mut |_, _, _| false);
         }
-        barrier.members.set(handles).expect("set once");
-        for h in barrier.members.get().into_iter().flatten().skip(1) {
-            h.unpark();
-        }
-        member(0, &mut done);
     });
 }
