@@ -81,6 +81,9 @@ fn wait_until(watch: Duration, ready: impl Fn() -> bool) {
 pub(crate) struct Resident {
     shared: Arc<Shared>,
     members: Vec<JoinHandle<()>>,
+    /// The process that started the members: a child made by `fork` (Python's
+    /// multiprocessing, say) inherits the team's memory but not its threads.
+    pid: u32,
 }
 
 impl Resident {
@@ -105,7 +108,11 @@ impl Resident {
                     .expect("start a team thread")
             })
             .collect();
-        Resident { shared, members }
+        Resident {
+            shared,
+            members,
+            pid: std::process::id(),
+        }
     }
 
     /// Members counting the caller.
@@ -185,6 +192,11 @@ fn member(s: &Shared, t: usize) {
 
 impl Drop for Resident {
     fn drop(&mut self) {
+        if self.pid != std::process::id() {
+            // A forked copy: its members live in the parent only, there is nobody to join.
+            std::mem::forget(std::mem::take(&mut self.members));
+            return;
+        }
         self.shared.exit.store(true, Ordering::Release);
         for h in self.members.drain(..) {
             h.thread().unpark();
@@ -200,9 +212,11 @@ impl Drop for Resident {
 pub(super) struct Slot(Option<Resident>);
 
 impl Slot {
-    /// The team of `n` members (`n` at least 2), started or restarted to that size.
+    /// The team of `n` members (`n` at least 2), started or restarted to that size, and
+    /// started again in a process forked from the one that started it.
     pub(super) fn get(&mut self, n: usize) -> &Resident {
-        if self.0.as_ref().is_none_or(|r| r.size() != n) {
+        let pid = std::process::id();
+        if self.0.as_ref().is_none_or(|r| r.size() != n || r.pid != pid) {
             self.0 = None;
             self.0 = Some(Resident::new(n));
         }
@@ -286,6 +300,56 @@ mod tests {
             n.fetch_add(1, Ordering::Relaxed);
         });
         assert_eq!(n.load(Ordering::Relaxed), 2);
+    }
+
+    /// A process forked while a team is running (Python's multiprocessing forks) has the
+    /// team's memory but none of its threads: its first solve must start a team of its own,
+    /// not wait forever for members that are not there.
+    #[cfg(unix)]
+    #[test]
+    fn a_forked_process_starts_its_own_team() {
+        let mut slot = Slot::default();
+        let n = AtomicUsize::new(0);
+        slot.get(2).run(&|_| {
+            n.fetch_add(1, Ordering::Relaxed);
+        });
+        // SAFETY: the child only runs a job on a fresh team and leaves with _exit.
+        let child = unsafe { libc::fork() };
+        assert!(child >= 0, "fork failed");
+        if child == 0 {
+            let m = AtomicUsize::new(0);
+            slot.get(2).run(&|_| {
+                m.fetch_add(1, Ordering::Relaxed);
+            });
+            // SAFETY: leaves the child at once, running nothing of the parent's.
+            unsafe { libc::_exit(if m.load(Ordering::Relaxed) == 2 { 0 } else { 1 }) };
+        }
+        let mut status = 0;
+        let start = Instant::now();
+        let finished = loop {
+            // SAFETY: waits for our own child without blocking.
+            let r = unsafe { libc::waitpid(child, &mut status, libc::WNOHANG) };
+            if r == child {
+                break true;
+            }
+            if start.elapsed() > Duration::from_secs(30) {
+                // SAFETY: our own child, hung.
+                unsafe { libc::kill(child, libc::SIGKILL) };
+                unsafe { libc::waitpid(child, &mut status, 0) };
+                break false;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        };
+        assert!(finished, "the forked process's solve hung");
+        assert!(
+            libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0,
+            "status {status}"
+        );
+        // The parent's team still works.
+        slot.get(2).run(&|_| {
+            n.fetch_add(1, Ordering::Relaxed);
+        });
+        assert_eq!(n.load(Ordering::Relaxed), 4);
     }
 
     #[test]
