@@ -28,16 +28,17 @@ struct SpinBarrier {
     n: usize,
     count: AtomicUsize,
     generation: AtomicUsize,
-    members: std::sync::OnceLock<Vec<std::thread::Thread>>,
+    /// Every member's thread, woken by the last to arrive.
+    members: Vec<std::thread::Thread>,
 }
 
 impl SpinBarrier {
-    fn new(n: usize) -> Self {
+    fn new(members: Vec<std::thread::Thread>) -> Self {
         SpinBarrier {
-            n,
+            n: members.len(),
             count: AtomicUsize::new(0),
             generation: AtomicUsize::new(0),
-            members: std::sync::OnceLock::new(),
+            members,
         }
     }
 
@@ -47,7 +48,7 @@ impl SpinBarrier {
             self.count.store(0, Ordering::Relaxed);
             self.generation.fetch_add(1, Ordering::Release);
             // Waking itself only leaves this thread a token for its next wait.
-            for t in self.members.get().into_iter().flatten() {
+            for t in &self.members {
                 t.unpark();
             }
             return;
@@ -135,7 +136,7 @@ impl Layout {
     }
 }
 
-/// Sweeps colored Gauss-Seidel iterations on `threads` threads until `done` says stop
+/// Sweeps colored Gauss-Seidel iterations on the members of `team` until `done` says stop
 /// after an iteration or `params.max_iter` is reached, each iteration with its relaxation
 /// ([`SolverParams::relax_at`]). `done` receives the iteration number and the sums
 /// (change^2, impulse^2) and is called by the calling thread only.
@@ -160,9 +161,11 @@ pub(super) fn sweep_iterations(
         rows: rows.as_mut_ptr(),
         partial: partial.as_mut_ptr(),
     };
-    let barrier = SpinBarrier::new(threads);
-    let handles = std::iter::once(std::thread::current()).chain(team.threads().cloned());
-    barrier.members.set(handles.collect()).expect("set once");
+    let barrier = SpinBarrier::new(
+        std::iter::once(std::thread::current())
+            .chain(team.threads().cloned())
+            .collect(),
+    );
     let done = CallerOnly(std::cell::RefCell::new(done));
     let stop = AtomicBool::new(false);
     let n_chunks = layout.chunks.len();
