@@ -84,6 +84,9 @@ pub(crate) struct Resident {
     /// The process that started the members: a child made by `fork` (Python's
     /// multiprocessing, say) inherits the team's memory but not its threads.
     pid: u32,
+    /// One caller at a time: two threads handing jobs at once would overwrite each
+    /// other's, so the team may move between threads but not be shared (not `Sync`).
+    _one_caller: std::marker::PhantomData<std::cell::Cell<()>>,
 }
 
 impl Resident {
@@ -112,6 +115,7 @@ impl Resident {
             shared,
             members,
             pid: std::process::id(),
+            _one_caller: std::marker::PhantomData,
         }
     }
 
