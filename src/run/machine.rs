@@ -134,8 +134,14 @@ fn spin_until(flag: &AtomicU64, done: impl Fn(u64) -> bool) -> u64 {
     }
 }
 
+/// Whether a single core is available: the probes between two threads then have nothing
+/// to measure.
+fn one_core() -> bool {
+    std::thread::available_parallelism().map_or(1, |n| n.get()) < 2
+}
+
 fn round_trip() -> Option<f64> {
-    if std::thread::available_parallelism().map_or(1, |n| n.get()) < 2 {
+    if one_core() {
         return None;
     }
     // Odd values are the question, even ones the answer; the other thread stops at u64::MAX.
@@ -186,7 +192,7 @@ fn thread_start() -> f64 {
 }
 
 fn team_job() -> Option<f64> {
-    if std::thread::available_parallelism().map_or(1, |n| n.get()) < 2 {
+    if one_core() {
         return None;
     }
     let team = crate::solver::resident::Resident::new(2);

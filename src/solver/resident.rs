@@ -53,10 +53,12 @@ struct Shared {
 unsafe impl Sync for Shared {}
 unsafe impl Send for Shared {}
 
-/// Waits until `ready` holds: a pure spin for [`PURE_SPIN`], then spinning with a yield
-/// between checks until `watch` has passed, then sleeping (woken by `unpark`). Returns at
-/// once when `ready` holds.
-fn wait_until(watch: Duration, ready: impl Fn() -> bool) {
+/// Waits until `ready` holds: a pure spin for `spin`, then spinning with a yield between
+/// checks until `watch` has passed, then sleeping (woken by `unpark`; a wake-up token left
+/// by an earlier wake only costs one more check). Returns at once when `ready` holds. The
+/// clock is read once every 64 checks. The team's members wait for jobs with it, and
+/// the barrier between colors (`watch` equal to `spin`: no yielding) in [`super::team`].
+pub(super) fn wait_until(spin: Duration, watch: Duration, ready: impl Fn() -> bool) {
     let start = Instant::now();
     let mut spins = 0u32;
     while !ready() {
@@ -66,12 +68,11 @@ fn wait_until(watch: Duration, ready: impl Fn() -> bool) {
             continue;
         }
         let waited = start.elapsed();
-        if waited < PURE_SPIN {
+        if waited < spin {
             std::hint::spin_loop();
         } else if waited < watch {
             std::thread::yield_now();
         } else {
-            // A wake-up token left by an earlier job only costs one more check.
             std::thread::park();
         }
     }
@@ -154,7 +155,7 @@ impl Resident {
         impl Drop for WaitAll<'_> {
             fn drop(&mut self) {
                 let s = self.0;
-                wait_until(IDLE_WATCH, || s.pending.load(Ordering::Acquire) == 0);
+                wait_until(PURE_SPIN, IDLE_WATCH, || s.pending.load(Ordering::Acquire) == 0);
             }
         }
         {
@@ -171,7 +172,7 @@ impl Resident {
 fn member(s: &Shared, t: usize) {
     let mut seen = 0;
     loop {
-        wait_until(IDLE_WATCH, || {
+        wait_until(PURE_SPIN, IDLE_WATCH, || {
             s.exit.load(Ordering::Acquire) || s.epoch.load(Ordering::Acquire) != seen
         });
         if s.exit.load(Ordering::Acquire) {
@@ -221,6 +222,7 @@ impl Slot {
     pub(super) fn get(&mut self, n: usize) -> &Resident {
         let pid = std::process::id();
         if self.0.as_ref().is_none_or(|r| r.size() != n || r.pid != pid) {
+            // The old team's threads are joined before the new one's start.
             self.0 = None;
             self.0 = Some(Resident::new(n));
         }

@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use super::SolverParams;
 use super::ctx::Ctx;
 use super::lanes::{proper_colors, sweep_color_chunk};
-use super::resident::Resident;
+use super::resident::{Resident, wait_until};
 use super::rows::Row;
 use super::update::{CHUNK, sweep_chunk};
 
@@ -58,17 +58,9 @@ impl SpinBarrier {
         // more than that; the spin is bounded in time, not in pauses, whose length varies by
         // processor (docs/benchmarks.md, "Thread team").
         const SPIN: std::time::Duration = std::time::Duration::from_micros(100);
-        let start = std::time::Instant::now();
-        let mut spins = 0u32;
-        while self.generation.load(Ordering::Acquire) == generation {
-            spins = spins.wrapping_add(1);
-            if !spins.is_multiple_of(64) || start.elapsed() < SPIN {
-                std::hint::spin_loop();
-            } else {
-                // A wake-up token left by an earlier barrier only costs one more check.
-                std::thread::park();
-            }
-        }
+        wait_until(SPIN, SPIN, || {
+            self.generation.load(Ordering::Acquire) != generation
+        });
     }
 }
 
