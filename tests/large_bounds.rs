@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{cdlab, small_config};
+use common::{cdlab, outcome, small_config};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -15,12 +15,7 @@ fn check(dirs: &[&Path]) -> (bool, String) {
         .args(dirs)
         .output()
         .expect("python3 runs (the CI installs it)");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (out.status.success(), text)
+    outcome(&out)
 }
 
 #[test]

@@ -184,6 +184,11 @@ pub fn cdlab_with_env(args: &[&str], env: &[(&str, &str)]) -> (bool, String) {
         .envs(env.iter().copied())
         .output()
         .expect("cdlab runs");
+    outcome(&out)
+}
+
+/// Whether a finished command succeeded, and its stdout followed by its stderr.
+pub fn outcome(out: &std::process::Output) -> (bool, String) {
     let text = format!(
         "{}{}",
         String::from_utf8_lossy(&out.stdout),
