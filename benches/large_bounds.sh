@@ -10,8 +10,8 @@
 #
 # CDLAB is the binary (default target/release/cdlab), OUT the directory (default
 # out/large_bounds). Run again, it skips the finished tests, resumes an interrupted one from
-# its last checkpoint, and keeps the prepared sample. On 2 idle cores: about 5 min for DWL,
-# 25-45 min for DWH, and for the 50,000-disk part 6-14 min of preparation and 15-20 min of
+# its last checkpoint, and keeps the prepared sample. On 2 cores (2026-11-28): 7 min for DWL,
+# 14 min for DWH, and for the 50,000-disk part 6-14 min of preparation and 16-22 min of
 # test.
 set -euo pipefail
 cd "$(dirname "$0")/.."
