@@ -6,7 +6,7 @@ use cdlab::analysis::bands::{
     BandOptions, StrainOptions, analyse_pair, analyse_run, local_shear, local_strain, mean_diameter, select,
 };
 use cdlab::record::{DiskRecord, RunRecord, Snapshot};
-use common::{Rng, cdlab, small_config};
+use common::{Rng, biaxial, cdlab, small_config};
 use glam::{DMat2, DVec2};
 
 /// A disordered, non-overlapping sample of about `nx * ny` disks: a jittered square lattice
@@ -215,14 +215,7 @@ fn a_tiny_run_reports_shear_bands_in_its_summary() {
     // The quick configuration of the CLI tests: three snapshots over 0.6% strain.
     let cfg = small_config(&dir);
     let out = dir.join("run");
-    let (ok, text) = cdlab(&[
-        "biaxial",
-        "--config",
-        cfg.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
+    let (ok, text) = biaxial(&cfg, &out, &[]);
     assert!(ok, "{text}");
     assert!(text.contains("shear bands"), "{text}");
     let summary: serde_json::Value =

@@ -3,16 +3,8 @@
 
 mod common;
 
-use common::{cdlab, small_config};
+use common::{biaxial, cdlab, small_config};
 use std::path::{Path, PathBuf};
-
-/// `cdlab biaxial --config CONFIG [EXTRA...] --out OUT --quiet`.
-fn biaxial(config: &Path, out: &Path, extra: &[&str]) -> (bool, String) {
-    let mut args = vec!["biaxial", "--config", config.to_str().unwrap()];
-    args.extend_from_slice(extra);
-    args.extend(["--out", out.to_str().unwrap(), "--quiet"]);
-    cdlab(&args)
-}
 
 fn scratch(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("cdlab-cli-{}-{name}", std::process::id()));

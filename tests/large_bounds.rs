@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{cdlab, outcome, small_config};
+use common::{biaxial, outcome, small_config};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -24,15 +24,7 @@ fn the_bound_check_passes_a_run_within_it_and_fails_one_past_it() {
     let _ = std::fs::remove_dir_all(&base);
     let cfg = small_config(&base);
     let run = base.join("within");
-    let (ok, text) = cdlab(&[
-        "biaxial",
-        "--config",
-        cfg.to_str().unwrap(),
-        "--out",
-        run.to_str().unwrap(),
-        "--quiet",
-        "--no-figures",
-    ]);
+    let (ok, text) = biaxial(&cfg, &run, &["--no-figures"]);
     assert!(ok, "{text}");
     let summary = std::fs::read_to_string(run.join("summary.json")).unwrap();
     let mut value: serde_json::Value = serde_json::from_str(&summary).unwrap();

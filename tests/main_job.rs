@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{cdlab, small_config};
+use common::{biaxial, small_config};
 use std::path::{Path, PathBuf};
 
 fn scratch(name: &str) -> PathBuf {
@@ -14,16 +14,7 @@ fn scratch(name: &str) -> PathBuf {
 }
 
 fn run(cfg: &Path, out: &Path, extra: &[&str]) -> String {
-    let mut args = vec![
-        "biaxial",
-        "--config",
-        cfg.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ];
-    args.extend_from_slice(extra);
-    let (ok, text) = cdlab(&args);
+    let (ok, text) = biaxial(cfg, out, extra);
     assert!(ok, "{text}");
     text
 }

@@ -313,14 +313,7 @@ fn fabric_keys_round_trip_through_record_summarize_archive_and_fabric() {
     let base = scratch("run");
     let cfg = small_config(&base);
     let out = base.join("t1");
-    let (ok, text) = cdlab(&[
-        "biaxial",
-        "--config",
-        cfg.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--quiet",
-    ]);
+    let (ok, text) = biaxial(&cfg, &out, &[]);
     assert!(ok, "{text}");
     let read = |p: &std::path::Path| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()

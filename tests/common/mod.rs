@@ -187,6 +187,14 @@ pub fn cdlab_with_env(args: &[&str], env: &[(&str, &str)]) -> (bool, String) {
     outcome(&out)
 }
 
+/// `cdlab biaxial --config CONFIG [EXTRA...] --out OUT --quiet`.
+pub fn biaxial(config: &std::path::Path, out: &std::path::Path, extra: &[&str]) -> (bool, String) {
+    let mut args = vec!["biaxial", "--config", config.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    args.extend(["--out", out.to_str().unwrap(), "--quiet"]);
+    cdlab(&args)
+}
+
 /// Whether a finished command succeeded, and its stdout followed by its stderr.
 pub fn outcome(out: &std::process::Output) -> (bool, String) {
     let text = format!(
