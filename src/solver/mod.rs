@@ -267,6 +267,14 @@ impl Default for SolverParams {
     }
 }
 
+/// The cores this process may use, asked once: the standard library reads the cgroup's
+/// quota files on every call, which cost 1-2% of a 5000-disk compression step when asked
+/// per step (docs/benchmarks.md, "Where a compression step waits").
+pub(crate) fn cores() -> usize {
+    static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+}
+
 /// Default of [`SolverParams::parallel_min`]. Below a few thousand contacts a color is a
 /// few chunks and the barriers between colors cost more than the halved work.
 pub fn default_parallel_min() -> usize {
@@ -311,7 +319,7 @@ impl SolverParams {
             return 1;
         }
         match self.threads {
-            0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+            0 => cores(),
             n => n,
         }
     }
