@@ -445,9 +445,10 @@ fn a_run_warns_once_when_its_overlaps_pass_the_bound() {
 /// snapshot, at 0.00006): the compaction's and the confinement's last states at strain 0
 /// and the final state at the end strain, though it is no multiple of `snapshot_every`,
 /// each at the time of its phase's last row. So `bands` has two snapshots to compare, and
-/// `render --at` names the strain it drew when no snapshot is at the one asked for.
+/// `render --at` names the strain it drew when no snapshot is at the one asked for, as
+/// `fabric --at` and `overlaps --at` name the one they use.
 #[test]
-fn every_phase_ends_with_a_snapshot_and_render_names_the_one_it_draws() {
+fn every_phase_ends_with_a_snapshot_and_the_commands_name_the_one_they_use() {
     let base = scratch("phase-snapshots");
     std::fs::create_dir_all(&base).unwrap();
     let cfg = base.join("c.toml");
@@ -496,6 +497,21 @@ fn every_phase_ends_with_a_snapshot_and_render_names_the_one_it_draws() {
     assert!(text.contains(&note), "{text}");
     let (ok, text) = render(&format!("{}", strains[2]));
     assert!(ok && !text.contains("no snapshot at"), "{text}");
+    // The other commands that take --at say so too, with what they do with the nearest.
+    let fab = base.join("fabric");
+    for (cmd, doing, extra) in [
+        ("fabric", "analysing", vec!["-o", fab.to_str().unwrap()]),
+        ("overlaps", "listing", vec![]),
+    ] {
+        let mut args = vec![cmd, out.to_str().unwrap(), "--at", "0.5"];
+        args.extend(extra);
+        let (ok, text) = cdlab(&args);
+        let note = format!(
+            "no snapshot at axial strain 0.5: {doing} the nearest, at axial strain {:.5}",
+            strains[2]
+        );
+        assert!(ok && text.contains(&note), "{cmd}: {text}");
+    }
     let _ = std::fs::remove_dir_all(&base);
 }
 

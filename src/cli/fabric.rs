@@ -35,6 +35,13 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let (snapshots, series) = read_snapshots(&args.run)?;
     let snap = pick_snapshot(&snapshots, args.at, &args.run)?;
+    // The snapshot analysed is printed below; a strain asked for that has none is said too.
+    if let Some(at) = args.at
+        && let Some(k) = crate::record::nearest_snapshot(&snapshots, at)
+        && let Some(note) = super::render::not_exact(&snapshots, k, at, "analysing")
+    {
+        eprintln!("{note}");
+    }
     let fabric = snap.fabric(&series, &args.run)?;
     let a = &fabric.analysis;
     print!("{}", report(a, snap.strain, snap.time_s, fabric.row));

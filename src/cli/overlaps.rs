@@ -62,6 +62,9 @@ pub fn run(args: &Args) -> Result<()> {
         Some(at) => {
             let k = nearest_snapshot(&rec.snapshots, at).expect("snapshots exist");
             let snap = &rec.snapshots[k];
+            if let Some(note) = super::render::not_exact(&rec.snapshots, k, at, "listing") {
+                eprintln!("{note}");
+            }
             println!(
                 "snapshot at axial strain {:.4} (t = {:.3} s):",
                 snap.strain, snap.time_s

@@ -67,7 +67,7 @@ fn snapshot(args: &Args, at: f64) -> Result<()> {
         message: format!("{}: the run holds no snapshot", args.run.display()),
     })?;
     let snap = &rec.snapshots[k];
-    if let Some(note) = not_exact(&rec.snapshots, k, at) {
+    if let Some(note) = not_exact(&rec.snapshots, k, at, "drawing") {
         eprintln!("{note}");
     }
     // Rotations count from the snapshot nearest the start of the compression recorded
@@ -124,9 +124,10 @@ fn snapshot(args: &Args, at: f64) -> Result<()> {
 /// strains printed have five decimals).
 const SAME_STRAIN: f64 = 5e-6;
 
-/// The note that snapshot `k`, the nearest to axial strain `at`, is not at it: its strain
-/// and where the run's snapshots are. `None` when it is.
-pub fn not_exact(snapshots: &[crate::record::Snapshot], k: usize, at: f64) -> Option<String> {
+/// The note that snapshot `k`, the nearest to axial strain `at`, is not at it: what the
+/// command does with it (`doing`: "drawing", "analysing"...), its strain and where the
+/// run's snapshots are. `None` when it is.
+pub fn not_exact(snapshots: &[crate::record::Snapshot], k: usize, at: f64, doing: &str) -> Option<String> {
     let got = snapshots.get(k)?.strain;
     if (got - at).abs() <= SAME_STRAIN {
         return None;
@@ -143,7 +144,7 @@ pub fn not_exact(snapshots: &[crate::record::Snapshot], k: usize, at: f64) -> Op
         )
     };
     Some(format!(
-        "note: no snapshot at axial strain {at}: drawing the nearest, at axial strain {got:.5}. \
+        "note: no snapshot at axial strain {at}: {doing} the nearest, at axial strain {got:.5}. \
          The run's snapshots are at {list} (every output.snapshot_every of the compression, \
          and at the end of each phase)"
     ))
