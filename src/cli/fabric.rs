@@ -37,8 +37,7 @@ pub fn run(args: &Args) -> Result<()> {
     let snap = pick_snapshot(&snapshots, args.at, &args.run)?;
     // The snapshot analysed is printed below; a strain asked for that has none is said too.
     if let Some(at) = args.at
-        && let Some(k) = crate::record::nearest_snapshot(&snapshots, at)
-        && let Some(note) = super::render::not_exact(&snapshots, k, at, "analysing")
+        && let Some(note) = super::render::not_exact(&snapshots, snap.strain, at, "analysing")
     {
         eprintln!("{note}");
     }

@@ -62,7 +62,7 @@ pub fn run(args: &Args) -> Result<()> {
         Some(at) => {
             let k = nearest_snapshot(&rec.snapshots, at).expect("snapshots exist");
             let snap = &rec.snapshots[k];
-            if let Some(note) = super::render::not_exact(&rec.snapshots, k, at, "listing") {
+            if let Some(note) = super::render::not_exact(&rec.snapshots, snap.strain, at, "listing") {
                 eprintln!("{note}");
             }
             println!(

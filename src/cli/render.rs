@@ -67,7 +67,7 @@ fn snapshot(args: &Args, at: f64) -> Result<()> {
         message: format!("{}: the run holds no snapshot", args.run.display()),
     })?;
     let snap = &rec.snapshots[k];
-    if let Some(note) = not_exact(&rec.snapshots, k, at, "drawing") {
+    if let Some(note) = not_exact(&rec.snapshots, snap.strain, at, "drawing") {
         eprintln!("{note}");
     }
     // Rotations count from the snapshot nearest the start of the compression recorded
@@ -124,11 +124,10 @@ fn snapshot(args: &Args, at: f64) -> Result<()> {
 /// strains printed have five decimals).
 const SAME_STRAIN: f64 = 5e-6;
 
-/// The note that snapshot `k`, the nearest to axial strain `at`, is not at it: what the
-/// command does with it (`doing`: "drawing", "analysing"...), its strain and where the
-/// run's snapshots are. `None` when it is.
-pub fn not_exact(snapshots: &[crate::record::Snapshot], k: usize, at: f64, doing: &str) -> Option<String> {
-    let got = snapshots.get(k)?.strain;
+/// The note that the snapshot used, the nearest to axial strain `at` (at strain `got`), is
+/// not at it: what the command does with it (`doing`: "drawing", "analysing"...), its
+/// strain and where the run's `snapshots` are. `None` when it is.
+pub fn not_exact(snapshots: &[crate::record::Snapshot], got: f64, at: f64, doing: &str) -> Option<String> {
     if (got - at).abs() <= SAME_STRAIN {
         return None;
     }
