@@ -323,7 +323,7 @@ impl GpuBackend {
         if self.gpu.info.device_type == wgpu::DeviceType::Cpu {
             return 1;
         }
-        let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as u32;
+        let cores = crate::solver::cores() as u32;
         cores.saturating_sub(2).clamp(1, RECORD_THREADS_MAX)
     }
 

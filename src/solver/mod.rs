@@ -269,7 +269,8 @@ impl Default for SolverParams {
 
 /// The cores this process may use, asked once: the standard library reads the cgroup's
 /// quota files on every call, which cost 1-2% of a 5000-disk compression step when asked
-/// per step (docs/benchmarks.md, "Where a compression step waits").
+/// per step (docs/benchmarks.md, "Where a compression step waits"). The CPU team's size and
+/// the GPU path's recording threads (asked once per window) come from it.
 pub(crate) fn cores() -> usize {
     static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
     *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
