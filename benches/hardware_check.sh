@@ -20,6 +20,10 @@
 #                         workgroup, compared (true,false)
 #   CDLAB_HW_BASELINE     another cdlab binary (an earlier version) benched on the GPU at
 #                         CDLAB_HW_BASELINE_DISKS (5000,50000) in the same run, for a ratio
+#   CDLAB_HW_PINNED       cores (2 or more) of a CPU bench pinned with taskset to cores 2..,
+#                         at CDLAB_HW_PINNED_DISKS (5000,50000), 40 steps, 3 rounds: the
+#                         ratio between sizes of docs/benchmarks.md ("The ratios over
+#                         rounds") on a quiet host (0, the default, leaves it out)
 #   CDLAB_HW_CPU_THREADS  threads of the 5000-disk CPU test, which runs beside the GPU one
 #                         (the cores less 4: the GPU test's host thread needs one)
 #   CDLAB_HW_STRAIN       end strain of the 5000-disk tests (0.02)
@@ -87,6 +91,13 @@ part bench 300 "$BIN" bench --disks "$DISKS" --backend gpu,cpu --check-every "$E
     --method "${CDLAB_HW_METHODS:-colored-gs,jacobi}" \
     --record-threads "${CDLAB_HW_RECORD_THREADS:-1,2,4,0}" --sweep-all "${CDLAB_HW_SWEEP_ALL:-true,false}" \
     --out "$OUT/bench"
+PINNED="${CDLAB_HW_PINNED:-0}"
+if [ "$PINNED" -ge 2 ] && command -v taskset >/dev/null; then
+    # Cores 0 and 1 take most of the host's interrupts; the team runs beside them.
+    part bench_cpu_pinned 240 taskset -c "$(seq -s, 2 $((PINNED + 1)))" "$BIN" bench \
+        --disks "${CDLAB_HW_PINNED_DISKS:-5000,50000}" --backend cpu --steps 40 --rounds 3 \
+        --out "$OUT/bench_cpu_pinned"
+fi
 if [ -n "${CDLAB_HW_BASELINE:-}" ]; then
     part bench_baseline 180 "$(realpath "$CDLAB_HW_BASELINE")" bench \
         --disks "${CDLAB_HW_BASELINE_DISKS:-5000,50000}" --backend gpu --out "$OUT/bench_baseline"

@@ -86,11 +86,11 @@ def main(out):
         report["info"] = info
     report["nvidia_smi"] = read(os.path.join(out, "nvidia-smi.csv"))
     report["cores"] = (read(os.path.join(out, "cores.txt")) or "").strip()
-    for b in ("bench", "bench_gpu", "bench_cpu", "bench_baseline"):
+    for b in ("bench", "bench_gpu", "bench_cpu", "bench_cpu_pinned", "bench_baseline"):
         text = read(os.path.join(out, b, "bench.json"))
         if text:
             for c in json.loads(text):
-                c["binary"] = "baseline" if b == "bench_baseline" else "checked"
+                c["binary"] = {"bench_baseline": "baseline", "bench_cpu_pinned": "checked, pinned"}.get(b, "checked")
                 report["bench"].append(c)
     for name in sorted(os.listdir(out)):
         d = os.path.join(out, name)
