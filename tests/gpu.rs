@@ -978,28 +978,43 @@ fn gpu_first_window_probed_with_one_step_equals_short_windows() {
     same_disks(&mut probed, &mut short);
 }
 
-/// `solver.backend = "auto"` takes the GPU path only on a hardware adapter, and only for a
-/// method the GPU runs: on a machine whose only adapter is a software one (CI's lavapipe)
-/// it runs on the CPU, on one with a GPU on the GPU; `apgd` runs on the CPU everywhere.
+/// `solver.backend = "auto"` takes the GPU path only on a hardware adapter, only for a
+/// method the GPU runs and only from `AUTO_GPU_FROM_DISKS` disks (below, the CPU is faster:
+/// docs/gpu.md): on a machine whose only adapter is a software one (CI's lavapipe) it runs
+/// on the CPU, on one with a GPU a large sample runs on the GPU and a small one on the CPU
+/// with a note naming the GPU; `apgd` runs on the CPU everywhere, without a note.
 #[test]
-fn auto_backend_takes_the_gpu_only_on_hardware() {
+fn auto_backend_takes_the_gpu_only_on_hardware_and_for_large_samples() {
     let hardware = cdlab::gpu::device::list_adapters()
         .iter()
         .any(|a| a.device_type != "Cpu");
-    let s = lattice(4, 3);
+    let side = (cdlab::run::AUTO_GPU_FROM_DISKS as f64).sqrt().ceil() as usize;
+    let (small, large) = (lattice(4, 3), lattice(side, 3));
+    assert!(large.disks.len() >= cdlab::run::AUTO_GPU_FROM_DISKS);
     for (method, gpu_method) in [("colored-gs", true), ("apgd", false)] {
         let text = format!("[solver]\nbackend = \"auto\"\nmethod = \"{method}\"\n");
         let config = cdlab::config::Config::from_toml_str(&text).unwrap();
         let mut p = gpu_params(Method::ColoredGs);
         p.solver.method = method.parse().unwrap();
-        let b = cdlab::run::open_backend(&config, s.clone(), p).unwrap();
-        let on_gpu = b.name().starts_with("gpu");
-        assert_eq!(
-            on_gpu,
-            hardware && gpu_method,
-            "{method}: auto chose {} with hardware adapter: {hardware}",
-            b.name()
-        );
+        for (scene, large_sample) in [(&small, false), (&large, true)] {
+            let (b, note) = cdlab::run::open_backend_noted(&config, scene.clone(), p).unwrap();
+            let on_gpu = b.name().starts_with("gpu");
+            let what = format!(
+                "{method}, {} disks: auto chose {} with hardware adapter: {hardware}",
+                scene.disks.len(),
+                b.name()
+            );
+            assert_eq!(on_gpu, hardware && gpu_method && large_sample, "{what}");
+            // The note is given exactly where a hardware GPU was left unused for size.
+            let declined = hardware && gpu_method && !large_sample;
+            assert_eq!(note.is_some(), declined, "{what}; note {note:?}");
+            if let Some(n) = note {
+                assert!(
+                    n.contains("--backend gpu") && n.contains(&scene.disks.len().to_string()),
+                    "{n}"
+                );
+            }
+        }
     }
 }
 

@@ -357,8 +357,9 @@ ConfigLike = Union[None, Dict[str, Any], str, "os.PathLike[str]"]
 #: A progress callback: called with a dict at each recorded series row (``event`` "row",
 #: ``phase``, ``step``, ``time_s``, ``strain``, ``strain_end``, ``sigma1_pa``,
 #: ``sigma3_pa``, ``volumetric_strain``, ``coordination``, ``wall_s``) and at each phase's
-#: end (``event`` "phase_end", ``phase``). ``True`` draws a tqdm bar (tqdm must be
-#: installed); None reports nothing.
+#: end (``event`` "phase_end", ``phase``); where ``auto`` left a hardware GPU unused for a
+#: small sample, once before the steps (``event`` "note", ``text``). ``True`` draws a tqdm
+#: bar (tqdm must be installed); None reports nothing.
 ProgressLike = Union[None, bool, Callable[[Dict[str, Any]], Any]]
 
 
@@ -387,6 +388,9 @@ class _TqdmBar:
         self._bar = tqdm(total=1.0, unit="strain", bar_format="{l_bar}{bar}| strain {n:.4f}/{total:.4f} [{elapsed}<{remaining}{postfix}]")
 
     def __call__(self, event: Dict[str, Any]) -> None:
+        if event["event"] == "note":
+            self._bar.write(f"note: {event['text']}")
+            return
         if event["event"] != "row":
             return
         bar = self._bar

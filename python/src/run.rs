@@ -107,6 +107,10 @@ impl Bridge {
                 d.set_item("event", "phase_end")?;
                 d.set_item("phase", end.phase.name())?;
             }
+            Event::BackendNote(text) => {
+                d.set_item("event", "note")?;
+                d.set_item("text", *text)?;
+            }
             _ => return Ok(None),
         }
         Ok(Some(d))

@@ -53,6 +53,7 @@ impl crate::run::Progress for Display {
                     );
                 }
             }
+            Event::BackendNote(text) if !quiet => note!("note: {text}"),
             Event::Running { backend, dir } => {
                 if !quiet {
                     note!("running on {backend} -> {}", dir.display());

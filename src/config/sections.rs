@@ -53,7 +53,8 @@ pub enum Backend {
     Cpu,
     /// WGSL compute shaders.
     Gpu,
-    /// GPU when an adapter exists, otherwise CPU.
+    /// The GPU on a hardware adapter for samples of at least
+    /// [`crate::run::AUTO_GPU_FROM_DISKS`] disks, otherwise the CPU.
     Auto,
 }
 

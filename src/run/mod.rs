@@ -59,7 +59,7 @@ mod test;
 use std::path::{Path, PathBuf};
 
 pub use crate::interrupt::Cancel;
-pub use backend::open_backend;
+pub use backend::{AUTO_GPU_FROM_DISKS, open_backend, open_backend_noted};
 pub use compare::write_comparison;
 pub use open::{FinishedRun, OpenedTest, TestKind, open, open_test, write_curves};
 pub use recording::{Recording, snapshot};
@@ -134,6 +134,9 @@ pub enum Event<'a> {
         /// The phase the run resumes in.
         phase: Phase,
     },
+    /// Why the run is on the backend it is on, where a user may not expect it (`auto`
+    /// leaving a hardware GPU unused for a small sample).
+    BackendNote(&'a str),
     /// The steps begin.
     Running {
         /// The backend's name, with its device.

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use super::{Cancel, Event, Progress, open_backend};
+use super::{Cancel, Event, Progress, open_backend_noted};
 use crate::config::{Config, Density, Length, Pressure};
 use crate::error::{Error, Result, RunFault};
 use crate::model::Scene;
@@ -68,7 +68,10 @@ pub fn prepare(
         disks: params.disks,
         report: &rep,
     });
-    let backend = open_backend(config, scene.clone(), params.step)?;
+    let (backend, note) = open_backend_noted(config, scene.clone(), params.step)?;
+    if let Some(note) = &note {
+        progress.event(&Event::BackendNote(note));
+    }
     let mut lab = Lab::new(backend, params, &scene, false)?;
     let mut obs = Preparing {
         seen: Collect::default(),
