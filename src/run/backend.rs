@@ -6,6 +6,8 @@ use crate::engine::StepParams;
 use crate::error::Result;
 use crate::model::Scene;
 
+use super::{Event, Progress};
+
 /// The sample size from which `auto` takes a hardware GPU. Below it the CPU path is the
 /// faster one: on an NVIDIA H200 the GPU's step is held at a few milliseconds by its
 /// ordered dispatches, hundreds per step at about 4 microseconds each, and the whole
@@ -46,6 +48,20 @@ pub fn open_backend_noted(
         Box::new(CpuBackend::new(scene, params)?)
     };
     Ok((backend, note))
+}
+
+/// As [`open_backend`], telling `progress` when `auto` left a hardware GPU unused.
+pub(super) fn open_backend_told(
+    config: &Config,
+    scene: Scene,
+    params: StepParams,
+    progress: &mut dyn Progress,
+) -> Result<Box<dyn Backend>> {
+    let (backend, note) = open_backend_noted(config, scene, params)?;
+    if let Some(note) = &note {
+        progress.event(&Event::BackendNote(note));
+    }
+    Ok(backend)
 }
 
 /// What `auto` takes for a method the GPU runs, given the best hardware adapter's name (if

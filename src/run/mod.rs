@@ -59,6 +59,7 @@ mod test;
 use std::path::{Path, PathBuf};
 
 pub use crate::interrupt::Cancel;
+use backend::open_backend_told;
 pub use backend::{AUTO_GPU_FROM_DISKS, open_backend, open_backend_noted};
 pub use compare::write_comparison;
 pub use open::{FinishedRun, OpenedTest, TestKind, open, open_test, write_curves};

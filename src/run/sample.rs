@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use super::{Cancel, Event, Progress, open_backend_noted};
+use super::{Cancel, Event, Progress, open_backend_told};
 use crate::config::{Config, Density, Length, Pressure};
 use crate::error::{Error, Result, RunFault};
 use crate::model::Scene;
@@ -68,10 +68,7 @@ pub fn prepare(
         disks: params.disks,
         report: &rep,
     });
-    let (backend, note) = open_backend_noted(config, scene.clone(), params.step)?;
-    if let Some(note) = &note {
-        progress.event(&Event::BackendNote(note));
-    }
+    let backend = open_backend_told(config, scene.clone(), params.step, progress)?;
     let mut lab = Lab::new(backend, params, &scene, false)?;
     let mut obs = Preparing {
         seen: Collect::default(),

@@ -5,7 +5,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use super::summary::{rebuild_summary, summary_fault};
-use super::{Cancel, Event, Progress, Recording, RunOutcome, open_backend_noted, summary_of, write_summary};
+use super::{Cancel, Event, Progress, Recording, RunOutcome, open_backend_told, summary_of, write_summary};
 use crate::backend::Backend;
 use crate::config::{self, Config};
 use crate::error::{Error, Remedy, Result, RunFault};
@@ -164,10 +164,7 @@ pub fn run_fresh(
             (scene, false)
         }
     };
-    let (backend, note) = open_backend_noted(config, scene.clone(), params.step)?;
-    if let Some(note) = &note {
-        progress.event(&Event::BackendNote(note));
-    }
+    let backend = open_backend_told(config, scene.clone(), params.step, progress)?;
     let lab = Lab::new(backend, params.clone(), &scene, compacted)?;
     let head = RecordHead {
         run_id: new_run_id(),
@@ -267,10 +264,7 @@ pub fn run_resume(
         });
     }
     let params = ck.state.params.clone();
-    let (backend, note) = open_backend_noted(&config, ck.scene.clone(), params.step)?;
-    if let Some(note) = &note {
-        progress.event(&Event::BackendNote(note));
-    }
+    let backend = open_backend_told(&config, ck.scene.clone(), params.step, progress)?;
     let time = ck.scene.time;
     let lab = Lab::resume(backend, ck)?;
     let head = RecordHead::resumed(&rec, lab.backend.name());
