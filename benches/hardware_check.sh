@@ -10,7 +10,7 @@
 # same packing; without it the test deposits and compacts on each backend). Each part has
 # its own time limit and a failed part does not stop the others; the report lists every
 # part with its exit status and wall time. Limits (seconds) and sizes can be set:
-#   CDLAB_HW_BENCH_DISKS  sample sizes of the bench (5000,20000,50000)
+#   CDLAB_HW_BENCH_DISKS  sample sizes of the bench (5000,20000,50000; 0 leaves it out)
 #   CDLAB_HW_CHECK_EVERY  convergence-test intervals the bench compares (0,1,4,16; 0 is the
 #                         default: 8 on the GPU, 1 on the CPU)
 #   CDLAB_HW_METHODS      solver methods the bench compares (colored-gs,jacobi)
@@ -29,12 +29,19 @@
 #   CDLAB_HW_STRAIN       end strain of the 5000-disk tests (0.02)
 #   CDLAB_HW_TEST_S       limit of each 5000-disk test (150; 0 leaves both out)
 #   CDLAB_HW_CPU_TEST     0 leaves out the 5000-disk test on the CPU (1)
-#   CDLAB_HW_LARGE_S      wall time given to the 50,000-disk GPU test (90)
+#   CDLAB_HW_LARGE_S      wall time given to the 50,000-disk GPU test (90; 0 leaves it out)
 #   CDLAB_HW_LARGE_DISKS  its size (50000)
 #   CDLAB_HW_LARGE_SAMPLE a prepared sample the large test starts from instead (its size
 #                         is the sample's; without one the test deposits and compacts)
 #   CDLAB_HW_LARGE_CPU    1 runs the large test on the CPU too, beside the GPU's, on
 #                         CDLAB_HW_CPU_THREADS threads (0)
+#   CDLAB_HW_CROSSOVER    prepared samples, comma separated, each tested from its start
+#                         on the GPU (host threads on cores 0-3) beside the CPU on 2 threads
+#                         (cores 4-5; unpinned on fewer than 6 cores), then on the CPU alone with its default threads: the
+#                         sizes around `auto`'s threshold (docs/gpu.md, "Choosing the
+#                         backend") on this machine (none by default)
+#   CDLAB_HW_CROSSOVER_S  limit of each of those tests (60), to CDLAB_HW_CROSSOVER_STRAIN
+#                         (0.004)
 # The whole check takes about 8 minutes on a data-centre GPU with its defaults.
 set -uo pipefail
 if [ $# -lt 2 ]; then
@@ -87,7 +94,7 @@ fi
 nproc >"$OUT/cores.txt"
 
 # One bench for both backends: each sample is deposited once for all its cases.
-part bench 300 "$BIN" bench --disks "$DISKS" --backend gpu,cpu --check-every "$EVERY" \
+[ "$DISKS" = 0 ] || part bench 300 "$BIN" bench --disks "$DISKS" --backend gpu,cpu --check-every "$EVERY" \
     --method "${CDLAB_HW_METHODS:-colored-gs,jacobi}" \
     --record-threads "${CDLAB_HW_RECORD_THREADS:-1,2,4,0}" --sweep-all "${CDLAB_HW_SWEEP_ALL:-true,false}" \
     --out "$OUT/bench"
@@ -117,6 +124,27 @@ if [ "$TEST_S" != 0 ]; then
         --out "$OUT/test5000_gpu" --force --no-figures
     wait
 fi
+if [ -n "${CDLAB_HW_CROSSOVER:-}" ]; then
+    # Pinned apart where the host has the cores, so that neither test slows the other.
+    pin_gpu=() pin_cpu=()
+    if [ "$CORES" -ge 6 ] && command -v taskset >/dev/null; then
+        pin_gpu=(taskset -c 0-3) pin_cpu=(taskset -c 4,5)
+    fi
+    "$BIN" config --print-default | sed "s/^threads = 0/threads = 2/" >"$OUT/cpu2_test.toml"
+    IFS=, read -ra cross <<<"$CDLAB_HW_CROSSOVER"
+    for s in "${cross[@]}"; do
+        name="$(basename "$s" .sample)"
+        args=(--sample "$(realpath "$s")" --strain "${CDLAB_HW_CROSSOVER_STRAIN:-0.004}" --force --no-figures)
+        part "test_x_${name}_cpu2" "${CDLAB_HW_CROSSOVER_S:-60}" ${pin_cpu[@]+"${pin_cpu[@]}"} "$BIN" biaxial \
+            --config "$OUT/cpu2_test.toml" "${args[@]}" --backend cpu --out "$OUT/test_x_${name}_cpu2" &
+        part "test_x_${name}_gpu" "${CDLAB_HW_CROSSOVER_S:-60}" ${pin_gpu[@]+"${pin_gpu[@]}"} "$BIN" biaxial \
+            "${args[@]}" --backend gpu --out "$OUT/test_x_${name}_gpu"
+        wait
+        part "test_x_${name}_cpu" "${CDLAB_HW_CROSSOVER_S:-60}" "$BIN" biaxial "${args[@]}" \
+            --backend cpu --out "$OUT/test_x_${name}_cpu"
+    done
+fi
+[ "$LARGE_S" = 0 ] && { python3 "$HERE/hardware_report.py" "$OUT"; exit 0; }
 large=(--disks "$LARGE_DISKS")
 if [ -n "${CDLAB_HW_LARGE_SAMPLE:-}" ]; then large=(--sample "$(realpath "$CDLAB_HW_LARGE_SAMPLE")"); fi
 if [ "${CDLAB_HW_LARGE_CPU:-0}" != 0 ]; then

@@ -33,6 +33,15 @@ pub struct GpuCounters {
     pub windows: u64,
     /// Steps run again (the steps of the windows run again).
     pub redone_steps: u64,
+    /// Of the windows run again, those whose steps needed more solver iterations than were
+    /// recorded (a window may count under several reasons).
+    pub redone_iterations: u64,
+    /// Those whose steps had more non-empty colors than were recorded.
+    pub redone_colors: u64,
+    /// Those whose coloring needed more rounds than were recorded.
+    pub redone_rounds: u64,
+    /// Those where a capacity (contacts, warm-start slots, colors) grew.
+    pub redone_capacity: u64,
     /// Compute dispatches that did work: those of the fixed phases, and those of the
     /// solver's blocks that ran.
     pub dispatches: u64,
@@ -94,6 +103,14 @@ pub struct GpuCounters {
 /// eight were no faster (docs/gpu.md, "Measured on hardware").
 pub const RECORD_THREADS_MAX: u32 = 2;
 
+/// Windows whose largest iterations per step set the iterations recorded for the next
+/// one. The largest count of a 10-step window is a poor guide to the next one's: in a
+/// 5000-disk compression whose steps take 18 iterations on average, one window in nine
+/// needed more than the last window's largest with a quarter more and was run again (all
+/// its steps), where recording up to the largest of the last eight costs one empty
+/// dispatch per extra iteration and leaves about one in forty (docs/gpu.md, "Margins").
+pub const RECENT_WINDOWS: usize = 8;
+
 /// Timestamps of a timed step: its start, the ends of detection, coloring, solve and deep
 /// updates, and its end.
 pub const MARKS_PER_STEP: u32 = 6;
@@ -117,6 +134,10 @@ impl std::ops::Sub for GpuCounters {
             redone: self.redone - earlier.redone,
             windows: self.windows - earlier.windows,
             redone_steps: self.redone_steps - earlier.redone_steps,
+            redone_iterations: self.redone_iterations - earlier.redone_iterations,
+            redone_colors: self.redone_colors - earlier.redone_colors,
+            redone_rounds: self.redone_rounds - earlier.redone_rounds,
+            redone_capacity: self.redone_capacity - earlier.redone_capacity,
             dispatches: self.dispatches - earlier.dispatches,
             empty_dispatches: self.empty_dispatches - earlier.empty_dispatches,
             submissions: self.submissions - earlier.submissions,
@@ -196,8 +217,14 @@ pub struct GpuBackend {
     pub(super) rounds_hint: u32,
     /// Colors swept per iteration, as `rounds_hint`.
     pub(super) colors_hint: u32,
-    /// Iterations recorded per step (in whole blocks), as `rounds_hint`.
+    /// Iterations recorded per step (in whole blocks): the largest count of the last
+    /// [`RECENT_WINDOWS`] windows (`recent_iters`) with a margin.
     pub(super) iters_hint: u32,
+    /// The largest iterations per step of each of the last [`RECENT_WINDOWS`] windows, a
+    /// ring written at `windows_done % RECENT_WINDOWS`.
+    pub(super) recent_iters: [u32; RECENT_WINDOWS],
+    /// Windows completed (not run again), for the ring.
+    pub(super) windows_done: usize,
     /// The last window's mean iterations per step, rounded up: the blocks that cover it
     /// are swept with a dispatch per color, those after with `sweep_all`.
     pub(super) typical_iters: u32,
@@ -267,6 +294,8 @@ impl GpuBackend {
             rounds_hint: 16,
             colors_hint: 16,
             iters_hint: 64,
+            recent_iters: [0; RECENT_WINDOWS],
+            windows_done: 0,
             typical_iters: 64,
             peak_iters: 64,
             overflow_sweeps: true,
@@ -948,13 +977,18 @@ impl GpuCounters {
             "not timed".into()
         };
         format!(
-            "GPU {} steps in {} windows, {} run again ({} steps); host recording {:.3} ms/step, \
+            "GPU {} steps in {} windows, {} run again ({} steps; for iterations {}, colors {}, \
+             rounds {}, capacities {}); host recording {:.3} ms/step, \
              waiting {:.3} ms/step, between windows {:.3} ms/step; device {device}; {:.1} \
              iterations/step, {:.0} dispatches/step ({:.0} empty)",
             self.steps,
             self.windows,
             self.redone,
             self.redone_steps,
+            self.redone_iterations,
+            self.redone_colors,
+            self.redone_rounds,
+            self.redone_capacity,
             ms(self.record_ns),
             ms(self.wait_ns),
             ms(self.between_ns),

@@ -58,6 +58,13 @@ pub const ONE_WORKGROUP_CONTACTS: u32 = 32_768;
 /// backend's first ([`GpuBackend::probe`]).
 const PROBE_FROM: u32 = 20;
 
+/// Iterations to record per step for the next window: the largest count of the recent
+/// windows `recent` (`GpuBackend::recent_iters`), a quarter more and a block of `every`.
+fn iterations_to_record(recent: &[u32], every: u32) -> u32 {
+    let most = recent.iter().copied().max().unwrap_or(0);
+    most + most / 4 + every
+}
+
 /// Bytes of one step's row in the history: the status words.
 const ROW_BYTES: u64 = 4 * status::WORDS as u64;
 
@@ -668,11 +675,16 @@ impl GpuBackend {
             self.restore()?;
             let more = match redo {
                 Redo::Grow(cap, more) => {
+                    self.counters.redone_capacity += 1;
                     self.grow(cap)?;
                     more
                 }
                 Redo::Record(more) => more,
             };
+            let c = &mut self.counters;
+            c.redone_iterations += (more.blocks != rec.blocks) as u64;
+            c.redone_colors += (more.colors != rec.colors) as u64;
+            c.redone_rounds += (more.rounds != rec.rounds) as u64;
             self.rounds_hint = more.rounds;
             self.colors_hint = more.colors;
             let last = self.schedule[(more.blocks as usize).clamp(1, self.schedule.len()) - 1];
@@ -689,7 +701,9 @@ impl GpuBackend {
         let c = max(status::BIG);
         self.colors_hint = c + 1;
         let it = max(status::ITERS);
-        self.iters_hint = it + it / 4 + self.conv_every;
+        self.recent_iters[self.windows_done % super::backend::RECENT_WINDOWS] = it;
+        self.windows_done += 1;
+        self.iters_hint = iterations_to_record(&self.recent_iters, self.conv_every);
         self.peak_iters = it;
         self.typical_iters = red.iterations_sum.div_ceil(red.steps.max(1) as u64) as u32;
         self.counters.steps += steps as u64;
@@ -1133,6 +1147,28 @@ mod tests {
         assert!(
             s.iter()
                 .all(|b| !b.velocity_test && !b.relaxed && b.w == p.jacobi.relax as f32)
+        );
+    }
+
+    #[test]
+    fn a_window_that_needed_many_iterations_keeps_the_margin_for_the_recent_windows() {
+        use crate::gpu::backend::RECENT_WINDOWS;
+        let mut recent = [0u32; RECENT_WINDOWS];
+        // One window of a spike (96 iterations) among windows of 24: the next windows
+        // record for the spike until it leaves the ring, then for 24 again.
+        let largest = |k: usize| if k == 0 { 96 } else { 24 };
+        let mut recorded = Vec::new();
+        for k in 0..2 * RECENT_WINDOWS {
+            recent[k % RECENT_WINDOWS] = largest(k);
+            recorded.push(iterations_to_record(&recent, 8));
+        }
+        assert!(
+            recorded[..RECENT_WINDOWS].iter().all(|&r| r == 96 + 24 + 8),
+            "{recorded:?}"
+        );
+        assert!(
+            recorded[RECENT_WINDOWS..].iter().all(|&r| r == 24 + 6 + 8),
+            "{recorded:?}"
         );
     }
 }
