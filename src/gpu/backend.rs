@@ -105,10 +105,11 @@ pub const RECORD_THREADS_MAX: u32 = 2;
 
 /// Windows whose largest iterations per step set the iterations recorded for the next
 /// one. The largest count of a 10-step window is a poor guide to the next one's: in a
-/// 5000-disk compression whose steps take 18 iterations on average, one window in nine
-/// needed more than the last window's largest with a quarter more and was run again (all
-/// its steps), where recording up to the largest of the last eight costs one empty
-/// dispatch per extra iteration and leaves about one in forty (docs/gpu.md, "Margins").
+/// 5000-disk compression (24 iterations per step on average) one window in eight needed
+/// more than the last window's largest with a quarter more and was run again, all its
+/// steps; recording up to the largest of the last eight costs one empty dispatch per extra
+/// iteration and left one in fifty, for a step 8% shorter on an H200 (docs/gpu.md, "The
+/// iterations' margin, and `auto`'s threshold").
 pub const RECENT_WINDOWS: usize = 8;
 
 /// Timestamps of a timed step: its start, the ends of detection, coloring, solve and deep

@@ -13,7 +13,9 @@ use super::{Event, Progress};
 /// ordered dispatches, hundreds per step at about 4 microseconds each, and the whole
 /// 5000-disk test took about 490 s there against 255 s on two of the host's CPU threads;
 /// at 50,000 disks the GPU's step was 3.7 times faster than those two threads
-/// (docs/gpu.md, "This version on the same kind of machine").
+/// (docs/gpu.md, "This version on the same kind of machine"). The same test's early
+/// compression from prepared samples put the switch between 5000 and 10,000 disks there
+/// (docs/gpu.md, "The iterations' margin, and `auto`'s threshold").
 pub const AUTO_GPU_FROM_DISKS: usize = 10_000;
 
 /// Opens the backend the configuration asks for. `auto` takes the GPU path only on a
