@@ -103,14 +103,16 @@ pub struct GpuCounters {
 /// eight were no faster (docs/gpu.md, "Measured on hardware").
 pub const RECORD_THREADS_MAX: u32 = 2;
 
-/// Windows whose largest iterations per step set the iterations recorded for the next
-/// one. The largest count of a 10-step window is a poor guide to the next one's: in a
-/// 5000-disk compression (24 iterations per step on average) one window in eight needed
-/// more than the last window's largest with a quarter more and was run again, all its
-/// steps; recording up to the largest of the last eight costs one empty dispatch per extra
+/// Steps whose largest iterations set the iterations recorded for the next window: the
+/// last windows that hold at least this many steps. The largest count of one 10-step window
+/// (a compression's series row) is a poor guide to the next one's: in a 5000-disk
+/// compression (24 iterations per step on average) one window in eight needed more than
+/// the last window's largest with a quarter more and was run again, all its steps;
+/// recording up to the largest of the last eight costs one empty dispatch per extra
 /// iteration and left one in fifty, for a step 8% shorter on an H200 (docs/gpu.md, "The
-/// iterations' margin, and `auto`'s threshold").
-pub const RECENT_WINDOWS: usize = 8;
+/// iterations' margin, and `auto`'s threshold"). A confinement's 200-step window is guide
+/// enough alone: holding its largest over more windows cost its steps 19% more there.
+pub const RECENT_STEPS: u32 = 80;
 
 /// Timestamps of a timed step: its start, the ends of detection, coloring, solve and deep
 /// updates, and its end.
@@ -219,13 +221,10 @@ pub struct GpuBackend {
     /// Colors swept per iteration, as `rounds_hint`.
     pub(super) colors_hint: u32,
     /// Iterations recorded per step (in whole blocks): the largest count of the last
-    /// [`RECENT_WINDOWS`] windows (`recent_iters`) with a margin.
+    /// [`RECENT_STEPS`] steps' windows (`recent`) with a margin.
     pub(super) iters_hint: u32,
-    /// The largest iterations per step of each of the last [`RECENT_WINDOWS`] windows, a
-    /// ring written at `windows_done % RECENT_WINDOWS`.
-    pub(super) recent_iters: [u32; RECENT_WINDOWS],
-    /// Windows completed (not run again), for the ring.
-    pub(super) windows_done: usize,
+    /// The largest iterations per step of the last windows completed.
+    pub(super) recent: super::step::RecentPeaks,
     /// The last window's mean iterations per step, rounded up: the blocks that cover it
     /// are swept with a dispatch per color, those after with `sweep_all`.
     pub(super) typical_iters: u32,
@@ -295,8 +294,7 @@ impl GpuBackend {
             rounds_hint: 16,
             colors_hint: 16,
             iters_hint: 64,
-            recent_iters: [0; RECENT_WINDOWS],
-            windows_done: 0,
+            recent: Default::default(),
             typical_iters: 64,
             peak_iters: 64,
             overflow_sweeps: true,

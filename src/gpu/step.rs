@@ -58,11 +58,35 @@ pub const ONE_WORKGROUP_CONTACTS: u32 = 32_768;
 /// backend's first ([`GpuBackend::probe`]).
 const PROBE_FROM: u32 = 20;
 
-/// Iterations to record per step for the next window: the largest count of the recent
-/// windows `recent` (`GpuBackend::recent_iters`), a quarter more and a block of `every`.
-fn iterations_to_record(recent: &[u32], every: u32) -> u32 {
-    let most = recent.iter().copied().max().unwrap_or(0);
-    most + most / 4 + every
+/// The largest iterations per step of the last windows completed, as many as hold at least
+/// [`super::backend::RECENT_STEPS`] steps.
+#[derive(Clone, Debug, Default)]
+pub(super) struct RecentPeaks {
+    /// (steps, largest iterations per step) of each window kept, oldest first.
+    windows: std::collections::VecDeque<(u32, u32)>,
+}
+
+impl RecentPeaks {
+    /// Adds a completed window of `steps` steps whose largest count was `largest`, and
+    /// forgets the oldest windows the others no longer need.
+    pub(super) fn push(&mut self, steps: u32, largest: u32) {
+        if steps == 0 {
+            return;
+        }
+        self.windows.push_back((steps, largest));
+        while self.windows.len() > 1
+            && self.windows.iter().skip(1).map(|w| w.0).sum::<u32>() >= super::backend::RECENT_STEPS
+        {
+            self.windows.pop_front();
+        }
+    }
+
+    /// Iterations to record per step for the next window: the largest count kept, a
+    /// quarter more and a block of `every`.
+    pub(super) fn to_record(&self, every: u32) -> u32 {
+        let most = self.windows.iter().map(|w| w.1).max().unwrap_or(0);
+        most + most / 4 + every
+    }
 }
 
 /// Bytes of one step's row in the history: the status words.
@@ -701,9 +725,8 @@ impl GpuBackend {
         let c = max(status::BIG);
         self.colors_hint = c + 1;
         let it = max(status::ITERS);
-        self.recent_iters[self.windows_done % super::backend::RECENT_WINDOWS] = it;
-        self.windows_done += 1;
-        self.iters_hint = iterations_to_record(&self.recent_iters, self.conv_every);
+        self.recent.push(steps, it);
+        self.iters_hint = self.recent.to_record(self.conv_every);
         self.peak_iters = it;
         self.typical_iters = red.iterations_sum.div_ceil(red.steps.max(1) as u64) as u32;
         self.counters.steps += steps as u64;
@@ -1151,24 +1174,25 @@ mod tests {
     }
 
     #[test]
-    fn a_window_that_needed_many_iterations_keeps_the_margin_for_the_recent_windows() {
-        use crate::gpu::backend::RECENT_WINDOWS;
-        let mut recent = [0u32; RECENT_WINDOWS];
-        // One window of a spike (96 iterations) among windows of 24: the next windows
-        // record for the spike until it leaves the ring, then for 24 again.
+    fn the_margin_follows_the_largest_count_of_the_last_eighty_steps() {
+        // Windows of 10 steps (a compression's rows): one window of a spike (96 iterations)
+        // among windows of 24 sets the next eight windows' margin, then 24 does again.
+        let mut recent = RecentPeaks::default();
         let largest = |k: usize| if k == 0 { 96 } else { 24 };
-        let mut recorded = Vec::new();
-        for k in 0..2 * RECENT_WINDOWS {
-            recent[k % RECENT_WINDOWS] = largest(k);
-            recorded.push(iterations_to_record(&recent, 8));
-        }
-        assert!(
-            recorded[..RECENT_WINDOWS].iter().all(|&r| r == 96 + 24 + 8),
-            "{recorded:?}"
-        );
-        assert!(
-            recorded[RECENT_WINDOWS..].iter().all(|&r| r == 24 + 6 + 8),
-            "{recorded:?}"
-        );
+        let recorded: Vec<u32> = (0..16)
+            .map(|k| {
+                recent.push(10, largest(k));
+                recent.to_record(8)
+            })
+            .collect();
+        assert!(recorded[..8].iter().all(|&r| r == 96 + 24 + 8), "{recorded:?}");
+        assert!(recorded[8..].iter().all(|&r| r == 24 + 6 + 8), "{recorded:?}");
+        // Windows of 200 steps (a confinement's rows): each is enough alone.
+        recent.push(200, 96);
+        recent.push(200, 16);
+        assert_eq!(recent.to_record(8), 16 + 4 + 8);
+        // A run of no steps changes nothing.
+        recent.push(0, 0);
+        assert_eq!(recent.to_record(8), 16 + 4 + 8);
     }
 }
