@@ -419,6 +419,7 @@ fn gpu_grows_an_overflowing_slot_list_and_redoes_the_step() {
     g.run(1, &Loading::default()).unwrap();
     assert!(g.capacity().k_slots >= 40 && k0 < 40, "{:?}", g.capacity());
     assert!(g.counters().redone >= 1);
+    assert!(g.counters().redone_capacity >= 1, "{:?}", g.counters());
     let gpu = pairs(g.contacts().unwrap().iter().map(|c| (c.i, c.j)));
     let mut cpu = CpuEngine::new(params).unwrap();
     let mut sc = s.clone();
@@ -624,6 +625,14 @@ fn gpu_grows_contacts_slots_colors_and_rounds_and_matches_the_cpu() {
     assert!(c1.colors > c0.colors, "colors {c0:?} -> {c1:?}");
     assert!(c1.rounds > c0.rounds, "rounds {c0:?} -> {c1:?}");
     assert!(g.counters().redone >= 1);
+    // The windows run again are counted under what they lacked: capacities grew, and the
+    // coloring needed more rounds than recorded.
+    let k = g.counters();
+    assert!(k.redone_capacity >= 1 && k.redone_rounds >= 1, "{k:?}");
+    assert!(
+        k.redone_capacity <= k.redone && k.redone_rounds <= k.redone,
+        "{k:?}"
+    );
     // A second step reuses the grown buffers: nothing redone.
     let redone = g.counters().redone;
     g.run(1, &Loading::default()).unwrap();
