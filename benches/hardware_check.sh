@@ -37,9 +37,10 @@
 #                         CDLAB_HW_CPU_THREADS threads (0)
 #   CDLAB_HW_CROSSOVER    prepared samples, comma separated, each tested from its start
 #                         on the GPU (host threads on cores 0-3) beside the CPU on 2 threads
-#                         (cores 4-5; unpinned on fewer than 6 cores), then on the CPU alone with its default threads: the
-#                         sizes around `auto`'s threshold (docs/gpu.md, "Choosing the
-#                         backend") on this machine (none by default)
+#                         (cores 4-5; unpinned on fewer than 6 cores), then on the CPU
+#                         alone with its default threads: the sizes around `auto`'s
+#                         threshold (docs/gpu.md, "Choosing the backend") on this machine
+#                         (none by default)
 #   CDLAB_HW_CROSSOVER_S  limit of each of those tests (60), to CDLAB_HW_CROSSOVER_STRAIN
 #                         (0.004)
 # The whole check takes about 8 minutes on a data-centre GPU with its defaults.
