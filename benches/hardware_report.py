@@ -153,6 +153,33 @@ def main(out):
                 f"| {fmt(s['iterations_per_step'], '.1f')} | {100 * s['overlap_max_rel']:.3f} "
                 f"| {fmt(s['last_strain'], '.4f')} | {s['last_sigma1_mpa']:.2f} |"
             )
+    # The crossover's tests (CDLAB_HW_CROSSOVER): one row per sample, its compression on
+    # each backend, and each part's wall time.
+    walls = {p["part"]: p for p in report["parts"]}
+    samples = sorted(
+        {n[len("test_x_"):].rsplit("_", 1)[0] for n in report["tests"] if n.startswith("test_x_")},
+        key=lambda n: (len(n), n),
+    )
+    if samples:
+        md += [
+            "",
+            "## Crossover: compression ms/step (iterations/step), part's wall time",
+            "",
+            "| sample | GPU | CPU, 2 threads | CPU, all threads |",
+            "|---|---|---|---|",
+        ]
+        for sample in samples:
+            cells = []
+            for kind in ("gpu", "cpu2", "cpu"):
+                name = f"test_x_{sample}_{kind}"
+                c = report["tests"].get(name, {}).get("phases", {}).get("compression")
+                part = walls.get(name)
+                wall = "-" if part is None else f"{part['seconds']:.1f} s" + (" (stopped)" if part["rc"] else "")
+                cells.append(
+                    "-" if c is None
+                    else f"{fmt(c['ms_per_step'], '.2f')} ({fmt(c['iterations_per_step'], '.1f')}), {wall}"
+                )
+            md.append(f"| {sample} | " + " | ".join(cells) + " |")
     for name, t in report["tests"].items():
         if t.get("activity"):
             md += ["", f"`{name}`, where the time went, by phase:", "", "```"] + t["activity"] + ["```"]
