@@ -145,15 +145,16 @@ if [ -n "${CDLAB_HW_CROSSOVER:-}" ]; then
             --backend cpu --out "$OUT/test_x_${name}_cpu"
     done
 fi
-[ "$LARGE_S" = 0 ] && { python3 "$HERE/hardware_report.py" "$OUT"; exit 0; }
-large=(--disks "$LARGE_DISKS")
-if [ -n "${CDLAB_HW_LARGE_SAMPLE:-}" ]; then large=(--sample "$(realpath "$CDLAB_HW_LARGE_SAMPLE")"); fi
-if [ "${CDLAB_HW_LARGE_CPU:-0}" != 0 ]; then
-    part test_large_cpu "$LARGE_S" "$BIN" biaxial --config "$OUT/cpu_test.toml" "${large[@]}" \
-        --backend cpu --out "$OUT/test_large_cpu" --force --no-figures &
+if [ "$LARGE_S" != 0 ]; then
+    large=(--disks "$LARGE_DISKS")
+    if [ -n "${CDLAB_HW_LARGE_SAMPLE:-}" ]; then large=(--sample "$(realpath "$CDLAB_HW_LARGE_SAMPLE")"); fi
+    if [ "${CDLAB_HW_LARGE_CPU:-0}" != 0 ]; then
+        part test_large_cpu "$LARGE_S" "$BIN" biaxial --config "$OUT/cpu_test.toml" "${large[@]}" \
+            --backend cpu --out "$OUT/test_large_cpu" --force --no-figures &
+    fi
+    part test_large_gpu "$LARGE_S" "$BIN" biaxial "${large[@]}" --backend gpu \
+        --out "$OUT/test_large_gpu" --force --no-figures
+    wait
 fi
-part test_large_gpu "$LARGE_S" "$BIN" biaxial "${large[@]}" --backend gpu \
-    --out "$OUT/test_large_gpu" --force --no-figures
-wait
 
 python3 "$HERE/hardware_report.py" "$OUT"
