@@ -2,8 +2,7 @@
 //! (docs/method.md, "Convergence") and the velocity test (docs/method.md, "Relaxation and
 //! the velocity test").
 
-use glam::DVec3;
-
+use super::ctx::Line;
 use super::rows::BodyProps;
 use super::{SolveStats, SolverParams};
 
@@ -30,13 +29,13 @@ impl SolveStats {
 pub(super) struct VelocityTest<'a> {
     tol: f64,
     after: u32,
-    prev: &'a mut Vec<DVec3>,
+    prev: &'a mut Vec<Line>,
 }
 
 impl<'a> VelocityTest<'a> {
     /// `gv` is the iterate before the first iteration, the reference of the first test
     /// when the test applies from the first iteration; `prev` is the workspace's buffer.
-    pub(super) fn new(params: &SolverParams, gv: &[DVec3], prev: &'a mut Vec<DVec3>) -> Self {
+    pub(super) fn new(params: &SolverParams, gv: &[Line], prev: &'a mut Vec<Line>) -> Self {
         prev.clear();
         if params.velocity_tol > 0.0 && params.gauss_seidel.relax_after == 0 {
             prev.extend_from_slice(gv);
@@ -56,14 +55,14 @@ impl<'a> VelocityTest<'a> {
     /// body's velocity changed by more than `velocity_tol x gs_relax` since the previous
     /// iteration. Bodies no contact can move keep their velocity, so every body may be
     /// compared.
-    pub(super) fn settled(&mut self, it: u32, gv: &[DVec3], props: &[BodyProps]) -> bool {
+    pub(super) fn settled(&mut self, it: u32, gv: &[Line], props: &[BodyProps]) -> bool {
         if self.tol <= 0.0 || it < self.after {
             return false;
         }
         let settled = it > self.after
             && self.prev.len() == gv.len()
             && gv.iter().zip(self.prev.iter()).zip(props).all(|((v, p), b)| {
-                let d = *v - *p;
+                let d = v.v - p.v;
                 d.x * d.x + d.y * d.y + (b.lever * d.z).powi(2) <= self.tol * self.tol
             });
         self.prev.clear();

@@ -27,7 +27,7 @@ use crate::contact::Contact;
 /// shared.
 #[derive(Clone, Copy)]
 pub(super) struct Ctx {
-    pub(super) gv: *mut DVec3,
+    pub(super) gv: *mut Line,
     pub(super) props: *const BodyProps,
     pub(super) contacts: *mut Contact,
     /// Gauss-Seidel relaxation of the current iteration.
@@ -36,6 +36,26 @@ pub(super) struct Ctx {
     /// ([`super::quads::gather_packed`]), to be swept in AVX registers.
     pub(super) quads: bool,
 }
+/// A body's velocity `(v_x, v_y, omega)` as the sweeps keep it: padded to 32 bytes and
+/// aligned on them, so that one AVX load or store moves a whole body and four bodies
+/// become the lanes of three registers in eight shuffles ([`super::simd`]). The padding
+/// stays zero: the updates add zero to it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C, align(32))]
+pub(super) struct Line {
+    pub(super) v: DVec3,
+    pad: f64,
+}
+
+impl Line {
+    /// The line of velocity `v`.
+    pub(super) fn of(v: DVec3) -> Self {
+        Line { v, pad: 0.0 }
+    }
+}
+
+const _: () = assert!(std::mem::size_of::<Line>() == 32);
+
 // SAFETY: see the module documentation: members of a team write disjoint bodies and
 // contacts between two barriers.
 unsafe impl Send for Ctx {}

@@ -9,7 +9,7 @@ use glam::DVec3;
 
 use super::color::{Coloring, Node, color};
 use super::convergence::VelocityTest;
-use super::ctx::Ctx;
+use super::ctx::{Ctx, Line};
 use super::lanes::{avx, proper_colors, sweep_color_chunk};
 use super::quads::{for_each_impulse, gather_packed, row_at, set_impulses};
 use super::resident::Slot;
@@ -56,7 +56,10 @@ pub struct Workspace {
     /// Rows left out of the sweeps ([`SolverParams::open_skip`]).
     parked: Vec<Row>,
     /// The velocity test's copy of the last iterate.
-    iterate: Vec<DVec3>,
+    iterate: Vec<Line>,
+    /// The velocities as the sweeps keep them ([`Line`]): copied from the step's
+    /// velocities before the sweeps and back after them.
+    lines: Vec<Line>,
     /// Where the last solve's time went ([`SolveTimes`]).
     pub(super) times: SolveTimes,
     /// Contacts deeper than the deep-update threshold, in contact order (`rows::build`).
@@ -228,8 +231,8 @@ pub(super) fn solve(
             Node {
                 i: r.i,
                 j: r.j,
-                moves_i: !serial && props[r.i as usize].movable != 0.0,
-                moves_j: !serial && props[r.j as usize].movable != 0.0,
+                moves_i: !serial && props[r.i as usize].movable(),
+                moves_j: !serial && props[r.j as usize].movable(),
                 serial,
             }
         });
@@ -258,8 +261,10 @@ pub(super) fn solve(
     } else {
         (&mut work.rows, &whole[..], false)
     };
+    work.lines.clear();
+    work.lines.extend(gv.iter().map(|&v| Line::of(v)));
     let ctx = Ctx {
-        gv: gv.as_mut_ptr(),
+        gv: work.lines.as_mut_ptr(),
         props: work.props.as_ptr(),
         contacts: contacts.as_mut_ptr(),
         relax: 1.0,
@@ -333,6 +338,9 @@ pub(super) fn solve(
         for (&m, r) in deep.iter().zip(copies.iter()) {
             set_impulses(rows, ranges, packed, m, r.rn, r.rt);
         }
+    }
+    for (v, l) in gv.iter_mut().zip(&work.lines) {
+        *v = l.v;
     }
     let t_store = Instant::now();
     for_each_impulse(rows, ranges, packed, |m, j, rn, rt| {

@@ -100,6 +100,7 @@ mod tests {
     use glam::DVec3;
 
     use super::*;
+    use crate::solver::ctx::Line;
     use crate::solver::quads::{
         for_each_impulse, gather_packed, pack_quads, row_at, set_impulses, unpack_quads,
     };
@@ -125,18 +126,21 @@ mod tests {
     /// One color of `n` rows on `2n` movable disks and 3 fixed walls shared by some rows,
     /// with impulses that are zero, inside the Coulomb interval or on its edge, and
     /// relative velocities that open, close or slide the contacts.
-    fn color_of(n: usize, seed: u64) -> (Vec<Row>, Vec<DVec3>, Vec<BodyProps>) {
+    fn color_of(n: usize, seed: u64) -> (Vec<Row>, Vec<Line>, Vec<BodyProps>) {
         let mut rng = Rng(seed);
         let bodies = 2 * n + 3;
-        let gv: Vec<DVec3> = (0..bodies)
-            .map(|_| DVec3::new(rng.signed(), rng.signed(), 3.0 * rng.signed()))
+        let gv: Vec<Line> = (0..bodies)
+            .map(|_| Line::of(DVec3::new(rng.signed(), rng.signed(), 3.0 * rng.signed())))
             .collect();
         let props: Vec<BodyProps> = (0..bodies)
-            .map(|b| BodyProps {
-                inv_mass: 0.5 + rng.next(),
-                k: 2.0 * rng.next(),
-                lever: 0.1 + rng.next(),
-                movable: if b < 2 * n { 1.0 } else { 0.0 },
+            .map(|b| {
+                let (inv_mass, k, lever) = (0.5 + rng.next(), 2.0 * rng.next(), 0.1 + rng.next());
+                // The walls cannot move; their lever still enters the relative velocity.
+                if b < 2 * n {
+                    BodyProps::of(inv_mass, k, lever)
+                } else {
+                    BodyProps::of(0.0, 0.0, lever)
+                }
             })
             .collect();
         let rows = (0..n)
@@ -218,7 +222,7 @@ mod tests {
         if quads {
             unpack_quads(&mut rows, &ranges, 1);
         }
-        bits.extend(gv.iter().flat_map(|v| v.to_array()).map(f64::to_bits));
+        bits.extend(gv.iter().flat_map(|l| l.v.to_array()).map(f64::to_bits));
         bits.extend(rows.iter().flat_map(|r| [r.rn.to_bits(), r.rt.to_bits()]));
         bits
     }

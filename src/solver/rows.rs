@@ -33,15 +33,18 @@ pub(super) struct Row {
     pub(super) rt: f64,
 }
 
-/// What a body contributes to an update: inverse mass, `r / I` (spin change per unit
-/// tangential impulse), lever arm, and 1 when an impulse may change its velocity.
+/// What a body contributes to an update: inverse mass (twice: the factors of an impulse's
+/// x and y components), `r / I` (spin change per unit tangential impulse) and lever arm,
+/// in the order of a velocity's [`Line`](super::ctx::Line), so that one vector multiply of
+/// an impulse's `(p_x, p_y, dR_t, 0)` gives a body's whole velocity change
+/// ([`super::simd`]).
 #[derive(Clone, Copy, Debug, Default)]
-#[repr(C)]
+#[repr(C, align(32))]
 pub(super) struct BodyProps {
     pub(super) inv_mass: f64,
+    inv_mass_y: f64,
     pub(super) k: f64,
     pub(super) lever: f64,
-    pub(super) movable: f64,
 }
 
 impl BodyProps {
@@ -50,10 +53,17 @@ impl BodyProps {
     pub(super) fn of(inv_mass: f64, k: f64, lever: f64) -> Self {
         BodyProps {
             inv_mass,
+            inv_mass_y: inv_mass,
             k,
             lever,
-            movable: if inv_mass != 0.0 || k != 0.0 { 1.0 } else { 0.0 },
         }
+    }
+
+    /// Whether an impulse may change the body's velocity (as [`Contact::moves_i`] says of
+    /// a contact's side); the updates never write a body that cannot move.
+    #[inline(always)]
+    pub(super) fn movable(&self) -> bool {
+        self.inv_mass != 0.0 || self.k != 0.0
     }
 }
 
@@ -212,18 +222,8 @@ fn row(
     // Every contact of a body sees the same inverse mass, r / I and lever (detection
     // takes them from the body), so later contacts only rewrite the same values.
     if let Some(props) = props {
-        props[c.i as usize] = BodyProps {
-            inv_mass: c.mi,
-            k: c.ki,
-            lever: c.ri,
-            movable: if c.moves_i() { 1.0 } else { 0.0 },
-        };
-        props[c.j as usize] = BodyProps {
-            inv_mass: c.mj,
-            k: c.kj,
-            lever: c.rj,
-            movable: if c.moves_j() { 1.0 } else { 0.0 },
-        };
+        props[c.i as usize] = BodyProps::of(c.mi, c.ki, c.ri);
+        props[c.j as usize] = BodyProps::of(c.mj, c.kj, c.rj);
     }
     Row {
         i: c.i,

@@ -8,7 +8,7 @@
 use glam::DVec3;
 use std::arch::x86_64::*;
 
-use super::ctx::Ctx;
+use super::ctx::{Ctx, Line};
 use super::quads::Quad;
 use super::rows::{BodyProps, FULL, Row};
 use super::update::update;
@@ -17,55 +17,80 @@ use super::update::update;
 /// components (`px`, `py`) times `im`, the inverse mass signed for that body, and spin
 /// change `k drt`; a body that cannot move is never written.
 #[inline(always)]
-unsafe fn write(p: *mut DVec3, v: DVec3, body: BodyProps, im: f64, px: f64, py: f64, drt: f64) {
-    if body.movable != 0.0 {
+unsafe fn write(p: *mut Line, v: DVec3, body: BodyProps, im: f64, px: f64, py: f64, drt: f64) {
+    if body.movable() {
         // SAFETY: the caller owns `p` for this color.
-        unsafe { p.write(v + DVec3::new(im * px, im * py, body.k * drt)) };
+        unsafe { (*p).v = v + DVec3::new(im * px, im * py, body.k * drt) };
     }
 }
 
+/// The 4x4 transpose of four registers: lane `l` of output `f` is lane `f` of input `l`
+/// (four bodies' lines become their x, y, spin and fourth fields, and back).
+macro_rules! transpose {
+    ($r:expr) => {{
+        let r = $r;
+        let t0 = _mm256_unpacklo_pd(r[0], r[1]);
+        let t1 = _mm256_unpackhi_pd(r[0], r[1]);
+        let t2 = _mm256_unpacklo_pd(r[2], r[3]);
+        let t3 = _mm256_unpackhi_pd(r[2], r[3]);
+        [
+            _mm256_permute2f128_pd::<0x20>(t0, t2),
+            _mm256_permute2f128_pd::<0x20>(t1, t3),
+            _mm256_permute2f128_pd::<0x31>(t0, t2),
+            _mm256_permute2f128_pd::<0x31>(t1, t3),
+        ]
+    }};
+}
+
 /// Four rows at a time, packed as [`Quad`]s (a multiple of four rows), their sums added
-/// to `acc` in row order.
+/// to `acc` in row order. Each body's velocity [`Line`] and table entry are one aligned
+/// load each, turned into lanes by a transpose; each body written gets its whole change
+/// in one multiply, one add and one store, the products and sums those of the scalar
+/// update.
 ///
 /// # Safety
 /// As [`super::lanes::sweep_color_chunk`], on a processor with AVX, on packed rows.
 #[target_feature(enable = "avx")]
 pub(super) unsafe fn sweep_quads<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx, acc: &mut (f64, f64)) {
+    let zero = _mm256_setzero_pd();
+    // Flips the sign of the x and y factors: body j takes the impulse with the other sign
+    // (`_mm256_set_pd` takes the high lane first).
+    let j_sign = _mm256_set_pd(0.0, 0.0, -0.0, -0.0);
     for quad in rows.chunks_exact_mut(4) {
         // SAFETY: the caller guarantees these rows hold a packed quad (see `Quad`).
         let q = unsafe { &mut *quad.as_mut_ptr().cast::<Quad>() };
         debug_assert!(q.j.iter().all(|&j| j != FULL));
         // SAFETY: the caller guarantees validity; the four rows write disjoint bodies
-        // and read the shared ones (never written) only.
+        // and read the shared ones (never written) only. Lines and table entries are
+        // 32-byte aligned (`Line`, `BodyProps`).
         unsafe {
-            let pi = q.i.map(|i| ctx.gv.add(i as usize));
-            let pj = q.j.map(|j| ctx.gv.add(j as usize));
-            let bi = q.i.map(|i| *ctx.props.add(i as usize));
-            let bj = q.j.map(|j| *ctx.props.add(j as usize));
-            let vi = pi.map(|p| p.read());
-            let vj = pj.map(|p| p.read());
-            // Lane l is row l of the quad (`_mm256_set_pd` takes the high lane first).
-            macro_rules! lanes4 {
-                ($x:expr) => {{
-                    let x = $x;
-                    _mm256_set_pd(x[3], x[2], x[1], x[0])
-                }};
-            }
+            let pi = q.i.map(|i| ctx.gv.add(i as usize).cast::<f64>());
+            let pj = q.j.map(|j| ctx.gv.add(j as usize).cast::<f64>());
+            let bi =
+                q.i.map(|i| _mm256_load_pd(ctx.props.add(i as usize).cast::<f64>()));
+            let bj =
+                q.j.map(|j| _mm256_load_pd(ctx.props.add(j as usize).cast::<f64>()));
+            let vi = pi.map(|p| _mm256_load_pd(p));
+            let vj = pj.map(|p| _mm256_load_pd(p));
+            let [vix, viy, viz, _] = transpose!(vi);
+            let [vjx, vjy, vjz, _] = transpose!(vj);
+            let [_, _, _, lever_i] = transpose!(bi);
+            let [_, _, _, lever_j] = transpose!(bj);
             macro_rules! field {
                 ($f:ident) => {
                     _mm256_loadu_pd(q.$f.as_ptr())
                 };
             }
             let (nx, ny) = (field!(nx), field!(ny));
-            let dx = _mm256_sub_pd(lanes4!(vi.map(|v| v.x)), lanes4!(vj.map(|v| v.x)));
-            let dy = _mm256_sub_pd(lanes4!(vi.map(|v| v.y)), lanes4!(vj.map(|v| v.y)));
+            let dx = _mm256_sub_pd(vix, vjx);
+            let dy = _mm256_sub_pd(viy, vjy);
             let un = _mm256_add_pd(_mm256_mul_pd(dx, nx), _mm256_mul_pd(dy, ny));
             let ut = _mm256_add_pd(
                 _mm256_add_pd(
                     _mm256_sub_pd(_mm256_mul_pd(dx, ny), _mm256_mul_pd(dy, nx)),
-                    _mm256_mul_pd(lanes4!(vi.map(|v| v.z)), lanes4!(bi.map(|b| b.lever))),
+                    _mm256_mul_pd(viz, lever_i),
                 ),
-                _mm256_mul_pd(lanes4!(vj.map(|v| v.z)), lanes4!(bj.map(|b| b.lever))),
+                _mm256_mul_pd(vjz, lever_j),
             );
             let (rn0, rt0) = (field!(rn), field!(rt));
             let rn = _mm256_max_pd(
@@ -73,7 +98,7 @@ pub(super) unsafe fn sweep_quads<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx
                     rn0,
                     _mm256_mul_pd(_mm256_add_pd(un, field!(bias_n)), field!(inv_wnn)),
                 ),
-                _mm256_setzero_pd(),
+                zero,
             );
             let lim = _mm256_mul_pd(field!(mu), rn);
             let neg_lim = _mm256_xor_pd(lim, _mm256_set1_pd(-0.0));
@@ -101,18 +126,30 @@ pub(super) unsafe fn sweep_quads<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx
             _mm256_storeu_pd(q.rt.as_mut_ptr(), rt);
             let px = _mm256_add_pd(_mm256_mul_pd(drn, nx), _mm256_mul_pd(drt, ny));
             let py = _mm256_sub_pd(_mm256_mul_pd(drn, ny), _mm256_mul_pd(drt, nx));
+            // Row l's impulse as (p_x, p_y, dR_t, 0): times a body's (m, m, k, lever) it is
+            // the scalar update's change (im p_x, im p_y, k dR_t), and 0 for the padding.
+            let change = transpose!([px, py, drt, zero]);
+            for l in 0..4 {
+                // Lanes 0 and 2 of a table entry: inverse mass and r / I (`movable`).
+                let moves =
+                    |b: __m256d| _mm256_movemask_pd(_mm256_cmp_pd::<_CMP_NEQ_UQ>(b, zero)) & 0b101 != 0;
+                if moves(bi[l]) {
+                    _mm256_store_pd(pi[l], _mm256_add_pd(vi[l], _mm256_mul_pd(bi[l], change[l])));
+                }
+                if moves(bj[l]) {
+                    let m = _mm256_xor_pd(bj[l], j_sign);
+                    _mm256_store_pd(pj[l], _mm256_add_pd(vj[l], _mm256_mul_pd(m, change[l])));
+                }
+            }
             let sq = _mm256_add_pd(_mm256_mul_pd(drn, drn), _mm256_mul_pd(drt, drt));
             let r2 = _mm256_add_pd(_mm256_mul_pd(rn, rn), _mm256_mul_pd(rt, rt));
-            let mut out = [[0.0; 4]; 5];
-            for (o, v) in out.iter_mut().zip([px, py, drt, sq, r2]) {
+            let mut out = [[0.0; 4]; 2];
+            for (o, v) in out.iter_mut().zip([sq, r2]) {
                 _mm256_storeu_pd(o.as_mut_ptr(), v);
             }
-            let [px, py, drt, sq, r2] = out;
-            for l in 0..4 {
-                write(pi[l], vi[l], bi[l], bi[l].inv_mass, px[l], py[l], drt[l]);
-                write(pj[l], vj[l], bj[l], -bj[l].inv_mass, px[l], py[l], drt[l]);
-                acc.0 += sq[l];
-                acc.1 += r2[l];
+            for (d, r) in out[0].iter().zip(&out[1]) {
+                acc.0 += d;
+                acc.1 += r;
             }
         }
     }
@@ -136,7 +173,7 @@ pub(super) unsafe fn sweep_pairs<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx
             let (pib, pjb) = (ctx.gv.add(b.i as usize), ctx.gv.add(b.j as usize));
             let (bia, bja) = (*ctx.props.add(a.i as usize), *ctx.props.add(a.j as usize));
             let (bib, bjb) = (*ctx.props.add(b.i as usize), *ctx.props.add(b.j as usize));
-            let (via, vja, vib, vjb) = (pia.read(), pja.read(), pib.read(), pjb.read());
+            let (via, vja, vib, vjb) = ((*pia).v, (*pja).v, (*pib).v, (*pjb).v);
             // Lane 0 is row a, lane 1 row b (`_mm_set_pd` takes the high lane first).
             let pair = |x: f64, y: f64| _mm_set_pd(y, x);
             let (add, sub, mul) = (_mm_add_pd, _mm_sub_pd, _mm_mul_pd);

@@ -5,7 +5,7 @@
 
 use glam::DVec3;
 
-use super::ctx::Ctx;
+use super::ctx::{Ctx, Line};
 use super::law;
 use super::rows::{FULL, Row};
 use crate::contact::Contact;
@@ -50,7 +50,7 @@ pub(super) unsafe fn update<const RELAXED: bool>(r: &mut Row, ctx: Ctx) -> (f64,
     // SAFETY: the caller guarantees validity and exclusive access to the written bodies.
     let (pi, pj) = unsafe { (ctx.gv.add(r.i as usize), ctx.gv.add(r.j as usize)) };
     let (bi, bj) = unsafe { (*ctx.props.add(r.i as usize), *ctx.props.add(r.j as usize)) };
-    let (vi, vj) = unsafe { (pi.read(), pj.read()) };
+    let (vi, vj) = unsafe { ((*pi).v, (*pj).v) };
     let (dx, dy) = (vi.x - vj.x, vi.y - vj.y);
     let un = dx * r.nx + dy * r.ny;
     let ut = dx * r.ny - dy * r.nx + vi.z * bi.lever + vj.z * bj.lever;
@@ -69,11 +69,11 @@ pub(super) unsafe fn update<const RELAXED: bool>(r: &mut Row, ctx: Ctx) -> (f64,
     let py = drn * r.ny - drt * r.nx;
     // Bodies that cannot move are shared by the contacts of a color and never written.
     unsafe {
-        if bi.movable != 0.0 {
-            pi.write(vi + DVec3::new(bi.inv_mass * px, bi.inv_mass * py, bi.k * drt));
+        if bi.movable() {
+            (*pi).v = vi + DVec3::new(bi.inv_mass * px, bi.inv_mass * py, bi.k * drt);
         }
-        if bj.movable != 0.0 {
-            pj.write(pj.read() + DVec3::new(-bj.inv_mass * px, -bj.inv_mass * py, bj.k * drt));
+        if bj.movable() {
+            (*pj).v += DVec3::new(-bj.inv_mass * px, -bj.inv_mass * py, bj.k * drt);
         }
     }
     r.rn = rn;
@@ -100,10 +100,10 @@ fn relaxed(relax: f64, old: (f64, f64), local: (f64, f64)) -> (f64, f64) {
 ///
 /// # Safety
 /// As [`update`].
-unsafe fn update_full(c: &mut Contact, gv: *mut DVec3, relax: f64) -> (f64, f64) {
+unsafe fn update_full(c: &mut Contact, gv: *mut Line, relax: f64) -> (f64, f64) {
     // SAFETY: the caller guarantees validity and exclusive access to the written bodies.
     let (pi, pj) = unsafe { (gv.add(c.i as usize), gv.add(c.j as usize)) };
-    let (vi, vj) = unsafe { (pi.read(), pj.read()) };
+    let (vi, vj) = unsafe { ((*pi).v, (*pj).v) };
     let (un, ut) = c.relative_velocity_of(vi, vj);
     let ufn = un - c.wnn * c.rn - c.wnt * c.rt + c.bias_n;
     let uft = ut - c.wnt * c.rn - c.wtt * c.rt + c.bias_t;
@@ -114,10 +114,10 @@ unsafe fn update_full(c: &mut Contact, gv: *mut DVec3, relax: f64) -> (f64, f64)
         let (dvi, dvj) = c.velocity_changes(drn, drt);
         unsafe {
             if c.moves_i() {
-                pi.write(pi.read() + dvi);
+                (*pi).v += dvi;
             }
             if c.moves_j() {
-                pj.write(pj.read() + dvj);
+                (*pj).v += dvj;
             }
         }
     }
