@@ -36,6 +36,7 @@ pub(super) struct Ctx {
     /// ([`super::quads::gather_packed`]), to be swept in AVX registers.
     pub(super) quads: bool,
 }
+
 /// A body's velocity `(v_x, v_y, omega)` as the sweeps keep it: padded to 32 bytes and
 /// aligned on them, so that one AVX load or store moves a whole body and four bodies
 /// become the lanes of three registers in eight shuffles ([`super::simd`]). The padding
