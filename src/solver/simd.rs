@@ -126,8 +126,8 @@ pub(super) unsafe fn sweep_quads<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx
             _mm256_storeu_pd(q.rt.as_mut_ptr(), rt);
             let px = _mm256_add_pd(_mm256_mul_pd(drn, nx), _mm256_mul_pd(drt, ny));
             let py = _mm256_sub_pd(_mm256_mul_pd(drn, ny), _mm256_mul_pd(drt, nx));
-            // Row l's impulse as (p_x, p_y, dR_t, 0): times a body's (m, m, k, lever) it is
-            // the scalar update's change (im p_x, im p_y, k dR_t), and 0 for the padding.
+            // Row l's impulse as (p_x, p_y, dR_t, 0): times a body's table entry
+            // (1/m, 1/m, r/I, lever) it is the scalar update's change, and 0 for the padding.
             let change = transpose!([px, py, drt, zero]);
             for l in 0..4 {
                 // Lanes 0 and 2 of a table entry: inverse mass and r / I (`movable`).
