@@ -115,18 +115,19 @@ fn deep_rows(
 }
 
 /// Wall time of the parts of one Gauss-Seidel solve (s): the fixed parts (`setup`: rows,
-/// parking, coloring, color order and vector packing; `store`: the impulses written back)
+/// parking, coloring, color order, vector packing and the velocities' copy; `store`: the
+/// impulses written back and the velocities copied back)
 /// beside the iterations (`sweeps`) and the deep contacts' updates (`deep`). Other methods
 /// count their whole solve as `sweeps`.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SolveTimes {
-    /// Rows, parking, coloring, color order, vector packing.
+    /// Rows, parking, coloring, color order, vector packing, the velocities' copy.
     pub setup: f64,
     /// The iterations.
     pub sweeps: f64,
     /// The deep contacts: finding them and their local updates.
     pub deep: f64,
-    /// Writing the impulses back to the contacts.
+    /// Writing the impulses back to the contacts and the velocities back to the step's.
     pub store: f64,
 }
 
@@ -339,10 +340,11 @@ pub(super) fn solve(
             set_impulses(rows, ranges, packed, m, r.rn, r.rt);
         }
     }
+    let t_store = Instant::now();
+    // Counted with the store, a fixed part, rather than with the deep contacts' updates.
     for (v, l) in gv.iter_mut().zip(&work.lines) {
         *v = l.v;
     }
-    let t_store = Instant::now();
     for_each_impulse(rows, ranges, packed, |m, j, rn, rt| {
         // Rows marked FULL were updated in their contact.
         if j != FULL {
