@@ -43,26 +43,30 @@ fn pushed(seed: u64) -> Scene {
 }
 
 fn run(seed: u64, method: Method, parallel: bool) -> (Scene, usize) {
-    run_on(seed, method, parallel, 0, None)
+    let (s, largest, _) = run_on(seed, method, parallel, 0, None);
+    (s, largest)
 }
 
 /// `relax`: Gauss-Seidel relaxation, the plain iterations before it and the velocity test
-/// (m/s) (default: those of `tight`).
+/// (m/s) (default: those of `tight`). Returns the state, the largest color's size and the
+/// bits of every step's contact records (their bodies, gaps, offsets and impulses).
 fn run_on(
     seed: u64,
     method: Method,
     parallel: bool,
     threads: usize,
     relax: Option<(f64, u32, f64)>,
-) -> (Scene, usize) {
+) -> (Scene, usize, Vec<u64>) {
     let mut s = pushed(seed);
     let mut p = tight(method);
     p.alert = 0.2;
     p.solver.tol = 1e-6;
     p.solver.parallel = parallel;
     p.solver.threads = threads;
-    // Colors here hold about 1500 contacts: lower the threshold so the threads do run.
+    // Colors here hold about 1500 contacts: lower the thresholds so the threads do run,
+    // on the sweeps and on the records.
     p.solver.parallel_min = 1024;
+    p.solver.records_parallel_min = 1024;
     if let Some((w, after, velocity_tol)) = relax {
         p.solver.gauss_seidel.relax = w;
         p.solver.gauss_seidel.relax_after = after;
@@ -70,8 +74,14 @@ fn run_on(
     }
     let mut e = cdlab::engine::CpuEngine::new(p).unwrap();
     let mut largest_color = 0;
+    let mut records = Vec::new();
     for _ in 0..15 {
         e.step(&mut s).unwrap();
+        records.extend(e.contacts().iter().flat_map(|c| {
+            [c.i as u64, c.j as u64]
+                .into_iter()
+                .chain([c.gap, c.bias_n, c.rn, c.rt].map(f64::to_bits))
+        }));
         if method == Method::ColoredGs {
             assert!(
                 e.last_range_is_serial(),
@@ -86,7 +96,12 @@ fn run_on(
                 .unwrap_or(0),
         );
     }
-    (s, largest_color as usize)
+    if method == Method::ColoredGs && e.params.solver.team_size() > 1 {
+        // Every step but the first, which has no count of contacts yet, made its records
+        // on the team.
+        assert_eq!(e.phase_times().team_detections, 14, "records made on the team");
+    }
+    (s, largest_color as usize, records)
 }
 
 fn bits(s: &Scene) -> Vec<u64> {
@@ -117,25 +132,29 @@ fn parallel_colored_sweeps_equal_sequential_ones_bit_for_bit() {
     // The thread team engages from 1024 contacts (parallel_min above); teams of 2 and 3
     // split colors of ~1500 contacts into uneven shares of 64-contact chunks, and must
     // still give exactly the sequential sweep (updates within a color commute).
-    let (seq, largest) = run(1, Method::ColoredGs, false);
+    let (seq, largest, seq_records) = run_on(1, Method::ColoredGs, false, 0, None);
     assert!(largest >= 1024, "largest color has {largest} contacts");
     for threads in [2, 3] {
-        let (par, _) = run_on(1, Method::ColoredGs, true, threads, None);
+        let (par, _, par_records) = run_on(1, Method::ColoredGs, true, threads, None);
         assert_eq!(bits(&par), bits(&seq), "team of {threads}");
+        assert!(
+            par_records == seq_records,
+            "team of {threads}: the contact records"
+        );
     }
     // The same with relaxed sweeps from the 6th iteration: every member of the team must
     // switch at the same iteration. The relaxed run must differ from the plain one, or the
     // relaxation was never reached.
     let relax = Some((0.7, 5, 0.0));
-    let (seq_relaxed, _) = run_on(1, Method::ColoredGs, false, 0, relax);
+    let (seq_relaxed, _, _) = run_on(1, Method::ColoredGs, false, 0, relax);
     assert_ne!(bits(&seq_relaxed), bits(&seq), "relaxation engaged");
-    let (par_relaxed, _) = run_on(1, Method::ColoredGs, true, 2, relax);
+    let (par_relaxed, _, _) = run_on(1, Method::ColoredGs, true, 2, relax);
     assert_eq!(bits(&par_relaxed), bits(&seq_relaxed), "relaxed team of 2");
     // And with the velocity test, which the team's calling thread runs between sweeps.
     let tested = Some((0.7, 5, 1e-3));
-    let (seq_tested, _) = run_on(1, Method::ColoredGs, false, 0, tested);
+    let (seq_tested, _, _) = run_on(1, Method::ColoredGs, false, 0, tested);
     assert_ne!(bits(&seq_tested), bits(&seq_relaxed), "velocity test engaged");
-    let (par_tested, _) = run_on(1, Method::ColoredGs, true, 2, tested);
+    let (par_tested, _, _) = run_on(1, Method::ColoredGs, true, 2, tested);
     assert_eq!(
         bits(&par_tested),
         bits(&seq_tested),
@@ -234,7 +253,7 @@ fn kept_pair_list_in_color_order_is_the_grid_search_records_properly_colored() {
             s.disks.radius[1234] *= 0.9;
         }
         detect(&s, alert, &mut grid, &mut full).unwrap();
-        list.detect_kept(&s, alert, 0.02, true, None, &mut kept, &[], |_, _, _, _| {})
+        list.detect_kept(&s, alert, 0.02, true, None, &mut kept, &[], |_, _, _| {})
             .unwrap();
         let mut by_key = kept.clone();
         by_key.sort_by_key(|c| c.key());
