@@ -382,7 +382,6 @@ impl Config {
                     },
                     parallel: true,
                     parallel_min: crate::solver::default_parallel_min(),
-                    records_parallel_min: crate::solver::default_records_parallel_min(),
                     threads: v.threads,
                     gauss_seidel: GaussSeidelSettings {
                         relax: v.gs_relax,

@@ -10,7 +10,6 @@ use super::Contact;
 use crate::error::{Error, Result};
 use crate::model::{BodyKind, NOT_GLUED, Scene, WallDrive};
 use crate::solver::color::{Coloring, Node, color};
-use crate::solver::resident::{Resident, SpinBarrier};
 
 /// A uniform grid of square cells holding disk indices, built by counting sort so that the
 /// order of disks inside a cell is their index order (deterministic).
@@ -320,11 +319,6 @@ pub struct Neighbours {
     origin: Option<ListOrigin>,
     /// What emission reads of each disk, one cache line per disk ([`Line`]).
     lines: Vec<Line>,
-    /// The records and slot indices of team members 1.. for the current color
-    /// ([`Self::emit_on`]).
-    buffers: Vec<(Vec<Contact>, Vec<u32>)>,
-    /// Records made by each member in each color, color by color ([`Self::emit_on`]).
-    counts: Vec<usize>,
     /// Grid searches made so far (the tests check that the list is both rebuilt and reused).
     pub rebuilds: u64,
 }
@@ -380,216 +374,6 @@ fn prefetch(lines: &[Line], k: usize) {
     let _ = (lines, k);
 }
 
-/// Disk `k`'s line for a step with the start-of-step `velocities` (zero unless `moving`).
-#[inline]
-fn line(scene: &Scene, velocities: &[DVec3], moving: bool, k: usize) -> Line {
-    let d = &scene.disks;
-    Line {
-        pos: d.pos[k],
-        radius: d.radius[k],
-        inv_mass: d.inv_mass[k],
-        k: d.radius[k] * d.inv_inertia[k],
-        v: if moving { velocities[k] } else { DVec3::ZERO },
-    }
-}
-
-/// The deepest overlap among records: its gap (m, below zero) and the record's index; the
-/// first of the deepest in the records' order.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Deepest {
-    /// The gap (m): zero when no record overlaps.
-    gap: f64,
-    /// The record's index, if one overlaps.
-    at: Option<usize>,
-}
-
-impl Deepest {
-    /// No overlap.
-    const NONE: Deepest = Deepest { gap: 0.0, at: None };
-
-    /// Counts record `k` with gap `gap` (records seen in order).
-    #[inline]
-    fn see(&mut self, gap: f64, k: usize) {
-        if gap < self.gap {
-            self.gap = gap;
-            self.at = Some(k);
-        }
-    }
-
-    /// The deepest of `self` and `later`, whose records all come after `self`'s.
-    fn or_later(self, later: Deepest) -> Deepest {
-        if later.gap < self.gap { later } else { self }
-    }
-
-    /// The deepest of two in any order: the deeper, or the first of equal ones.
-    fn deeper(self, other: Deepest) -> Deepest {
-        match (self.at, other.at) {
-            (Some(a), Some(b)) if other.gap == self.gap => {
-                if b < a {
-                    other
-                } else {
-                    self
-                }
-            }
-            _ => self.or_later(other),
-        }
-    }
-
-    /// The same with its record's index moved by `by` (a buffer's records put in place).
-    fn shifted(self, by: usize) -> Deepest {
-        Deepest {
-            at: self.at.map(|k| k + by),
-            ..self
-        }
-    }
-}
-
-/// Where an emission puts its records and their slots' indices.
-trait Sink {
-    /// The index the next record will have.
-    fn next(&self) -> usize;
-    fn put(&mut self, c: Contact, slot: u32);
-}
-
-impl Sink for (&mut Vec<Contact>, &mut Vec<u32>) {
-    #[inline]
-    fn next(&self) -> usize {
-        self.0.len()
-    }
-
-    #[inline]
-    fn put(&mut self, c: Contact, slot: u32) {
-        self.0.push(c);
-        self.1.push(slot);
-    }
-}
-
-/// Records written in place, from index `n` on, in room reserved beforehand.
-struct InPlace {
-    out: *mut Contact,
-    emitted: *mut u32,
-    n: usize,
-}
-
-impl InPlace {
-    /// # Safety
-    /// `out` and `emitted` must have room for every record put, from index `n` on, and no
-    /// other thread may touch those places meanwhile.
-    unsafe fn at(out: *mut Contact, emitted: *mut u32, n: usize) -> Self {
-        InPlace { out, emitted, n }
-    }
-}
-
-impl Sink for InPlace {
-    #[inline]
-    fn next(&self) -> usize {
-        self.n
-    }
-
-    #[inline]
-    fn put(&mut self, c: Contact, slot: u32) {
-        // SAFETY: the room and the exclusivity promised to `InPlace::at`.
-        unsafe {
-            self.out.add(self.n).write(c);
-            self.emitted.add(self.n).write(slot);
-        }
-        self.n += 1;
-    }
-}
-
-/// What one emission reads, the same for every member that emits.
-struct Emit<'a> {
-    scene: &'a Scene,
-    alert: f64,
-    lines: &'a [Line],
-    velocities: &'a [DVec3],
-    moving: bool,
-}
-
-impl Emit<'_> {
-    /// Makes the records of `slots`, the list's slots from index `first` on: each record
-    /// that is a contact is seen by `each` and put in `sink` with its slot's index; a
-    /// pair that parted loses its impulses. Returns the deepest overlap, indexed as `sink`
-    /// indexes.
-    #[inline]
-    fn slots<S: Sink, F>(&self, slots: &mut [Slot], first: usize, sink: &mut S, each: &F) -> Deepest
-    where
-        F: Fn(&mut Contact, DVec3, DVec3),
-    {
-        let (scene, alert, lines) = (self.scene, self.alert, self.lines);
-        let d = &scene.disks;
-        let nd = d.len();
-        let mu_disk = scene.material.mu_disk;
-        let at = |k: usize| (lines[k].pos, lines[k].radius);
-        let side = |k: usize| {
-            let l = &lines[k];
-            side(scene, k, l.radius, l.inv_mass, l.k)
-        };
-        let velocity = |b: u32| match lines.get(b as usize) {
-            Some(l) => l.v,
-            None if self.moving => self.velocities[b as usize],
-            None => DVec3::ZERO,
-        };
-        let mut deepest = Deepest::NONE;
-        for s in 0..slots.len() {
-            if let Some(ahead) = slots.get(s + AHEAD) {
-                prefetch(lines, ahead.p as usize);
-                prefetch(lines, ahead.q as usize);
-            }
-            let slot = &mut slots[s];
-            let (p, q) = (slot.p as usize, slot.q as usize);
-            let found = if q >= nd {
-                let (x, r) = at(p);
-                let gap = scene.walls[q - nd].distance(x) - r;
-                (gap < alert).then(|| wall_contact_of(scene, side(p), q - nd, gap))
-            } else {
-                near_at(&d.kind, p, q, alert, at)
-                    .map(|(gap, n)| pair_contact_of(&d.kind, p, q, n, gap, mu_disk, side))
-            };
-            match found {
-                Some(mut c) => {
-                    if slot.rn > 0.0 {
-                        c.rn = slot.rn;
-                        c.rt = slot.rt;
-                    }
-                    deepest.see(c.gap, sink.next());
-                    let (vi, vj) = (velocity(c.i), velocity(c.j));
-                    each(&mut c, vi, vj);
-                    sink.put(c, (first + s) as u32);
-                }
-                None => {
-                    // A pair that parts loses its impulses: it starts from zero if it
-                    // closes again, as a new contact would.
-                    slot.rn = 0.0;
-                    slot.rt = 0.0;
-                }
-            }
-        }
-        deepest
-    }
-}
-
-/// Raw pointers shared by the members of an emission ([`Neighbours::emit_on`]); each
-/// member writes only its own shares between two barriers.
-#[derive(Clone, Copy)]
-struct Raw {
-    slots: *mut Slot,
-    lines: *mut Line,
-    out: *mut Contact,
-    emitted: *mut u32,
-    buffers: *mut (Vec<Contact>, Vec<u32>),
-    counts: *mut usize,
-    deepest: *mut Deepest,
-}
-
-// SAFETY: see the struct's comment; the barrier orders every write before every read.
-unsafe impl Send for Raw {}
-unsafe impl Sync for Raw {}
-
-/// Member 0's extra share of a color in the team's emission, in quarters of a share
-/// ([`Neighbours::emit_on`]).
-const EXTRA: usize = 1;
-
 /// What the list depends on, as it was when the list was built.
 #[derive(Clone, Debug, Default)]
 struct Built {
@@ -628,8 +412,7 @@ impl Neighbours {
     /// Same contract as [`detect`] (records by key, impulses at zero until
     /// [`Self::keep_impulses`] keeps some); `skin` (m) is the margin of the kept list.
     pub fn detect(&mut self, scene: &Scene, alert: f64, skin: f64, out: &mut Vec<Contact>) -> Result<()> {
-        self.detect_kept(scene, alert, skin, false, None, out, &[], |_, _, _| {})
-            .map(|_| ())
+        self.detect_kept(scene, alert, skin, false, None, out, &[], |_, _, _, _| {})
     }
 
     /// The contact records of the listed pairs closer than `alert`, in the list's order:
@@ -637,11 +420,10 @@ impl Neighbours {
     /// carries the impulses its pair kept from the last step, or, with `warm`, those of
     /// its key there (`(key, R_n, R_t)` sorted by key, e.g. from a checkpoint; zero for a
     /// key not listed). Impulses are those kept, not clamped to the friction cone.
-    /// `each(contact, v_i, v_j)` sees each contact before it is stored, while it is in the
+    /// `each(k, contact, v_i, v_j)` sees contact `k` before it is stored, while it is in the
     /// cache (at 50,000 disks a pass over the 21 MB of records cost about a millisecond),
     /// with the start-of-step velocities of its bodies i and j taken from `velocities`
-    /// (every body's, disks then walls; zero when `velocities` is empty). Returns the index
-    /// of the record that overlaps most (the first of equals), if any overlaps.
+    /// (every body's, disks then walls; zero when `velocities` is empty).
     #[allow(clippy::too_many_arguments)]
     pub fn detect_kept(
         &mut self,
@@ -652,29 +434,8 @@ impl Neighbours {
         warm: Option<&[(u64, f64, f64)]>,
         out: &mut Vec<Contact>,
         velocities: &[DVec3],
-        each: impl Fn(&mut Contact, DVec3, DVec3) + Sync,
-    ) -> Result<Option<usize>> {
-        let given = (scene, alert, skin, colored, warm);
-        self.detect_kept_on(given, None, out, velocities, &each)
-    }
-
-    /// [`Self::detect_kept`], with the records of a colored list made on `team`: then
-    /// `each` runs on several threads at once, for records of one color at a time, which
-    /// share no movable body (`each` may write their movable bodies' velocities; the
-    /// serial group, whose records share a force-driven wall, is made on one thread). The
-    /// records, their order and what `each` sees are the same as without a team.
-    #[allow(clippy::type_complexity)]
-    pub(crate) fn detect_kept_on<F>(
-        &mut self,
-        (scene, alert, skin, colored, warm): (&Scene, f64, f64, bool, Option<&[(u64, f64, f64)]>),
-        team: Option<&Resident>,
-        out: &mut Vec<Contact>,
-        velocities: &[DVec3],
-        each: &F,
-    ) -> Result<Option<usize>>
-    where
-        F: Fn(&mut Contact, DVec3, DVec3) + Sync,
-    {
+        each: impl FnMut(usize, &mut Contact, DVec3, DVec3),
+    ) -> Result<()> {
         if let Some(o) = self.origin.take()
             && o.pos.len() == scene.disks.len()
             && o.wall_points.len() == scene.walls.len()
@@ -688,7 +449,8 @@ impl Neighbours {
         if let Some(w) = warm {
             self.load(&scene.disks.kind, w);
         }
-        Ok(self.emit(scene, alert, out, velocities, team, each).at)
+        self.emit(scene, alert, out, velocities, each);
+        Ok(())
     }
 
     /// Where the list was built, if it still serves `scene` with these settings: with the
@@ -771,192 +533,78 @@ impl Neighbours {
         }
     }
 
-    /// The records of the listed pairs closer than `alert` into `out` (by the list's
-    /// ranges, [`Self::contact_ranges`]), each seen by `each` before it is stored; on
-    /// `team` when given and the list is colored. Returns the deepest overlap.
-    fn emit<F>(
+    fn emit(
         &mut self,
         scene: &Scene,
         alert: f64,
         out: &mut Vec<Contact>,
         velocities: &[DVec3],
-        team: Option<&Resident>,
-        each: &F,
-    ) -> Deepest
-    where
-        F: Fn(&mut Contact, DVec3, DVec3) + Sync,
-    {
-        let nd = scene.disks.len();
+        mut each: impl FnMut(usize, &mut Contact, DVec3, DVec3),
+    ) {
+        let d = &scene.disks;
+        let nd = d.len();
+        let mu_disk = scene.material.mu_disk;
         let moving = velocities.len() == nd + scene.walls.len();
+        self.lines.clear();
+        self.lines.extend((0..nd).map(|k| Line {
+            pos: d.pos[k],
+            radius: d.radius[k],
+            inv_mass: d.inv_mass[k],
+            k: d.radius[k] * d.inv_inertia[k],
+            v: if moving { velocities[k] } else { DVec3::ZERO },
+        }));
+        let lines = &self.lines[..];
+        let at = |k: usize| (lines[k].pos, lines[k].radius);
+        let side = |k: usize| {
+            let l = &lines[k];
+            side(scene, k, l.radius, l.inv_mass, l.k)
+        };
+        let velocity = |b: u32| match lines.get(b as usize) {
+            Some(l) => l.v,
+            None if moving => velocities[b as usize],
+            None => DVec3::ZERO,
+        };
         out.clear();
         self.emitted.clear();
         self.contact_ranges.clear();
         self.contact_ranges.push(0);
-        // Only a coloring says which records may be made at the same time.
-        if let Some(team) = team.filter(|_| self.colored) {
-            return self.emit_on(team, scene, alert, out, velocities, each);
-        }
-        self.lines.clear();
-        self.lines
-            .extend((0..nd).map(|k| line(scene, velocities, moving, k)));
-        let emit = Emit {
-            scene,
-            alert,
-            lines: &self.lines,
-            velocities,
-            moving,
-        };
-        let mut deepest = Deepest::NONE;
         for w in self.ranges.windows(2) {
-            let (a, b) = (w[0] as usize, w[1] as usize);
-            let mut sink = (&mut *out, &mut self.emitted);
-            deepest = deepest.or_later(emit.slots(&mut self.slots[a..b], a, &mut sink, each));
+            for s in w[0]..w[1] {
+                if let Some(ahead) = self.slots.get(s as usize + AHEAD) {
+                    prefetch(lines, ahead.p as usize);
+                    prefetch(lines, ahead.q as usize);
+                }
+                let slot = &mut self.slots[s as usize];
+                let (p, q) = (slot.p as usize, slot.q as usize);
+                let found = if q >= nd {
+                    let (x, r) = at(p);
+                    let gap = scene.walls[q - nd].distance(x) - r;
+                    (gap < alert).then(|| wall_contact_of(scene, side(p), q - nd, gap))
+                } else {
+                    near_at(&d.kind, p, q, alert, at)
+                        .map(|(gap, n)| pair_contact_of(&d.kind, p, q, n, gap, mu_disk, side))
+                };
+                match found {
+                    Some(mut c) => {
+                        if slot.rn > 0.0 {
+                            c.rn = slot.rn;
+                            c.rt = slot.rt;
+                        }
+                        let (vi, vj) = (velocity(c.i), velocity(c.j));
+                        each(out.len(), &mut c, vi, vj);
+                        out.push(c);
+                        self.emitted.push(s);
+                    }
+                    None => {
+                        // A pair that parts loses its impulses: it starts from zero if it
+                        // closes again, as a new contact would.
+                        slot.rn = 0.0;
+                        slot.rt = 0.0;
+                    }
+                }
+            }
             self.contact_ranges.push(out.len() as u32);
         }
-        deepest
-    }
-
-    /// [`Self::emit`] on the members of `team`, colored list only: each member makes a
-    /// contiguous share of every color's records, and the members meet at a barrier after
-    /// each color. The records of one color share no movable body, so `each` may write
-    /// their bodies' velocities at the same time, and the velocities see the colors in the
-    /// same order as on one thread. Member 0 writes its share in place; the others make
-    /// theirs in a buffer and copy it behind the shares before theirs once the color's
-    /// counts are known, while member 0 goes on to the next color. The records, their
-    /// order and the velocities are those of one thread, bit for bit.
-    fn emit_on<F>(
-        &mut self,
-        team: &Resident,
-        scene: &Scene,
-        alert: f64,
-        out: &mut Vec<Contact>,
-        velocities: &[DVec3],
-        each: &F,
-    ) -> Deepest
-    where
-        F: Fn(&mut Contact, DVec3, DVec3) + Sync,
-    {
-        let n = team.size();
-        let nd = scene.disks.len();
-        let n_slots = self.slots.len();
-        let n_colors = self.ranges.len() - 1;
-        let moving = velocities.len() == nd + scene.walls.len();
-        let serial = self.serial_last.then(|| n_colors - 1);
-        self.lines.clear();
-        self.lines.reserve(nd);
-        out.reserve(n_slots);
-        self.emitted.reserve(n_slots);
-        self.buffers.resize_with(n - 1, Default::default);
-        self.counts.clear();
-        self.counts.resize(n_colors * n, 0);
-        let mut deepest = vec![Deepest::NONE; n];
-        let shared = Raw {
-            slots: self.slots.as_mut_ptr(),
-            lines: self.lines.as_mut_ptr(),
-            out: out.as_mut_ptr(),
-            emitted: self.emitted.as_mut_ptr(),
-            buffers: self.buffers.as_mut_ptr(),
-            counts: self.counts.as_mut_ptr(),
-            deepest: deepest.as_mut_ptr(),
-        };
-        let ranges = &self.ranges[..];
-        let barrier = SpinBarrier::of(team);
-        let share = |a: usize, b: usize, t: usize| (a + (b - a) * t / n, a + (b - a) * (t + 1) / n);
-        // Member 0 takes a larger share of each color, as the others copy theirs after
-        // making it: weights 1 + EXTRA / 4 and 1.
-        let edge = |a: usize, b: usize, t: usize| match t {
-            0 => a,
-            t if t == n => b,
-            t => a + (b - a) * (4 * t + EXTRA) / (4 * n + EXTRA),
-        };
-        team.run(&|t| {
-            // The whole struct, which is Sync, rather than its fields one by one.
-            let raw = shared;
-            let (k0, k1) = share(0, nd, t);
-            for k in k0..k1 {
-                // SAFETY: `lines` has room for `nd` lines (reserved above) and member t
-                // alone writes its share; the barrier orders the writes before any read.
-                unsafe { raw.lines.add(k).write(line(scene, velocities, moving, k)) };
-            }
-            barrier.wait();
-            // SAFETY: every line was written before the barrier.
-            let lines = unsafe { std::slice::from_raw_parts(raw.lines, nd) };
-            let emit = Emit {
-                scene,
-                alert,
-                lines,
-                velocities,
-                moving,
-            };
-            let mut mine = Deepest::NONE;
-            let mut base = 0;
-            for c in 0..n_colors {
-                let (a, b) = (ranges[c] as usize, ranges[c + 1] as usize);
-                // The serial group's records share a body: member 0 makes them all.
-                let (s0, s1) = match serial {
-                    Some(last) if last == c => {
-                        if t == 0 {
-                            (a, b)
-                        } else {
-                            (b, b)
-                        }
-                    }
-                    _ => (edge(a, b, t), edge(a, b, t + 1)),
-                };
-                // SAFETY: the slots of a member's share are its alone in this color.
-                let slots = unsafe { std::slice::from_raw_parts_mut(raw.slots.add(s0), s1 - s0) };
-                let (made, found) = if t == 0 {
-                    // SAFETY: `out` and `emitted` have room for every slot; the records
-                    // before `base` are the earlier colors', and the other members write
-                    // behind this member's share only once its count is known.
-                    let mut sink = unsafe { InPlace::at(raw.out, raw.emitted, base) };
-                    let found = emit.slots(slots, s0, &mut sink, each);
-                    (sink.n - base, found)
-                } else {
-                    // SAFETY: member t alone touches buffer t - 1.
-                    let buffer = unsafe { &mut *raw.buffers.add(t - 1) };
-                    buffer.0.clear();
-                    buffer.1.clear();
-                    let found = emit.slots(slots, s0, &mut (&mut buffer.0, &mut buffer.1), each);
-                    (buffer.0.len(), found)
-                };
-                // SAFETY: count (c, t) is member t's; the others read it after the barrier.
-                unsafe { raw.counts.add(c * n + t).write(made) };
-                barrier.wait();
-                // SAFETY: every count of color c was written before the barrier.
-                let counts = unsafe { std::slice::from_raw_parts(raw.counts.add(c * n), n) };
-                if t > 0 {
-                    let at = base + counts[..t].iter().sum::<usize>();
-                    // SAFETY: the destination, behind the shares of members 0..t of this
-                    // color, is this member's alone, within the room reserved.
-                    unsafe {
-                        let buffer = &*raw.buffers.add(t - 1);
-                        std::ptr::copy_nonoverlapping(buffer.0.as_ptr(), raw.out.add(at), made);
-                        std::ptr::copy_nonoverlapping(buffer.1.as_ptr(), raw.emitted.add(at), made);
-                    }
-                    mine = mine.or_later(found.shifted(at));
-                } else {
-                    mine = mine.or_later(found);
-                }
-                base += counts.iter().sum::<usize>();
-            }
-            // SAFETY: entry t is member t's; read after the job.
-            unsafe { raw.deepest.add(t).write(mine) };
-        });
-        let total: usize = self.counts.iter().sum();
-        // SAFETY: the members wrote every record and slot index below `total` (the
-        // colors' shares tile it), and `run` returned after all of them.
-        unsafe {
-            self.lines.set_len(nd);
-            out.set_len(total);
-            self.emitted.set_len(total);
-        }
-        let mut end = 0;
-        for c in self.counts.chunks(n) {
-            end += c.iter().sum::<usize>();
-            self.contact_ranges.push(end as u32);
-        }
-        deepest.into_iter().fold(Deepest::NONE, Deepest::deeper)
     }
 
     fn stale(&self, scene: &Scene, alert: f64, skin: f64, colored: bool) -> bool {
@@ -1209,135 +857,4 @@ fn make_contact(si: Side, sj: Side, b: usize, n: DVec2, gap: f64, mu: f64) -> Co
     };
     c.compute_delassus();
     c
-}
-
-#[cfg(test)]
-mod tests {
-    use std::sync::atomic::{AtomicU64, Ordering};
-
-    use super::*;
-    use crate::model::{Material, Wall};
-    use crate::solver::resident::Resident;
-
-    /// A 40 x 40 square packing of slightly overlapping disks in a box whose right wall is
-    /// force-driven and carries a column of glued disks: proper colors and a serial group.
-    fn boxed() -> Scene {
-        let mut s = Scene {
-            material: Material {
-                mu_disk: 0.3,
-                mu_wall: 0.3,
-                e_n: 0.0,
-                e_t: 0.0,
-            },
-            ..Default::default()
-        };
-        let mut x = 7u64;
-        let mut next = || {
-            x = x
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (x >> 11) as f64 / (1u64 << 53) as f64
-        };
-        for a in 0..40 {
-            for b in 0..40 {
-                let r = 0.49 + 0.03 * next();
-                let k = s.disks.push(DVec2::new(a as f64, b as f64), r, 1000.0).unwrap();
-                s.disks.vel[k] = DVec2::new(next() - 0.5, next() - 0.5);
-            }
-        }
-        s.walls.push(Wall::fixed(DVec2::new(0.0, -0.5), DVec2::Y));
-        s.walls.push(Wall::fixed(DVec2::new(0.0, 39.5), -DVec2::Y));
-        s.walls.push(Wall::fixed(DVec2::new(-0.5, 0.0), DVec2::X));
-        s.walls.push(Wall::fixed(DVec2::new(39.5, 0.0), -DVec2::X));
-        s.walls[3].drive = WallDrive::Force {
-            mass: 50.0,
-            force: 10.0,
-        };
-        for b in 0..40 {
-            s.disks.glue(39 * 40 + b, 3);
-        }
-        s
-    }
-
-    /// What one detection gives: the records, their color ranges, the slots of the
-    /// records, the deepest record, and what `each` added to each body (as bits).
-    type Made = (Vec<Contact>, Vec<u32>, Vec<u32>, Option<usize>, Vec<u64>);
-
-    fn made(list: &mut Neighbours, s: &Scene, v: &[DVec3], team: Option<&Resident>) -> Made {
-        let sums: Vec<AtomicU64> = (0..v.len()).map(|_| AtomicU64::new(0)).collect();
-        let add = |b: u32, x: f64| {
-            let cell = &sums[b as usize];
-            let old = f64::from_bits(cell.load(Ordering::Relaxed));
-            // Not commutative in its rounding: a body's terms must come in one order.
-            cell.store((old * 1.000_000_1 + x).to_bits(), Ordering::Relaxed);
-        };
-        let each = |c: &mut Contact, vi: DVec3, vj: DVec3| {
-            c.un0 = (vi - vj).x;
-            if c.moves_i() {
-                add(c.i, c.rn + vi.y);
-            }
-            if c.moves_j() {
-                add(c.j, c.rt - vj.y);
-            }
-        };
-        let mut out = Vec::new();
-        let deepest = list
-            .detect_kept_on((s, 0.05, 0.1, true, None), team, &mut out, v, &each)
-            .unwrap();
-        let sums = sums.into_iter().map(AtomicU64::into_inner).collect();
-        (
-            out,
-            list.contact_ranges().to_vec(),
-            list.emitted.clone(),
-            deepest,
-            sums,
-        )
-    }
-
-    #[test]
-    fn records_made_on_a_team_are_those_of_one_thread_bit_for_bit() {
-        let mut s = boxed();
-        let n = s.disks.len() + s.walls.len();
-        let v: Vec<DVec3> = (0..n)
-            .map(|k| DVec3::new((k % 7) as f64 - 3.0, (k % 5) as f64 * 0.5, (k % 3) as f64))
-            .collect();
-        let mut lists = [
-            Neighbours::default(),
-            Neighbours::default(),
-            Neighbours::default(),
-        ];
-        let teams = [None, Some(Resident::new(2)), Some(Resident::new(3))];
-        for step in 0..3 {
-            let results: Vec<Made> = lists
-                .iter_mut()
-                .zip(&teams)
-                .map(|(l, t)| made(l, &s, &v, t.as_ref()))
-                .collect();
-            let one = &results[0];
-            assert!(one.0.len() > 3000, "step {step}: {} records", one.0.len());
-            assert!(lists[0].serial_last(), "step {step}: a serial group");
-            assert!(one.3.is_some(), "step {step}: the disks overlap");
-            if step > 0 {
-                assert!(one.0.iter().any(|c| c.rn > 0.0), "step {step}: impulses kept");
-            }
-            for (m, r) in results.iter().enumerate().skip(1) {
-                assert_eq!(r.0, one.0, "step {step}, team of {}: records", m + 1);
-                assert_eq!(r.1, one.1, "step {step}, team of {}: ranges", m + 1);
-                assert_eq!(r.2, one.2, "step {step}, team of {}: slots", m + 1);
-                assert_eq!(r.3, one.3, "step {step}, team of {}: deepest", m + 1);
-                assert_eq!(r.4, one.4, "step {step}, team of {}: each's writes", m + 1);
-            }
-            // Impulses to keep for the next step's warm start, and a pair that parts.
-            for (l, r) in lists.iter_mut().zip(&results) {
-                let mut kept = r.0.clone();
-                for (k, c) in kept.iter_mut().enumerate() {
-                    c.rn = if k % 3 == 0 { 0.0 } else { 1e-3 * (k % 11) as f64 };
-                    c.rt = 1e-4 * (k % 13) as f64 - 5e-4;
-                }
-                l.keep_impulses(&kept, |_| {});
-            }
-            s.disks.pos[500].x += 0.04;
-            s.disks.pos[901].y -= 0.03;
-        }
-    }
 }

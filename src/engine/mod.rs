@@ -74,9 +74,6 @@ pub struct StepStats {
 pub struct PhaseTimes {
     /// Steps counted.
     pub steps: u64,
-    /// Steps whose contact records the thread team made
-    /// ([`crate::solver::SolverParams::records_parallel_min`]).
-    pub team_detections: u64,
     /// Contact detection: the kept pair list (rebuilt on the grid when stale) and the
     /// contact records, with their start-of-step values (relative velocities, law offsets,
     /// warm start), filled in as each record is made.
@@ -105,7 +102,6 @@ impl PhaseTimes {
     pub fn since(&self, earlier: &PhaseTimes) -> PhaseTimes {
         PhaseTimes {
             steps: self.steps - earlier.steps,
-            team_detections: self.team_detections - earlier.team_detections,
             detect: self.detect - earlier.detect,
             contacts: self.contacts - earlier.contacts,
             setup: self.setup - earlier.setup,
@@ -239,30 +235,28 @@ impl CpuEngine {
         let colored = p.solver.method == Method::ColoredGs;
         let warm = self.warm.take();
         self.gv.clone_from(&self.gv0);
-        let prepare = Prepare {
-            gv: Velocities::of(&mut self.gv),
+        let mut prepare = Prepare {
+            gv: &mut self.gv,
             e_n: scene.material.e_n,
             e_t: scene.material.e_t,
             dt,
             theta,
+            worst: None,
+            deepest: 0.0,
         };
-        // The records are made on the sweeps' team too on large samples (decided on the
-        // last step's count: the choice changes nothing but the time).
-        let threads = p.solver.team_size();
-        let on_team = colored
-            && threads > 1
-            && self.contacts.len() >= p.solver.parallel_min.max(p.solver.records_parallel_min);
-        let team = on_team.then(|| self.work.team(threads));
-        let worst = self
-            .neighbours
-            .detect_kept_on(
-                (scene, p.alert, skin(&p), colored, warm.as_deref()),
-                team,
+        self.neighbours
+            .detect_kept(
+                scene,
+                p.alert,
+                skin(&p),
+                colored,
+                warm.as_deref(),
                 &mut self.contacts,
                 &self.gv_minus,
-                &|c, vi, vj| prepare.contact(c, vi, vj),
+                |k, c, vi, vj| prepare.contact(k, c, vi, vj),
             )
             .map_err(|e| at_step(e, scene.step))?;
+        let worst = prepare.worst;
         let max_overlap = self.check_overlap(worst, scene)?;
         if let Some(c) = self.captured.as_deref_mut() {
             c.contacts.clone_from(&self.contacts);
@@ -297,7 +291,6 @@ impl CpuEngine {
         let w = self.work.times();
         let t = &mut self.times;
         t.steps += 1;
-        t.team_detections += u64::from(on_team);
         t.detect += (t_solve - t_detect).as_secs_f64();
         t.contacts += (t_detect - t_contacts).as_secs_f64();
         t.setup += w.setup;
@@ -448,19 +441,23 @@ impl CpuEngine {
 /// What a step does to each contact as detection makes it: start-of-step velocities, law
 /// offsets and warm start, leaving in `gv` the free velocities plus the warm-start
 /// impulses; and it finds the contact with the largest overlap.
-struct Prepare {
-    gv: Velocities,
+struct Prepare<'a> {
+    gv: &'a mut [DVec3],
     e_n: f64,
     e_t: f64,
     dt: f64,
     theta: f64,
+    worst: Option<usize>,
+    deepest: f64,
 }
 
-impl Prepare {
-    /// A record's start-of-step values, and its kept impulses added to its bodies'
-    /// velocities (the warm start).
+impl Prepare<'_> {
     #[inline]
-    fn contact(&self, c: &mut Contact, vi: DVec3, vj: DVec3) {
+    fn contact(&mut self, k: usize, c: &mut Contact, vi: DVec3, vj: DVec3) {
+        if c.gap < self.deepest {
+            self.deepest = c.gap;
+            self.worst = Some(k);
+        }
         let (un, ut) = c.relative_velocity_of(vi, vj);
         c.un0 = un;
         c.ut0 = ut;
@@ -469,50 +466,7 @@ impl Prepare {
         // Detection gave each contact the impulses its pair kept from the last step.
         if c.rn > 0.0 {
             c.rt = c.rt.clamp(-c.mu * c.rn, c.mu * c.rn);
-            self.gv.apply(c);
-        }
-    }
-}
-
-/// The step's velocities, written by the records' preparation from the threads that make
-/// them (`Neighbours::detect_kept_on` says which records it hands out at the same time:
-/// those of one color, which share no movable body).
-struct Velocities {
-    gv: *mut DVec3,
-    len: usize,
-}
-
-// SAFETY: the threads write disjoint bodies between two barriers (see the struct's comment).
-unsafe impl Sync for Velocities {}
-
-impl Velocities {
-    fn of(gv: &mut [DVec3]) -> Self {
-        Velocities {
-            gv: gv.as_mut_ptr(),
-            len: gv.len(),
-        }
-    }
-
-    /// [`Contact::apply`] of the record's impulses, writing only the bodies an impulse can
-    /// move ([`Contact::moves_i`], [`Contact::moves_j`]), as the sweeps do: a body that
-    /// cannot move may be shared by records of one color.
-    #[inline]
-    fn apply(&self, c: &Contact) {
-        let (i, j) = (c.i as usize, c.j as usize);
-        assert!(
-            i < self.len && j < self.len,
-            "a record's body beyond the velocities"
-        );
-        let (dvi, dvj) = c.velocity_changes(c.rn, c.rt);
-        // SAFETY: in range (checked above); no other thread writes these bodies now (the
-        // struct's comment), and the slice outlives the detection that calls this.
-        unsafe {
-            if c.moves_i() {
-                *self.gv.add(i) += dvi;
-            }
-            if c.moves_j() {
-                *self.gv.add(j) += dvj;
-            }
+            c.apply(self.gv, c.rn, c.rt);
         }
     }
 }

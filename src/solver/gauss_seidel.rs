@@ -12,7 +12,7 @@ use super::convergence::VelocityTest;
 use super::ctx::{Ctx, Line};
 use super::lanes::{avx, proper_colors, sweep_color_chunk};
 use super::quads::{for_each_impulse, gather_packed, row_at, set_impulses};
-use super::resident::{Resident, Slot};
+use super::resident::Slot;
 use super::rows::{self, BodyProps, FULL, Row, opening};
 use super::sweep::Colors;
 use super::update::{CHUNK, sweep_chunk, update};
@@ -155,13 +155,6 @@ impl Workspace {
         self.props
             .resize(self.props.len() + n_walls, BodyProps::default());
         self.props_given = true;
-    }
-
-    /// The sweeps' team of `threads` members (at least 2), started on first use, for the
-    /// step's other passes that split their work the same way (the contact records:
-    /// `contact::detect::Neighbours::detect_kept_on`).
-    pub(crate) fn team(&mut self, threads: usize) -> &Resident {
-        self.team.get(threads)
     }
 
     /// Forgets the coloring of the last solve, as a solve by another method must.

@@ -99,11 +99,6 @@ pub struct SolverParams {
     /// between colors; Jacobi on the rayon pool.
     #[serde(default = "default_parallel_min")]
     pub parallel_min: usize,
-    /// Smallest contact count (the last step's) from which colored Gauss-Seidel's team also
-    /// makes the step's contact records, color by color (`contact::detect`); below it the
-    /// calling thread makes them alone. Either way the records are the same bit for bit.
-    #[serde(default = "default_records_parallel_min")]
-    pub records_parallel_min: usize,
     /// Threads of the colored Gauss-Seidel team; 0 means every available core.
     #[serde(default)]
     pub threads: usize,
@@ -255,7 +250,6 @@ impl Default for SolverParams {
             jacobi: JacobiSettings { relax: 0.5 },
             parallel: true,
             parallel_min: default_parallel_min(),
-            records_parallel_min: default_records_parallel_min(),
             threads: 0,
             gauss_seidel: GaussSeidelSettings {
                 relax: default_gs_relax(),
@@ -280,14 +274,6 @@ impl Default for SolverParams {
 pub(crate) fn cores() -> usize {
     static CORES: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
     *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
-}
-
-/// Default of [`SolverParams::records_parallel_min`]. Made on two threads, the records of a
-/// 5000-disk test (10,600 contacts, a barrier per color) took the test 10% longer, those
-/// of a 50,000-disk test (150,000 contacts) 7% shorter (docs/benchmarks.md, "Records made
-/// on the team"); sizes in between were not measured.
-pub fn default_records_parallel_min() -> usize {
-    50_000
 }
 
 /// Default of [`SolverParams::parallel_min`]. Below a few thousand contacts a color is a

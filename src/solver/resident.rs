@@ -121,7 +121,7 @@ impl Resident {
     }
 
     /// Members counting the caller.
-    pub(crate) fn size(&self) -> usize {
+    pub(super) fn size(&self) -> usize {
         self.shared.n
     }
 
@@ -208,57 +208,6 @@ impl Drop for Resident {
             // A member only ends by returning; a panic in a job was caught.
             let _ = h.join();
         }
-    }
-}
-
-/// A reusable barrier for the members of a team, between the phases of one job: it spins
-/// briefly, then sleeps. The waits between colors are short (a few microseconds of work
-/// per color and thread on a 5000-disk sample), but on a loaded machine a descheduled
-/// member must not be waited for by spinning or yielding through whole time slices. The
-/// last thread to arrive wakes the sleepers.
-pub(crate) struct SpinBarrier {
-    n: usize,
-    count: AtomicUsize,
-    generation: AtomicUsize,
-    /// Every member's thread, woken by the last to arrive.
-    members: Vec<Thread>,
-}
-
-impl SpinBarrier {
-    /// A barrier for every member of `team`, the calling thread as member 0: made by the
-    /// thread that will hand the team its job.
-    pub(crate) fn of(team: &Resident) -> Self {
-        let members: Vec<Thread> = std::iter::once(std::thread::current())
-            .chain(team.threads().cloned())
-            .collect();
-        SpinBarrier {
-            n: members.len(),
-            count: AtomicUsize::new(0),
-            generation: AtomicUsize::new(0),
-            members,
-        }
-    }
-
-    /// Returns once every member has called it (as many times).
-    pub(crate) fn wait(&self) {
-        let generation = self.generation.load(Ordering::Acquire);
-        if self.count.fetch_add(1, Ordering::AcqRel) + 1 == self.n {
-            self.count.store(0, Ordering::Relaxed);
-            self.generation.fetch_add(1, Ordering::Release);
-            // Waking itself only leaves this thread a token for its next wait.
-            for t in &self.members {
-                t.unpark();
-            }
-            return;
-        }
-        // Spin for up to SPIN before sleeping: a color's work per thread is a few
-        // microseconds on a 5000-disk sample, and a sleep/wake pair through the kernel costs
-        // more than that; the spin is bounded in time, not in pauses, whose length varies by
-        // processor (docs/benchmarks.md, "Thread team").
-        const SPIN: Duration = Duration::from_micros(100);
-        wait_until(SPIN, SPIN, || {
-            self.generation.load(Ordering::Acquire) != generation
-        });
     }
 }
 

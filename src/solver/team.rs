@@ -11,14 +11,58 @@
 //! ([`super::gauss_seidel`]) adds them. Why the members may write the velocities at the
 //! same time: [`super::ctx`].
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use super::SolverParams;
 use super::ctx::Ctx;
 use super::lanes::{proper_colors, sweep_color_chunk};
-use super::resident::{Resident, SpinBarrier};
+use super::resident::{Resident, wait_until};
 use super::rows::Row;
 use super::update::{CHUNK, sweep_chunk};
+
+/// A reusable barrier that spins briefly, then sleeps: the waits between colors are
+/// short (a few microseconds of work per color and thread on a 5000-disk sample), but on
+/// a loaded machine a descheduled team member must not be waited for by spinning or
+/// yielding through whole time slices. The last thread to arrive wakes the sleepers.
+struct SpinBarrier {
+    n: usize,
+    count: AtomicUsize,
+    generation: AtomicUsize,
+    /// Every member's thread, woken by the last to arrive.
+    members: Vec<std::thread::Thread>,
+}
+
+impl SpinBarrier {
+    fn new(members: Vec<std::thread::Thread>) -> Self {
+        SpinBarrier {
+            n: members.len(),
+            count: AtomicUsize::new(0),
+            generation: AtomicUsize::new(0),
+            members,
+        }
+    }
+
+    fn wait(&self) {
+        let generation = self.generation.load(Ordering::Acquire);
+        if self.count.fetch_add(1, Ordering::AcqRel) + 1 == self.n {
+            self.count.store(0, Ordering::Relaxed);
+            self.generation.fetch_add(1, Ordering::Release);
+            // Waking itself only leaves this thread a token for its next wait.
+            for t in &self.members {
+                t.unpark();
+            }
+            return;
+        }
+        // Spin for up to SPIN before sleeping: a color's work per thread is a few
+        // microseconds on a 5000-disk sample, and a sleep/wake pair through the kernel costs
+        // more than that; the spin is bounded in time, not in pauses, whose length varies by
+        // processor (docs/benchmarks.md, "Thread team").
+        const SPIN: std::time::Duration = std::time::Duration::from_micros(100);
+        wait_until(SPIN, SPIN, || {
+            self.generation.load(Ordering::Acquire) != generation
+        });
+    }
+}
 
 /// What only member 0 touches: it runs on the calling thread ([`Resident::run`]), so the
 /// caller's convergence test need not be sendable.
@@ -109,7 +153,11 @@ pub(super) fn sweep_iterations(
         rows: rows.as_mut_ptr(),
         partial: partial.as_mut_ptr(),
     };
-    let barrier = SpinBarrier::of(team);
+    let barrier = SpinBarrier::new(
+        std::iter::once(std::thread::current())
+            .chain(team.threads().cloned())
+            .collect(),
+    );
     let done = CallerOnly(std::cell::RefCell::new(done));
     let stop = AtomicBool::new(false);
     let n_chunks = layout.chunks.len();

@@ -24,7 +24,6 @@ pub fn tight(method: Method) -> StepParams {
             jacobi: cdlab::solver::JacobiSettings { relax: 0.5 },
             parallel: true,
             parallel_min: cdlab::solver::default_parallel_min(),
-            records_parallel_min: cdlab::solver::default_records_parallel_min(),
             threads: 0,
             gauss_seidel: cdlab::solver::GaussSeidelSettings {
                 relax: cdlab::solver::default_gs_relax(),
