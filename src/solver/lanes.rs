@@ -27,11 +27,32 @@ pub(super) fn avx() -> bool {
     false
 }
 
-/// How the colored sweeps of this process update a color: "AVX, 4 contacts at a time",
-/// "SSE2, 2 contacts at a time" or "1 contact at a time" (named in the CPU backend's
-/// description, so that timings from different processors can be read side by side).
+/// Whether the packed quads are swept two at a time, eight rows in 512-bit registers: with
+/// [`avx`] on a processor with AVX-512F (checked once at run time), unless
+/// `CDLAB_NO_AVX512=1` asks for four at a time (to time or compare them).
+pub(super) fn avx512() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::sync::OnceLock;
+        static AVX512: OnceLock<bool> = OnceLock::new();
+        *AVX512.get_or_init(|| {
+            avx()
+                && std::arch::is_x86_feature_detected!("avx512f")
+                && std::env::var_os("CDLAB_NO_AVX512").is_none_or(|v| v != "1")
+        })
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    false
+}
+
+/// How the colored sweeps of this process update a color: "AVX-512, 8 contacts at a
+/// time", "AVX, 4 contacts at a time", "SSE2, 2 contacts at a time" or "1 contact at a
+/// time" (named in the CPU backend's description, so that timings from different
+/// processors can be read side by side).
 pub fn colored_lanes() -> &'static str {
-    if avx() {
+    if avx512() {
+        "AVX-512, 8 contacts at a time"
+    } else if avx() {
         "AVX, 4 contacts at a time"
     } else if cfg!(target_arch = "x86_64") {
         "SSE2, 2 contacts at a time"
@@ -67,28 +88,47 @@ pub(super) unsafe fn sweep_color_chunk(chunk: &mut [Row], ctx: Ctx) -> (f64, f64
     return unsafe { sweep_chunk(chunk, ctx) };
     #[cfg(target_arch = "x86_64")]
     unsafe {
+        sweep_lanes(chunk, ctx, avx512())
+    }
+}
+
+/// [`sweep_color_chunk`], eight rows at a time first when `octs` (the caller checked
+/// AVX-512F), then the packed quads, then pairs, then the last row.
+///
+/// # Safety
+/// As [`sweep_color_chunk`]; with `octs`, the processor has AVX-512F.
+#[cfg(target_arch = "x86_64")]
+unsafe fn sweep_lanes(chunk: &mut [Row], ctx: Ctx, octs: bool) -> (f64, f64) {
+    // SAFETY: forwarded from the caller.
+    unsafe {
         if ctx.relax == 1.0 {
-            sweep_lanes::<false>(chunk, ctx)
+            sweep_widths::<false>(chunk, ctx, octs)
         } else {
-            sweep_lanes::<true>(chunk, ctx)
+            sweep_widths::<true>(chunk, ctx, octs)
         }
     }
 }
 
-/// [`sweep_color_chunk`] for one kind of update: the packed quads, then pairs, then the
-/// last row.
+/// [`sweep_lanes`] for one kind of update.
 ///
 /// # Safety
-/// As [`sweep_color_chunk`].
+/// As [`sweep_lanes`].
 #[cfg(target_arch = "x86_64")]
-unsafe fn sweep_lanes<const RELAXED: bool>(chunk: &mut [Row], ctx: Ctx) -> (f64, f64) {
+unsafe fn sweep_widths<const RELAXED: bool>(chunk: &mut [Row], ctx: Ctx, octs: bool) -> (f64, f64) {
     let mut acc = (0.0, 0.0);
     let n4 = if ctx.quads { chunk.len() / 4 * 4 } else { 0 };
+    let n8 = if octs { n4 / 8 * 8 } else { 0 };
     let (head, tail) = chunk.split_at_mut(n4);
-    // SAFETY: forwarded from the caller, who packed the rows and checked AVX for quads.
+    let (eights, fours) = head.split_at_mut(n8);
+    // SAFETY: forwarded from the caller, who packed the rows and checked AVX for quads
+    // and AVX-512F for eight at a time; a chunk starts a quad, so its first n8 rows are
+    // whole quads.
     unsafe {
-        if n4 > 0 {
-            simd::sweep_quads::<RELAXED>(head, ctx, &mut acc);
+        if n8 > 0 {
+            simd::sweep_octs::<RELAXED>(eights, ctx, &mut acc);
+        }
+        if n4 > n8 {
+            simd::sweep_quads::<RELAXED>(fours, ctx, &mut acc);
         }
         simd::sweep_pairs::<RELAXED>(tail, ctx, &mut acc);
     }
@@ -123,9 +163,9 @@ mod tests {
         }
     }
 
-    /// One color of `n` rows on `2n` movable disks and 3 fixed walls shared by some rows,
-    /// with impulses that are zero, inside the Coulomb interval or on its edge, and
-    /// relative velocities that open, close or slide the contacts.
+    /// One color of `n` rows on `2n` movable disks (some that only spin) and 3 fixed walls
+    /// shared by some rows, with impulses that are zero, inside the Coulomb interval or on
+    /// its edge, and relative velocities that open, close or slide the contacts.
     fn color_of(n: usize, seed: u64) -> (Vec<Row>, Vec<Line>, Vec<BodyProps>) {
         let mut rng = Rng(seed);
         let bodies = 2 * n + 3;
@@ -136,7 +176,10 @@ mod tests {
             .map(|b| {
                 let (inv_mass, k, lever) = (0.5 + rng.next(), 2.0 * rng.next(), 0.1 + rng.next());
                 // The walls cannot move; their lever still enters the relative velocity.
-                if b < 2 * n {
+                // Some disks only spin: no inverse mass, but written all the same.
+                if b < 2 * n && b % 13 == 5 {
+                    BodyProps::of(0.0, k, lever)
+                } else if b < 2 * n {
                     BodyProps::of(inv_mass, k, lever)
                 } else {
                     BodyProps::of(0.0, 0.0, lever)
@@ -183,6 +226,7 @@ mod tests {
         Rows,
         Pairs,
         Quads,
+        Octs,
     }
 
     /// The sums, velocities and impulses after three sweeps over the color, chunk by chunk
@@ -190,7 +234,7 @@ mod tests {
     fn three_sweeps(n: usize, seed: u64, relax: f64, width: Width) -> Vec<u64> {
         let (mut rows, mut gv, props) = color_of(n, seed);
         let ranges = [0, n as u32];
-        let quads = width == Width::Quads;
+        let quads = matches!(width, Width::Quads | Width::Octs);
         if quads {
             pack_quads(&mut rows, &ranges, 1);
         }
@@ -211,7 +255,8 @@ mod tests {
                 let (dc, qc) = unsafe {
                     match width {
                         Width::Rows => sweep_chunk(chunk, ctx),
-                        _ => sweep_color_chunk(chunk, ctx),
+                        Width::Pairs | Width::Quads => sweep_lanes(chunk, ctx, false),
+                        Width::Octs => sweep_lanes(chunk, ctx, true),
                     }
                 };
                 d += dc;
@@ -234,6 +279,14 @@ mod tests {
     #[test]
     fn vector_sweeps_equal_the_scalar_update_bit_for_bit() {
         let mut widths = vec![Width::Pairs];
+        if avx512() {
+            widths.push(Width::Octs);
+        } else {
+            let _ = std::io::Write::write_all(
+                &mut std::io::stderr(),
+                b"NOTE: no AVX-512F here (or CDLAB_NO_AVX512=1): eight rows at a time not compared\n",
+            );
+        }
         if avx() {
             widths.push(Width::Quads);
         } else {
@@ -244,7 +297,7 @@ mod tests {
                 b"NOTE: no AVX here (or CDLAB_NO_AVX=1): packed quads not compared\n",
             );
         }
-        for n in [1, 2, 3, 4, 5, 6, 7, 64, 67, 130] {
+        for n in [1, 2, 3, 4, 5, 6, 7, 8, 9, 12, 15, 16, 17, 64, 67, 130] {
             for relax in [1.0, 0.5] {
                 let seed = 7 + n as u64;
                 let reference = three_sweeps(n, seed, relax, Width::Rows);

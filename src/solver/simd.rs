@@ -155,6 +155,175 @@ pub(super) unsafe fn sweep_quads<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx
     }
 }
 
+/// The 4x4 transposes of the two 256-bit halves of four 512-bit registers at once: lane
+/// `l` of output `f` is lane `f` of input `l` within each half (eight bodies' lines, four
+/// in each half, become their x, y, spin and fourth fields in row order, and back).
+macro_rules! transpose512 {
+    ($r:expr) => {{
+        let r = $r;
+        let t0 = _mm512_unpacklo_pd(r[0], r[1]);
+        let t1 = _mm512_unpackhi_pd(r[0], r[1]);
+        let t2 = _mm512_unpacklo_pd(r[2], r[3]);
+        let t3 = _mm512_unpackhi_pd(r[2], r[3]);
+        // Elements 0-7 from the first operand, 8-15 from the second.
+        let even = _mm512_set_epi64(13, 12, 5, 4, 9, 8, 1, 0);
+        let odd = _mm512_set_epi64(15, 14, 7, 6, 11, 10, 3, 2);
+        [
+            _mm512_permutex2var_pd(t0, even, t2),
+            _mm512_permutex2var_pd(t1, even, t3),
+            _mm512_permutex2var_pd(t0, odd, t2),
+            _mm512_permutex2var_pd(t1, odd, t3),
+        ]
+    }};
+}
+
+/// Eight rows at a time: two consecutive packed [`Quad`]s in 512-bit registers, the first
+/// quad's rows in the lower halves, their sums added to `acc` in row order. As in
+/// [`sweep_quads`], each body's line and table entry are one aligned load each, turned into
+/// lanes by a transpose, and each body written gets its whole change in one multiply, one
+/// add and one store, the products and sums of the scalar update, so the result is
+/// [`sweep_quads`]'s bit for bit. The two quads read before either writes, which the color
+/// allows: its rows share no movable body, and the bodies they share are never written.
+///
+/// # Safety
+/// As [`sweep_quads`], on a processor with AVX-512F, on a multiple of eight packed rows.
+#[target_feature(enable = "avx512f")]
+pub(super) unsafe fn sweep_octs<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx, acc: &mut (f64, f64)) {
+    let zero = _mm512_setzero_pd();
+    let sign = _mm512_set1_epi64(i64::MIN);
+    // Flips the sign of the x and y factors: body j takes the impulse with the other sign.
+    let j_sign = _mm512_set_epi64(0, 0, i64::MIN, i64::MIN, 0, 0, i64::MIN, i64::MIN);
+    let xor = |x: __m512d, s: __m512i| _mm512_castsi512_pd(_mm512_xor_si512(_mm512_castpd_si512(x), s));
+    for oct in rows.chunks_exact_mut(8) {
+        let (a, b) = oct.split_at_mut(4);
+        // SAFETY: the caller guarantees these rows hold two packed quads (see `Quad`).
+        let (qa, qb) = unsafe {
+            (
+                &mut *a.as_mut_ptr().cast::<Quad>(),
+                &mut *b.as_mut_ptr().cast::<Quad>(),
+            )
+        };
+        debug_assert!(qa.j.iter().chain(&qb.j).all(|&j| j != FULL));
+        // SAFETY: the caller guarantees validity; the eight rows write disjoint bodies
+        // and read the shared ones (never written) only. Lines and table entries are
+        // 32-byte aligned (`Line`, `BodyProps`).
+        unsafe {
+            macro_rules! field {
+                ($f:ident) => {
+                    _mm512_insertf64x4::<1>(
+                        _mm512_castpd256_pd512(_mm256_loadu_pd(qa.$f.as_ptr())),
+                        _mm256_loadu_pd(qb.$f.as_ptr()),
+                    )
+                };
+            }
+            macro_rules! store {
+                ($f:ident, $v:expr) => {{
+                    let v = $v;
+                    _mm256_storeu_pd(qa.$f.as_mut_ptr(), _mm512_castpd512_pd256(v));
+                    _mm256_storeu_pd(qb.$f.as_mut_ptr(), _mm512_extractf64x4_pd::<1>(v));
+                }};
+            }
+            // Row l of each quad: its body's 4 f64 from `base`, the first quad's below.
+            macro_rules! pair {
+                ($base:expr, $side:ident, $l:expr) => {
+                    _mm512_insertf64x4::<1>(
+                        _mm512_castpd256_pd512(_mm256_load_pd($base.add(qa.$side[$l] as usize).cast())),
+                        _mm256_load_pd($base.add(qb.$side[$l] as usize).cast()),
+                    )
+                };
+            }
+            let vi: [__m512d; 4] = std::array::from_fn(|l| pair!(ctx.gv, i, l));
+            let vj: [__m512d; 4] = std::array::from_fn(|l| pair!(ctx.gv, j, l));
+            let bi: [__m512d; 4] = std::array::from_fn(|l| pair!(ctx.props, i, l));
+            let bj: [__m512d; 4] = std::array::from_fn(|l| pair!(ctx.props, j, l));
+            let [vix, viy, viz, _] = transpose512!(vi);
+            let [vjx, vjy, vjz, _] = transpose512!(vj);
+            let [_, _, _, lever_i] = transpose512!(bi);
+            let [_, _, _, lever_j] = transpose512!(bj);
+            let (nx, ny) = (field!(nx), field!(ny));
+            let dx = _mm512_sub_pd(vix, vjx);
+            let dy = _mm512_sub_pd(viy, vjy);
+            let un = _mm512_add_pd(_mm512_mul_pd(dx, nx), _mm512_mul_pd(dy, ny));
+            let ut = _mm512_add_pd(
+                _mm512_add_pd(
+                    _mm512_sub_pd(_mm512_mul_pd(dx, ny), _mm512_mul_pd(dy, nx)),
+                    _mm512_mul_pd(viz, lever_i),
+                ),
+                _mm512_mul_pd(vjz, lever_j),
+            );
+            let (rn0, rt0) = (field!(rn), field!(rt));
+            let rn = _mm512_max_pd(
+                _mm512_sub_pd(
+                    rn0,
+                    _mm512_mul_pd(_mm512_add_pd(un, field!(bias_n)), field!(inv_wnn)),
+                ),
+                zero,
+            );
+            let lim = _mm512_mul_pd(field!(mu), rn);
+            let rt = _mm512_min_pd(
+                _mm512_max_pd(
+                    _mm512_sub_pd(
+                        rt0,
+                        _mm512_mul_pd(_mm512_add_pd(ut, field!(bias_t)), field!(inv_wtt)),
+                    ),
+                    xor(lim, sign),
+                ),
+                lim,
+            );
+            let (rn, rt) = if RELAXED && ctx.relax != 1.0 {
+                let w = _mm512_set1_pd(ctx.relax);
+                (
+                    _mm512_add_pd(rn0, _mm512_mul_pd(w, _mm512_sub_pd(rn, rn0))),
+                    _mm512_add_pd(rt0, _mm512_mul_pd(w, _mm512_sub_pd(rt, rt0))),
+                )
+            } else {
+                (rn, rt)
+            };
+            let (drn, drt) = (_mm512_sub_pd(rn, rn0), _mm512_sub_pd(rt, rt0));
+            store!(rn, rn);
+            store!(rt, rt);
+            let px = _mm512_add_pd(_mm512_mul_pd(drn, nx), _mm512_mul_pd(drt, ny));
+            let py = _mm512_sub_pd(_mm512_mul_pd(drn, ny), _mm512_mul_pd(drt, nx));
+            // Row l's impulse as (p_x, p_y, dR_t, 0), in each half: times a body's table
+            // entry (1/m, 1/m, r/I, lever) it is the scalar update's change.
+            let change = transpose512!([px, py, drt, zero]);
+            macro_rules! put {
+                ($side:ident, $l:expr, $factor:expr, $v:expr, $b:expr) => {{
+                    let new = _mm512_add_pd($v, _mm512_mul_pd($factor, change[$l]));
+                    // Lanes 0 and 2 of each half's table entry: inverse mass and r / I.
+                    let moves = _mm512_cmp_pd_mask::<_CMP_NEQ_UQ>($b, zero);
+                    if moves & 0b0000_0101 != 0 {
+                        _mm256_store_pd(
+                            ctx.gv.add(qa.$side[$l] as usize).cast(),
+                            _mm512_castpd512_pd256(new),
+                        );
+                    }
+                    if moves & 0b0101_0000 != 0 {
+                        _mm256_store_pd(
+                            ctx.gv.add(qb.$side[$l] as usize).cast(),
+                            _mm512_extractf64x4_pd::<1>(new),
+                        );
+                    }
+                }};
+            }
+            for l in 0..4 {
+                put!(i, l, bi[l], vi[l], bi[l]);
+                put!(j, l, xor(bj[l], j_sign), vj[l], bj[l]);
+            }
+            let sq = _mm512_add_pd(_mm512_mul_pd(drn, drn), _mm512_mul_pd(drt, drt));
+            let r2 = _mm512_add_pd(_mm512_mul_pd(rn, rn), _mm512_mul_pd(rt, rt));
+            let mut out = [[0.0; 8]; 2];
+            for (o, v) in out.iter_mut().zip([sq, r2]) {
+                _mm512_storeu_pd(o.as_mut_ptr(), v);
+            }
+            for (d, r) in out[0].iter().zip(&out[1]) {
+                acc.0 += d;
+                acc.1 += r;
+            }
+        }
+    }
+}
+
 /// Two rows at a time, then the last one alone, their sums added to `acc` in row
 /// order.
 ///
