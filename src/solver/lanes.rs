@@ -279,23 +279,26 @@ mod tests {
     #[test]
     fn vector_sweeps_equal_the_scalar_update_bit_for_bit() {
         let mut widths = vec![Width::Pairs];
-        if avx512() {
-            widths.push(Width::Octs);
-        } else {
-            let _ = std::io::Write::write_all(
-                &mut std::io::stderr(),
-                b"NOTE: no AVX-512F here (or CDLAB_NO_AVX512=1): eight rows at a time not compared\n",
-            );
-        }
-        if avx() {
-            widths.push(Width::Quads);
-        } else {
-            // Past the test harness's capture (eprintln! shows only on failure), so that a
-            // plain `cargo test` says which comparison did not run.
-            let _ = std::io::Write::write_all(
-                &mut std::io::stderr(),
-                b"NOTE: no AVX here (or CDLAB_NO_AVX=1): packed quads not compared\n",
-            );
+        for (has, width, note) in [
+            (
+                avx512(),
+                Width::Octs,
+                "no AVX-512F here (or CDLAB_NO_AVX512=1): eight rows at a time not compared",
+            ),
+            (
+                avx(),
+                Width::Quads,
+                "no AVX here (or CDLAB_NO_AVX=1): packed quads not compared",
+            ),
+        ] {
+            if has {
+                widths.push(width);
+            } else {
+                // Past the test harness's capture (eprintln! shows only on failure), so
+                // that a plain `cargo test` says which comparison did not run.
+                let _ =
+                    std::io::Write::write_all(&mut std::io::stderr(), format!("NOTE: {note}\n").as_bytes());
+            }
         }
         for n in [1, 2, 3, 4, 5, 6, 7, 8, 9, 12, 15, 16, 17, 64, 67, 130] {
             for relax in [1.0, 0.5] {

@@ -24,6 +24,66 @@ unsafe fn write(p: *mut Line, v: DVec3, body: BodyProps, im: f64, px: f64, py: f
     }
 }
 
+/// The diagonal law on vectors of rows, lane by lane the scalar update's operations in its
+/// order: from the velocities of bodies i and j (x, y, spin), their levers and the rows'
+/// fields, the new impulses, their changes, the impulse's x and y components and the two
+/// sums (`(rn, rt, drn, drt, px, py, sq, r2)`). The first argument names the width (128,
+/// 256 or 512 bits: its add, sub, mul, max, min and broadcast); `$neg` flips the sign of
+/// every lane; `$relax` is `Some(omega)` for a relaxed update.
+macro_rules! law {
+    // Packed rows: the nine fields from the caller's `field!`, which loads one of them for
+    // every lane.
+    ($width:tt packed; $neg:expr, $zero:expr, $relax:expr, $vi:tt, $vj:tt, $levers:tt $(,)?) => {
+        law!($width; $neg, $zero, $relax, $vi, $vj, $levers, [
+            field!(nx), field!(ny), field!(rn), field!(rt), field!(bias_n), field!(inv_wnn),
+            field!(mu), field!(bias_t), field!(inv_wtt)
+        ])
+    };
+    (128; $($rest:tt)*) => {
+        law!([_mm_add_pd, _mm_sub_pd, _mm_mul_pd, _mm_max_pd, _mm_min_pd, _mm_set1_pd], $($rest)*)
+    };
+    (256; $($rest:tt)*) => {
+        law!([_mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, _mm256_max_pd, _mm256_min_pd, _mm256_set1_pd], $($rest)*)
+    };
+    (512; $($rest:tt)*) => {
+        law!([_mm512_add_pd, _mm512_sub_pd, _mm512_mul_pd, _mm512_max_pd, _mm512_min_pd, _mm512_set1_pd], $($rest)*)
+    };
+    (
+        [$add:path, $sub:path, $mul:path, $max:path, $min:path, $set1:path],
+        $neg:expr, $zero:expr, $relax:expr,
+        ($vix:expr, $viy:expr, $viz:expr), ($vjx:expr, $vjy:expr, $vjz:expr), ($lever_i:expr, $lever_j:expr),
+        [$nx:expr, $ny:expr, $rn0:expr, $rt0:expr, $bias_n:expr, $inv_wnn:expr, $mu:expr, $bias_t:expr, $inv_wtt:expr]
+    ) => {{
+        let (nx, ny, rn0, rt0) = ($nx, $ny, $rn0, $rt0);
+        let dx = $sub($vix, $vjx);
+        let dy = $sub($viy, $vjy);
+        let un = $add($mul(dx, nx), $mul(dy, ny));
+        let ut = $add(
+            $add($sub($mul(dx, ny), $mul(dy, nx)), $mul($viz, $lever_i)),
+            $mul($vjz, $lever_j),
+        );
+        let rn = $max($sub(rn0, $mul($add(un, $bias_n), $inv_wnn)), $zero);
+        let lim = $mul($mu, rn);
+        let rt = $min($max($sub(rt0, $mul($add(ut, $bias_t), $inv_wtt)), $neg(lim)), lim);
+        let (rn, rt) = match $relax {
+            Some(omega) => {
+                let w = $set1(omega);
+                (
+                    $add(rn0, $mul(w, $sub(rn, rn0))),
+                    $add(rt0, $mul(w, $sub(rt, rt0))),
+                )
+            }
+            None => (rn, rt),
+        };
+        let (drn, drt) = ($sub(rn, rn0), $sub(rt, rt0));
+        let px = $add($mul(drn, nx), $mul(drt, ny));
+        let py = $sub($mul(drn, ny), $mul(drt, nx));
+        let sq = $add($mul(drn, drn), $mul(drt, drt));
+        let r2 = $add($mul(rn, rn), $mul(rt, rt));
+        (rn, rt, drn, drt, px, py, sq, r2)
+    }};
+}
+
 /// The 4x4 transpose of four registers: lane `l` of output `f` is lane `f` of input `l`
 /// (four bodies' lines become their x, y, spin and fourth fields, and back).
 macro_rules! transpose {
@@ -81,51 +141,18 @@ pub(super) unsafe fn sweep_quads<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx
                     _mm256_loadu_pd(q.$f.as_ptr())
                 };
             }
-            let (nx, ny) = (field!(nx), field!(ny));
-            let dx = _mm256_sub_pd(vix, vjx);
-            let dy = _mm256_sub_pd(viy, vjy);
-            let un = _mm256_add_pd(_mm256_mul_pd(dx, nx), _mm256_mul_pd(dy, ny));
-            let ut = _mm256_add_pd(
-                _mm256_add_pd(
-                    _mm256_sub_pd(_mm256_mul_pd(dx, ny), _mm256_mul_pd(dy, nx)),
-                    _mm256_mul_pd(viz, lever_i),
-                ),
-                _mm256_mul_pd(vjz, lever_j),
-            );
-            let (rn0, rt0) = (field!(rn), field!(rt));
-            let rn = _mm256_max_pd(
-                _mm256_sub_pd(
-                    rn0,
-                    _mm256_mul_pd(_mm256_add_pd(un, field!(bias_n)), field!(inv_wnn)),
-                ),
+            let relax = (RELAXED && ctx.relax != 1.0).then_some(ctx.relax);
+            let neg = |x: __m256d| _mm256_xor_pd(x, _mm256_set1_pd(-0.0));
+            let (rn, rt, _, drt, px, py, sq, r2) = law!(256 packed;
+                neg,
                 zero,
+                relax,
+                (vix, viy, viz),
+                (vjx, vjy, vjz),
+                (lever_i, lever_j),
             );
-            let lim = _mm256_mul_pd(field!(mu), rn);
-            let neg_lim = _mm256_xor_pd(lim, _mm256_set1_pd(-0.0));
-            let rt = _mm256_min_pd(
-                _mm256_max_pd(
-                    _mm256_sub_pd(
-                        rt0,
-                        _mm256_mul_pd(_mm256_add_pd(ut, field!(bias_t)), field!(inv_wtt)),
-                    ),
-                    neg_lim,
-                ),
-                lim,
-            );
-            let (rn, rt) = if RELAXED && ctx.relax != 1.0 {
-                let w = _mm256_set1_pd(ctx.relax);
-                (
-                    _mm256_add_pd(rn0, _mm256_mul_pd(w, _mm256_sub_pd(rn, rn0))),
-                    _mm256_add_pd(rt0, _mm256_mul_pd(w, _mm256_sub_pd(rt, rt0))),
-                )
-            } else {
-                (rn, rt)
-            };
-            let (drn, drt) = (_mm256_sub_pd(rn, rn0), _mm256_sub_pd(rt, rt0));
             _mm256_storeu_pd(q.rn.as_mut_ptr(), rn);
             _mm256_storeu_pd(q.rt.as_mut_ptr(), rt);
-            let px = _mm256_add_pd(_mm256_mul_pd(drn, nx), _mm256_mul_pd(drt, ny));
-            let py = _mm256_sub_pd(_mm256_mul_pd(drn, ny), _mm256_mul_pd(drt, nx));
             // Row l's impulse as (p_x, p_y, dR_t, 0): times a body's table entry
             // (1/m, 1/m, r/I, lever) it is the scalar update's change, and 0 for the padding.
             let change = transpose!([px, py, drt, zero]);
@@ -141,8 +168,6 @@ pub(super) unsafe fn sweep_quads<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx
                     _mm256_store_pd(pj[l], _mm256_add_pd(vj[l], _mm256_mul_pd(m, change[l])));
                 }
             }
-            let sq = _mm256_add_pd(_mm256_mul_pd(drn, drn), _mm256_mul_pd(drt, drt));
-            let r2 = _mm256_add_pd(_mm256_mul_pd(rn, rn), _mm256_mul_pd(rt, rt));
             let mut out = [[0.0; 4]; 2];
             for (o, v) in out.iter_mut().zip([sq, r2]) {
                 _mm256_storeu_pd(o.as_mut_ptr(), v);
@@ -240,50 +265,17 @@ pub(super) unsafe fn sweep_octs<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx,
             let [vjx, vjy, vjz, _] = transpose512!(vj);
             let [_, _, _, lever_i] = transpose512!(bi);
             let [_, _, _, lever_j] = transpose512!(bj);
-            let (nx, ny) = (field!(nx), field!(ny));
-            let dx = _mm512_sub_pd(vix, vjx);
-            let dy = _mm512_sub_pd(viy, vjy);
-            let un = _mm512_add_pd(_mm512_mul_pd(dx, nx), _mm512_mul_pd(dy, ny));
-            let ut = _mm512_add_pd(
-                _mm512_add_pd(
-                    _mm512_sub_pd(_mm512_mul_pd(dx, ny), _mm512_mul_pd(dy, nx)),
-                    _mm512_mul_pd(viz, lever_i),
-                ),
-                _mm512_mul_pd(vjz, lever_j),
-            );
-            let (rn0, rt0) = (field!(rn), field!(rt));
-            let rn = _mm512_max_pd(
-                _mm512_sub_pd(
-                    rn0,
-                    _mm512_mul_pd(_mm512_add_pd(un, field!(bias_n)), field!(inv_wnn)),
-                ),
+            let relax = (RELAXED && ctx.relax != 1.0).then_some(ctx.relax);
+            let (rn, rt, _, drt, px, py, sq, r2) = law!(512 packed;
+                |x| xor(x, sign),
                 zero,
+                relax,
+                (vix, viy, viz),
+                (vjx, vjy, vjz),
+                (lever_i, lever_j),
             );
-            let lim = _mm512_mul_pd(field!(mu), rn);
-            let rt = _mm512_min_pd(
-                _mm512_max_pd(
-                    _mm512_sub_pd(
-                        rt0,
-                        _mm512_mul_pd(_mm512_add_pd(ut, field!(bias_t)), field!(inv_wtt)),
-                    ),
-                    xor(lim, sign),
-                ),
-                lim,
-            );
-            let (rn, rt) = if RELAXED && ctx.relax != 1.0 {
-                let w = _mm512_set1_pd(ctx.relax);
-                (
-                    _mm512_add_pd(rn0, _mm512_mul_pd(w, _mm512_sub_pd(rn, rn0))),
-                    _mm512_add_pd(rt0, _mm512_mul_pd(w, _mm512_sub_pd(rt, rt0))),
-                )
-            } else {
-                (rn, rt)
-            };
-            let (drn, drt) = (_mm512_sub_pd(rn, rn0), _mm512_sub_pd(rt, rt0));
             store!(rn, rn);
             store!(rt, rt);
-            let px = _mm512_add_pd(_mm512_mul_pd(drn, nx), _mm512_mul_pd(drt, ny));
-            let py = _mm512_sub_pd(_mm512_mul_pd(drn, ny), _mm512_mul_pd(drt, nx));
             // Row l's impulse as (p_x, p_y, dR_t, 0), in each half: times a body's table
             // entry (1/m, 1/m, r/I, lever) it is the scalar update's change.
             let change = transpose512!([px, py, drt, zero]);
@@ -310,8 +302,6 @@ pub(super) unsafe fn sweep_octs<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx,
                 put!(i, l, bi[l], vi[l], bi[l]);
                 put!(j, l, xor(bj[l], j_sign), vj[l], bj[l]);
             }
-            let sq = _mm512_add_pd(_mm512_mul_pd(drn, drn), _mm512_mul_pd(drt, drt));
-            let r2 = _mm512_add_pd(_mm512_mul_pd(rn, rn), _mm512_mul_pd(rt, rt));
             let mut out = [[0.0; 8]; 2];
             for (o, v) in out.iter_mut().zip([sq, r2]) {
                 _mm512_storeu_pd(o.as_mut_ptr(), v);
@@ -345,47 +335,27 @@ pub(super) unsafe fn sweep_pairs<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx
             let (via, vja, vib, vjb) = ((*pia).v, (*pja).v, (*pib).v, (*pjb).v);
             // Lane 0 is row a, lane 1 row b (`_mm_set_pd` takes the high lane first).
             let pair = |x: f64, y: f64| _mm_set_pd(y, x);
-            let (add, sub, mul) = (_mm_add_pd, _mm_sub_pd, _mm_mul_pd);
-            let dx = sub(pair(via.x, vib.x), pair(vja.x, vjb.x));
-            let dy = sub(pair(via.y, vib.y), pair(vja.y, vjb.y));
-            let (nx, ny) = (pair(a.nx, b.nx), pair(a.ny, b.ny));
-            let un = add(mul(dx, nx), mul(dy, ny));
-            let ut = add(
-                add(
-                    sub(mul(dx, ny), mul(dy, nx)),
-                    mul(pair(via.z, vib.z), pair(bia.lever, bib.lever)),
-                ),
-                mul(pair(vja.z, vjb.z), pair(bja.lever, bjb.lever)),
-            );
-            let (rn0, rt0) = (pair(a.rn, b.rn), pair(a.rt, b.rt));
-            let rn = _mm_max_pd(
-                sub(
-                    rn0,
-                    mul(add(un, pair(a.bias_n, b.bias_n)), pair(a.inv_wnn, b.inv_wnn)),
-                ),
+            let relax = (RELAXED && ctx.relax != 1.0).then_some(ctx.relax);
+            let neg = |x: __m128d| _mm_xor_pd(x, _mm_set1_pd(-0.0));
+            let (rn, rt, _, drt, px, py, sq, r2) = law!(128;
+                neg,
                 _mm_setzero_pd(),
+                relax,
+                (pair(via.x, vib.x), pair(via.y, vib.y), pair(via.z, vib.z)),
+                (pair(vja.x, vjb.x), pair(vja.y, vjb.y), pair(vja.z, vjb.z)),
+                (pair(bia.lever, bib.lever), pair(bja.lever, bjb.lever)),
+                [
+                    pair(a.nx, b.nx),
+                    pair(a.ny, b.ny),
+                    pair(a.rn, b.rn),
+                    pair(a.rt, b.rt),
+                    pair(a.bias_n, b.bias_n),
+                    pair(a.inv_wnn, b.inv_wnn),
+                    pair(a.mu, b.mu),
+                    pair(a.bias_t, b.bias_t),
+                    pair(a.inv_wtt, b.inv_wtt)
+                ]
             );
-            let lim = mul(pair(a.mu, b.mu), rn);
-            let neg_lim = _mm_xor_pd(lim, _mm_set1_pd(-0.0));
-            let rt = _mm_min_pd(
-                _mm_max_pd(
-                    sub(
-                        rt0,
-                        mul(add(ut, pair(a.bias_t, b.bias_t)), pair(a.inv_wtt, b.inv_wtt)),
-                    ),
-                    neg_lim,
-                ),
-                lim,
-            );
-            let (rn, rt) = if RELAXED && ctx.relax != 1.0 {
-                let w = _mm_set1_pd(ctx.relax);
-                (add(rn0, mul(w, sub(rn, rn0))), add(rt0, mul(w, sub(rt, rt0))))
-            } else {
-                (rn, rt)
-            };
-            let (drn, drt) = (sub(rn, rn0), sub(rt, rt0));
-            let px = add(mul(drn, nx), mul(drt, ny));
-            let py = sub(mul(drn, ny), mul(drt, nx));
             let lanes = |v: __m128d| {
                 let mut out = [0.0; 2];
                 _mm_storeu_pd(out.as_mut_ptr(), v);
@@ -403,8 +373,7 @@ pub(super) unsafe fn sweep_pairs<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx
             a.rt = rt_l[0];
             b.rn = rn_l[1];
             b.rt = rt_l[1];
-            let d = lanes(add(mul(drn, drn), mul(drt, drt)));
-            let q = lanes(add(mul(rn, rn), mul(rt, rt)));
+            let (d, q) = (lanes(sq), lanes(r2));
             acc.0 += d[0];
             acc.1 += q[0];
             acc.0 += d[1];
