@@ -1,8 +1,9 @@
 //! How wide the colored sweeps update a color: the rows of a color share no movable body,
 //! so on x86_64 several of them are updated at once in the lanes of vector registers
-//! ([`super::simd`]), with the scalar update's result bit for bit: four at a time in AVX
-//! registers when the processor has AVX and the rows are packed ([`super::quads`]), two
-//! at a time in SSE2 registers (part of the baseline) otherwise. Elsewhere, row by row.
+//! ([`super::simd`]), with the scalar update's result bit for bit: when the rows are
+//! packed ([`super::quads`]), eight at a time in 512-bit registers on a processor with
+//! AVX-512F, four at a time in AVX registers on one with AVX; two at a time in SSE2
+//! registers (part of the baseline) otherwise. Elsewhere, row by row.
 
 use super::ctx::Ctx;
 use super::rows::Row;

@@ -26,8 +26,8 @@ unsafe fn write(p: *mut Line, v: DVec3, body: BodyProps, im: f64, px: f64, py: f
 
 /// The diagonal law on vectors of rows, lane by lane the scalar update's operations in its
 /// order: from the velocities of bodies i and j (x, y, spin), their levers and the rows'
-/// fields, the new impulses, their changes, the impulse's x and y components and the two
-/// sums (`(rn, rt, drn, drt, px, py, sq, r2)`). The first argument names the width (128,
+/// fields, the new impulses, the tangential change, the impulse's x and y components and
+/// the two sums (`(rn, rt, drt, px, py, sq, r2)`). The first argument names the width (128,
 /// 256 or 512 bits: its add, sub, mul, max, min and broadcast); `$neg` flips the sign of
 /// every lane; `$relax` is `Some(omega)` for a relaxed update.
 macro_rules! law {
@@ -80,7 +80,7 @@ macro_rules! law {
         let py = $sub($mul(drn, ny), $mul(drt, nx));
         let sq = $add($mul(drn, drn), $mul(drt, drt));
         let r2 = $add($mul(rn, rn), $mul(rt, rt));
-        (rn, rt, drn, drt, px, py, sq, r2)
+        (rn, rt, drt, px, py, sq, r2)
     }};
 }
 
@@ -143,7 +143,7 @@ pub(super) unsafe fn sweep_quads<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx
             }
             let relax = (RELAXED && ctx.relax != 1.0).then_some(ctx.relax);
             let neg = |x: __m256d| _mm256_xor_pd(x, _mm256_set1_pd(-0.0));
-            let (rn, rt, _, drt, px, py, sq, r2) = law!(256 packed;
+            let (rn, rt, drt, px, py, sq, r2) = law!(256 packed;
                 neg,
                 zero,
                 relax,
@@ -266,7 +266,7 @@ pub(super) unsafe fn sweep_octs<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx,
             let [_, _, _, lever_i] = transpose512!(bi);
             let [_, _, _, lever_j] = transpose512!(bj);
             let relax = (RELAXED && ctx.relax != 1.0).then_some(ctx.relax);
-            let (rn, rt, _, drt, px, py, sq, r2) = law!(512 packed;
+            let (rn, rt, drt, px, py, sq, r2) = law!(512 packed;
                 |x| xor(x, sign),
                 zero,
                 relax,
@@ -337,7 +337,7 @@ pub(super) unsafe fn sweep_pairs<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx
             let pair = |x: f64, y: f64| _mm_set_pd(y, x);
             let relax = (RELAXED && ctx.relax != 1.0).then_some(ctx.relax);
             let neg = |x: __m128d| _mm_xor_pd(x, _mm_set1_pd(-0.0));
-            let (rn, rt, _, drt, px, py, sq, r2) = law!(128;
+            let (rn, rt, drt, px, py, sq, r2) = law!(128;
                 neg,
                 _mm_setzero_pd(),
                 relax,
