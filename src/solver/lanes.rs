@@ -12,38 +12,39 @@ use super::simd;
 #[cfg(not(target_arch = "x86_64"))]
 use super::update::sweep_chunk;
 
-/// Whether the colored sweeps run four rows at a time: on x86_64 with AVX (checked once at
-/// run time), unless `CDLAB_NO_AVX=1` asks for the pairs (to time or compare them).
-pub(super) fn avx() -> bool {
+/// How many rows the colored sweeps of this process update at once on packed rows: 8 with
+/// AVX-512F, 4 with AVX (each checked once at run time), 2 in SSE2 (the x86_64 baseline),
+/// 1 elsewhere. `CDLAB_NO_AVX=1` asks for the pairs and `CDLAB_NO_AVX512=1` for four at a
+/// time (to time or compare them).
+fn width() -> usize {
     #[cfg(target_arch = "x86_64")]
     {
         use std::sync::OnceLock;
-        static AVX: OnceLock<bool> = OnceLock::new();
-        *AVX.get_or_init(|| {
-            std::arch::is_x86_feature_detected!("avx")
-                && std::env::var_os("CDLAB_NO_AVX").is_none_or(|v| v != "1")
+        static WIDTH: OnceLock<usize> = OnceLock::new();
+        *WIDTH.get_or_init(|| {
+            let allowed = |off: &str| std::env::var_os(off).is_none_or(|v| v != "1");
+            if !(std::arch::is_x86_feature_detected!("avx") && allowed("CDLAB_NO_AVX")) {
+                2
+            } else if std::arch::is_x86_feature_detected!("avx512f") && allowed("CDLAB_NO_AVX512") {
+                8
+            } else {
+                4
+            }
         })
     }
     #[cfg(not(target_arch = "x86_64"))]
-    false
+    1
 }
 
-/// Whether the packed quads are swept two at a time, eight rows in 512-bit registers: with
-/// [`avx`] on a processor with AVX-512F (checked once at run time), unless
-/// `CDLAB_NO_AVX512=1` asks for four at a time (to time or compare them).
+/// Whether the colored sweeps run (at least) four rows at a time ([`width`]).
+pub(super) fn avx() -> bool {
+    width() >= 4
+}
+
+/// Whether the packed quads are swept two at a time, eight rows in 512-bit registers
+/// ([`width`]).
 pub(super) fn avx512() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::sync::OnceLock;
-        static AVX512: OnceLock<bool> = OnceLock::new();
-        *AVX512.get_or_init(|| {
-            avx()
-                && std::arch::is_x86_feature_detected!("avx512f")
-                && std::env::var_os("CDLAB_NO_AVX512").is_none_or(|v| v != "1")
-        })
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    false
+    width() == 8
 }
 
 /// How the colored sweeps of this process update a color: "AVX-512, 8 contacts at a
@@ -51,14 +52,11 @@ pub(super) fn avx512() -> bool {
 /// time" (named in the CPU backend's description, so that timings from different
 /// processors can be read side by side).
 pub fn colored_lanes() -> &'static str {
-    if avx512() {
-        "AVX-512, 8 contacts at a time"
-    } else if avx() {
-        "AVX, 4 contacts at a time"
-    } else if cfg!(target_arch = "x86_64") {
-        "SSE2, 2 contacts at a time"
-    } else {
-        "1 contact at a time"
+    match width() {
+        8 => "AVX-512, 8 contacts at a time",
+        4 => "AVX, 4 contacts at a time",
+        2 => "SSE2, 2 contacts at a time",
+        _ => "1 contact at a time",
     }
 }
 
