@@ -35,6 +35,11 @@ pub(super) struct Ctx {
     /// Whether the rows of the proper colors are packed four at a time
     /// ([`super::quads::gather_packed`]), to be swept in AVX registers.
     pub(super) quads: bool,
+    /// Whether every packed row has no friction and no tangential impulse (`mu` and `R_t`
+    /// +0, as in the frictionless compaction): their `R_t` then stays +0, and the packed
+    /// sweeps compute the normal part only, with the same result bit for bit
+    /// ([`super::simd`]).
+    pub(super) frictionless: bool,
 }
 
 /// A body's velocity `(v_x, v_y, omega)` as the sweeps keep it: padded to 32 bytes and

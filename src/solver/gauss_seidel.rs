@@ -200,7 +200,7 @@ pub(super) fn solve(
     );
     // Colored here, and swept from a copy in color order.
     let recolored = colored && given.is_none();
-    rows::build(
+    let frictionless = rows::build(
         contacts,
         n_bodies,
         deep_gap,
@@ -270,6 +270,7 @@ pub(super) fn solve(
         contacts: contacts.as_mut_ptr(),
         relax: 1.0,
         quads,
+        frictionless: quads && frictionless,
     };
     let mut stats = SolveStats {
         colors: if colored { (ranges.len() - 1) as u32 } else { 0 },

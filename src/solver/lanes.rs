@@ -124,10 +124,18 @@ unsafe fn sweep_widths<const RELAXED: bool>(chunk: &mut [Row], ctx: Ctx, octs: b
     // whole quads.
     unsafe {
         if n8 > 0 {
-            simd::sweep_octs::<RELAXED>(eights, ctx, &mut acc);
+            if ctx.frictionless {
+                simd::sweep_octs::<RELAXED, false>(eights, ctx, &mut acc);
+            } else {
+                simd::sweep_octs::<RELAXED, true>(eights, ctx, &mut acc);
+            }
         }
         if n4 > n8 {
-            simd::sweep_quads::<RELAXED>(fours, ctx, &mut acc);
+            if ctx.frictionless {
+                simd::sweep_quads::<RELAXED, false>(fours, ctx, &mut acc);
+            } else {
+                simd::sweep_quads::<RELAXED, true>(fours, ctx, &mut acc);
+            }
         }
         simd::sweep_pairs::<RELAXED>(tail, ctx, &mut acc);
     }
@@ -164,8 +172,9 @@ mod tests {
 
     /// One color of `n` rows on `2n` movable disks (some that only spin) and 3 fixed walls
     /// shared by some rows, with impulses that are zero, inside the Coulomb interval or on
-    /// its edge, and relative velocities that open, close or slide the contacts.
-    fn color_of(n: usize, seed: u64) -> (Vec<Row>, Vec<Line>, Vec<BodyProps>) {
+    /// its edge, and relative velocities that open, close or slide the contacts;
+    /// `frictionless`, with `mu` and `R_t` +0 in every row (a frictionless compaction).
+    fn color_of(n: usize, seed: u64, frictionless: bool) -> (Vec<Row>, Vec<Line>, Vec<BodyProps>) {
         let mut rng = Rng(seed);
         let bodies = 2 * n + 3;
         let gv: Vec<Line> = (0..bodies)
@@ -188,9 +197,15 @@ mod tests {
         let rows = (0..n)
             .map(|m| {
                 let a = rng.next() * std::f64::consts::TAU;
-                let mu = [0.0, 0.01, 0.3, 12.0][m % 4];
+                let mu = if frictionless {
+                    0.0
+                } else {
+                    [0.0, 0.01, 0.3, 12.0][m % 4]
+                };
                 let rn = if m % 3 == 0 { 0.0 } else { rng.next() };
                 let rt = match m % 5 {
+                    // +0, as the frictionless sweeps require (`-mu * rn` would be -0).
+                    _ if frictionless => 0.0,
                     0 => mu * rn,
                     1 => -mu * rn,
                     _ => mu * rn * rng.signed(),
@@ -230,8 +245,8 @@ mod tests {
 
     /// The sums, velocities and impulses after three sweeps over the color, chunk by chunk
     /// as the Gauss-Seidel sweep goes.
-    fn three_sweeps(n: usize, seed: u64, relax: f64, width: Width) -> Vec<u64> {
-        let (mut rows, mut gv, props) = color_of(n, seed);
+    fn three_sweeps(n: usize, seed: u64, relax: f64, width: Width, frictionless: bool) -> Vec<u64> {
+        let (mut rows, mut gv, props) = color_of(n, seed, frictionless);
         let ranges = [0, n as u32];
         let quads = matches!(width, Width::Quads | Width::Octs);
         if quads {
@@ -243,6 +258,7 @@ mod tests {
             contacts: std::ptr::null_mut(),
             relax,
             quads,
+            frictionless: quads && frictionless,
         };
         let mut bits = Vec::new();
         for _ in 0..3 {
@@ -300,21 +316,22 @@ mod tests {
             }
         }
         for n in [1, 2, 3, 4, 5, 6, 7, 8, 9, 12, 15, 16, 17, 64, 67, 130] {
-            for relax in [1.0, 0.5] {
+            // Without friction the packed sweeps take their normal-only form.
+            for (relax, frictionless) in [(1.0, false), (0.5, false), (1.0, true), (0.5, true)] {
                 let seed = 7 + n as u64;
-                let reference = three_sweeps(n, seed, relax, Width::Rows);
+                let reference = three_sweeps(n, seed, relax, Width::Rows, frictionless);
                 assert!(reference.iter().any(|&b| b != 0), "{n} rows did nothing");
                 for &w in &widths {
-                    let other = three_sweeps(n, seed, relax, w);
+                    let other = three_sweeps(n, seed, relax, w, frictionless);
                     let first = reference.iter().zip(&other).position(|(a, b)| a != b);
                     assert_eq!(
                         first, None,
-                        "{w:?}, {n} rows, relax {relax}: first differing value"
+                        "{w:?}, {n} rows, relax {relax}, frictionless {frictionless}: first differing value"
                     );
                 }
             }
         }
-        let (rows, _, _) = color_of(67, 1);
+        let (rows, _, _) = color_of(67, 1, false);
         let mut packed = rows.clone();
         pack_quads(&mut packed, &[0, 67], 1);
         assert_ne!(
@@ -332,7 +349,7 @@ mod tests {
     /// with remainders, an empty color and a last range left plain (the serial group).
     #[test]
     fn packed_rows_read_and_written_in_place_equal_the_plain_rows() {
-        let (rows, _, _) = color_of(67, 3);
+        let (rows, _, _) = color_of(67, 3, false);
         let (ranges, colors) = ([0, 13, 13, 40, 67], 3);
         let mut packed = rows.clone();
         pack_quads(&mut packed, &ranges, colors);

@@ -87,7 +87,8 @@ pub(super) struct Parking<'a> {
 /// that overlap by more than `deep_gap` (m), in order. With `colors`, the rows' color
 /// ranges are written beside the contacts' ([`ColorRows`]) and the rows of its first
 /// colors packed four at a time as they are built. One pass over the contacts: at 50,000
-/// disks each pass over the rows or the contacts leaves the cache.
+/// disks each pass over the rows or the contacts leaves the cache. Returns whether every
+/// row kept (less the [`FULL`] ones) has `mu` and `R_t` +0 ([`super::ctx::Ctx::frictionless`]).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn build(
     contacts: &[Contact],
@@ -98,7 +99,7 @@ pub(super) fn build(
     deep: &mut Vec<u32>,
     mut parking: Option<Parking>,
     colors: Option<ColorRows>,
-) {
+) -> bool {
     deep.clear();
     // Without a table to fill, the one given for the step ([`BodyProps::of`]) serves.
     if let Some(p) = props.as_mut() {
@@ -116,6 +117,10 @@ pub(super) fn build(
         None => (&whole[..], 0, None),
     };
     let mut quad = Quad4::default();
+    // Bit patterns, so that -0 (and NaN) count as friction: the sweeps' shortcut rests on
+    // the +0 of both.
+    let mut frictionless = true;
+    let mut keep = |r: &Row| frictionless &= r.j == FULL || (r.mu.to_bits() | r.rt.to_bits()) == 0;
     assert!(
         ranges.last().is_some_and(|&e| e as usize == contacts.len()),
         "color ranges that do not cover the contacts"
@@ -142,9 +147,13 @@ pub(super) fn build(
                 }
                 Some(p) => {
                     p.active.push(k as u32);
+                    keep(&r);
                     quad.push(rows, r, pack);
                 }
-                None => quad.push(rows, r, pack),
+                None => {
+                    keep(&r);
+                    quad.push(rows, r, pack)
+                }
             }
         }
         // A color's last rows that make no four stay plain, as `quads::pack_quads` leaves them.
@@ -153,6 +162,7 @@ pub(super) fn build(
             out.push(rows.len() as u32);
         }
     }
+    frictionless
 }
 
 /// What [`build`] does with colored contacts: `ranges` are the contacts' color ranges, the
@@ -253,4 +263,55 @@ pub(super) fn contact_of(m: usize, order: Option<&[u32]>, active: Option<&[u32]>
 pub(super) fn opening(r: &Row, gv: &[DVec3]) -> f64 {
     let (vi, vj) = (gv[r.i as usize], gv[r.j as usize]);
     (vi.x - vj.x) * r.nx + (vi.y - vj.y) * r.ny + r.bias_n
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Three contacts among four disks, without friction or impulse.
+    fn contacts() -> Vec<Contact> {
+        (0..3)
+            .map(|k| Contact {
+                i: k,
+                j: k + 1,
+                disk_j: k + 1,
+                n: glam::DVec2::X,
+                wnn: 2.0,
+                wtt: 3.0,
+                mi: 1.0,
+                mj: 1.0,
+                ..Default::default()
+            })
+            .collect()
+    }
+
+    fn frictionless(contacts: &[Contact]) -> bool {
+        let (mut rows, mut deep) = (Vec::new(), Vec::new());
+        build(contacts, 4, f64::INFINITY, &mut rows, None, &mut deep, None, None)
+    }
+
+    /// The packed sweeps' normal-only form rests on `mu` and `R_t` being +0 in every row
+    /// swept: a -0, a friction or an impulse anywhere turns it off; a full-block row,
+    /// which the serial group sweeps with the full law, does not.
+    #[test]
+    fn frictionless_only_when_every_swept_row_has_zero_friction_and_tangential_impulse() {
+        let plain = contacts();
+        assert!(frictionless(&plain));
+        let edits: [(&str, fn(&mut Contact)); 4] = [
+            ("R_t -0", |c| c.rt = -0.0),
+            ("R_t", |c| c.rt = 1e-9),
+            ("mu", |c| c.mu = 0.3),
+            ("mu -0", |c| c.mu = -0.0),
+        ];
+        for (what, edit) in edits {
+            let mut c = plain.clone();
+            edit(&mut c[2]);
+            assert!(!frictionless(&c), "{what} in the last row went unseen");
+        }
+        let mut full = plain.clone();
+        full[1].ma = 1.0;
+        full[1].mu = 0.3;
+        assert!(frictionless(&full), "a full-block row counted");
+    }
 }

@@ -39,6 +39,42 @@ macro_rules! law {
             field!(mu), field!(bias_t), field!(inv_wtt)
         ])
     };
+    // Rows without friction and without tangential impulse (`Ctx::frictionless`): the
+    // scalar law gives them `R_t` = +0 whatever `U_t` is (the interval [-0 x R_n, 0 x R_n]
+    // clamps every trial to +0, relaxed or not), so `dR_t` is +0 and only the normal part
+    // is computed; `x + dR_t y` keeps its product with the +0 so that a zero keeps the sign
+    // the full law gives it, and the sums drop `dR_t^2` and `R_t^2`, which add +0 to a
+    // square. `rt` comes back as the rows' own (+0), not to be stored.
+    ($width:tt packed normal; $zero:expr, $relax:expr, ($vix:expr, $viy:expr), ($vjx:expr, $vjy:expr) $(,)?) => {
+        law!($width normal; $zero, $relax, ($vix, $viy), ($vjx, $vjy), [
+            field!(nx), field!(ny), field!(rn), field!(bias_n), field!(inv_wnn)
+        ])
+    };
+    (256 normal; $($rest:tt)*) => {
+        law!([_mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, _mm256_max_pd, _mm256_min_pd, _mm256_set1_pd] normal, $($rest)*)
+    };
+    (512 normal; $($rest:tt)*) => {
+        law!([_mm512_add_pd, _mm512_sub_pd, _mm512_mul_pd, _mm512_max_pd, _mm512_min_pd, _mm512_set1_pd] normal, $($rest)*)
+    };
+    (
+        [$add:path, $sub:path, $mul:path, $max:path, $min:path, $set1:path] normal,
+        $zero:expr, $relax:expr, ($vix:expr, $viy:expr), ($vjx:expr, $vjy:expr),
+        [$nx:expr, $ny:expr, $rn0:expr, $bias_n:expr, $inv_wnn:expr]
+    ) => {{
+        let (nx, ny, rn0, zero) = ($nx, $ny, $rn0, $zero);
+        let dx = $sub($vix, $vjx);
+        let dy = $sub($viy, $vjy);
+        let un = $add($mul(dx, nx), $mul(dy, ny));
+        let rn = $max($sub(rn0, $mul($add(un, $bias_n), $inv_wnn)), zero);
+        let rn = match $relax {
+            Some(omega) => $add(rn0, $mul($set1(omega), $sub(rn, rn0))),
+            None => rn,
+        };
+        let drn = $sub(rn, rn0);
+        let px = $add($mul(drn, nx), $mul(zero, ny));
+        let py = $sub($mul(drn, ny), $mul(zero, nx));
+        (rn, zero, px, py, $mul(drn, drn), $mul(rn, rn))
+    }};
     (128; $($rest:tt)*) => {
         law!([_mm_add_pd, _mm_sub_pd, _mm_mul_pd, _mm_max_pd, _mm_min_pd, _mm_set1_pd], $($rest)*)
     };
@@ -111,7 +147,11 @@ macro_rules! transpose {
 /// # Safety
 /// As [`super::lanes::sweep_color_chunk`], on a processor with AVX, on packed rows.
 #[target_feature(enable = "avx")]
-pub(super) unsafe fn sweep_quads<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx, acc: &mut (f64, f64)) {
+pub(super) unsafe fn sweep_quads<const RELAXED: bool, const FRICTION: bool>(
+    rows: &mut [Row],
+    ctx: Ctx,
+    acc: &mut (f64, f64),
+) {
     let zero = _mm256_setzero_pd();
     // Flips the sign of the x and y factors: body j takes the impulse with the other sign
     // (`_mm256_set_pd` takes the high lane first).
@@ -134,25 +174,30 @@ pub(super) unsafe fn sweep_quads<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx
             let vj = pj.map(|p| _mm256_load_pd(p));
             let [vix, viy, viz, _] = transpose!(vi);
             let [vjx, vjy, vjz, _] = transpose!(vj);
-            let [_, _, _, lever_i] = transpose!(bi);
-            let [_, _, _, lever_j] = transpose!(bj);
             macro_rules! field {
                 ($f:ident) => {
                     _mm256_loadu_pd(q.$f.as_ptr())
                 };
             }
             let relax = (RELAXED && ctx.relax != 1.0).then_some(ctx.relax);
-            let neg = |x: __m256d| _mm256_xor_pd(x, _mm256_set1_pd(-0.0));
-            let (rn, rt, drt, px, py, sq, r2) = law!(256 packed;
-                neg,
-                zero,
-                relax,
-                (vix, viy, viz),
-                (vjx, vjy, vjz),
-                (lever_i, lever_j),
-            );
+            let (rn, drt, px, py, sq, r2) = if FRICTION {
+                let [_, _, _, lever_i] = transpose!(bi);
+                let [_, _, _, lever_j] = transpose!(bj);
+                let neg = |x: __m256d| _mm256_xor_pd(x, _mm256_set1_pd(-0.0));
+                let (rn, rt, drt, px, py, sq, r2) = law!(256 packed;
+                    neg,
+                    zero,
+                    relax,
+                    (vix, viy, viz),
+                    (vjx, vjy, vjz),
+                    (lever_i, lever_j),
+                );
+                _mm256_storeu_pd(q.rt.as_mut_ptr(), rt);
+                (rn, drt, px, py, sq, r2)
+            } else {
+                law!(256 packed normal; zero, relax, (vix, viy), (vjx, vjy))
+            };
             _mm256_storeu_pd(q.rn.as_mut_ptr(), rn);
-            _mm256_storeu_pd(q.rt.as_mut_ptr(), rt);
             // Row l's impulse as (p_x, p_y, dR_t, 0): times a body's table entry
             // (1/m, 1/m, r/I, lever) it is the scalar update's change, and 0 for the padding.
             let change = transpose!([px, py, drt, zero]);
@@ -213,7 +258,11 @@ macro_rules! transpose512 {
 /// # Safety
 /// As [`sweep_quads`], on a processor with AVX-512F, on a multiple of eight packed rows.
 #[target_feature(enable = "avx512f")]
-pub(super) unsafe fn sweep_octs<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx, acc: &mut (f64, f64)) {
+pub(super) unsafe fn sweep_octs<const RELAXED: bool, const FRICTION: bool>(
+    rows: &mut [Row],
+    ctx: Ctx,
+    acc: &mut (f64, f64),
+) {
     let zero = _mm512_setzero_pd();
     let sign = _mm512_set1_epi64(i64::MIN);
     // Flips the sign of the x and y factors: body j takes the impulse with the other sign.
@@ -263,19 +312,24 @@ pub(super) unsafe fn sweep_octs<const RELAXED: bool>(rows: &mut [Row], ctx: Ctx,
             let bj: [__m512d; 4] = std::array::from_fn(|l| pair!(ctx.props, j, l));
             let [vix, viy, viz, _] = transpose512!(vi);
             let [vjx, vjy, vjz, _] = transpose512!(vj);
-            let [_, _, _, lever_i] = transpose512!(bi);
-            let [_, _, _, lever_j] = transpose512!(bj);
             let relax = (RELAXED && ctx.relax != 1.0).then_some(ctx.relax);
-            let (rn, rt, drt, px, py, sq, r2) = law!(512 packed;
-                |x| xor(x, sign),
-                zero,
-                relax,
-                (vix, viy, viz),
-                (vjx, vjy, vjz),
-                (lever_i, lever_j),
-            );
+            let (rn, drt, px, py, sq, r2) = if FRICTION {
+                let [_, _, _, lever_i] = transpose512!(bi);
+                let [_, _, _, lever_j] = transpose512!(bj);
+                let (rn, rt, drt, px, py, sq, r2) = law!(512 packed;
+                    |x| xor(x, sign),
+                    zero,
+                    relax,
+                    (vix, viy, viz),
+                    (vjx, vjy, vjz),
+                    (lever_i, lever_j),
+                );
+                store!(rt, rt);
+                (rn, drt, px, py, sq, r2)
+            } else {
+                law!(512 packed normal; zero, relax, (vix, viy), (vjx, vjy))
+            };
             store!(rn, rn);
-            store!(rt, rt);
             // Row l's impulse as (p_x, p_y, dR_t, 0), in each half: times a body's table
             // entry (1/m, 1/m, r/I, lever) it is the scalar update's change.
             let change = transpose512!([px, py, drt, zero]);
