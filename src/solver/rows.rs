@@ -298,7 +298,8 @@ mod tests {
     fn frictionless_only_when_every_swept_row_has_zero_friction_and_tangential_impulse() {
         let plain = contacts();
         assert!(frictionless(&plain));
-        let edits: [(&str, fn(&mut Contact)); 4] = [
+        type Edit = fn(&mut Contact);
+        let edits: [(&str, Edit); 4] = [
             ("R_t -0", |c| c.rt = -0.0),
             ("R_t", |c| c.rt = 1e-9),
             ("mu", |c| c.mu = 0.3),
