@@ -143,16 +143,19 @@ fn parallel_colored_sweeps_equal_sequential_ones_bit_for_bit() {
     assert_ne!(bits(&seq_relaxed), bits(&seq), "relaxation engaged");
     let (par_relaxed, _, _) = run_on(1, Method::ColoredGs, true, 2, relax);
     assert_eq!(bits(&par_relaxed), bits(&seq_relaxed), "relaxed team of 2");
-    // And with the velocity test, which the team's calling thread runs between sweeps.
-    let tested = Some((0.7, 5, 1e-3));
+    // And with the velocity test, which each member of the team runs on its share of the
+    // bodies (uneven shares with 3).
+    let tested = Some((0.7, 5, 5e-2));
     let (seq_tested, _, _) = run_on(1, Method::ColoredGs, false, 0, tested);
     assert_ne!(bits(&seq_tested), bits(&seq_relaxed), "velocity test engaged");
-    let (par_tested, _, _) = run_on(1, Method::ColoredGs, true, 2, tested);
-    assert_eq!(
-        bits(&par_tested),
-        bits(&seq_tested),
-        "team of 2 with the velocity test"
-    );
+    for threads in [2, 3] {
+        let (par_tested, _, _) = run_on(1, Method::ColoredGs, true, threads, tested);
+        assert_eq!(
+            bits(&par_tested),
+            bits(&seq_tested),
+            "team of {threads} with the velocity test"
+        );
+    }
     let (jp, _) = run(1, Method::Jacobi, true);
     let (js, _) = run(1, Method::Jacobi, false);
     assert_eq!(bits(&jp), bits(&js));

@@ -27,27 +27,40 @@ impl SolveStats {
 /// The velocity test of [`SolverParams::velocity_tol`]: keeps the iterate of the last
 /// iteration and compares the next one with it.
 pub(super) struct VelocityTest<'a> {
-    tol: f64,
-    after: u32,
-    prev: &'a mut Vec<Line>,
+    share: VelocityShare,
+    /// Holds the kept iterate that `share` points into.
+    _prev: &'a mut Vec<Line>,
 }
 
 impl<'a> VelocityTest<'a> {
     /// `gv` is the iterate before the first iteration, the reference of the first test
     /// when the test applies from the first iteration; `prev` is the workspace's buffer.
     pub(super) fn new(params: &SolverParams, gv: &[Line], prev: &'a mut Vec<Line>) -> Self {
-        prev.clear();
-        if params.velocity_tol > 0.0 && params.gauss_seidel.relax_after == 0 {
-            prev.extend_from_slice(gv);
+        let (tol, after) = (params.velocity_tol, params.gauss_seidel.relax_after);
+        if tol > 0.0 {
+            // Its contents before the first keep are never compared, so a buffer of the
+            // right size is only resized, not refilled, each step (at 50,000 disks a fill is
+            // 1.6 MB of writes).
+            if prev.len() != gv.len() {
+                prev.clear();
+                prev.resize(gv.len(), Line::default());
+            }
+            if after == 0 {
+                prev.copy_from_slice(gv);
+            }
         }
         VelocityTest {
-            // The test applies to relaxed iterations only, whose changes are `gs_relax` of
-            // the way to the local solutions: like the impulse test, it bounds the change
-            // divided by the relaxation, so that `velocity_tol` means the same at any
-            // relaxation.
-            tol: params.velocity_tol * params.gauss_seidel.relax,
-            after: params.gauss_seidel.relax_after,
-            prev,
+            share: VelocityShare {
+                // The test applies to relaxed iterations only, whose changes are `gs_relax`
+                // of the way to the local solutions: like the impulse test, it bounds the
+                // change divided by the relaxation, so that `velocity_tol` means the same at
+                // any relaxation.
+                tol: tol * params.gauss_seidel.relax,
+                after,
+                prev: prev.as_mut_ptr(),
+                len: prev.len(),
+            },
+            _prev: prev,
         }
     }
 
@@ -56,17 +69,77 @@ impl<'a> VelocityTest<'a> {
     /// iteration. Bodies no contact can move keep their velocity, so every body may be
     /// compared.
     pub(super) fn settled(&mut self, it: u32, gv: &[Line], props: &[BodyProps]) -> bool {
-        if self.tol <= 0.0 || it < self.after {
+        if !self.share.runs_at(it) {
             return false;
         }
-        let settled = it > self.after
-            && self.prev.len() == gv.len()
-            && gv.iter().zip(self.prev.iter()).zip(props).all(|((v, p), b)| {
-                let d = v.v - p.v;
-                d.x * d.x + d.y * d.y + (b.lever * d.z).powi(2) <= self.tol * self.tol
-            });
-        self.prev.clear();
-        self.prev.extend_from_slice(gv);
+        assert!(gv.len() == self.share.len && props.len() >= gv.len());
+        // SAFETY: the kept iterate, `gv` and `props` cover every body (checked), and this
+        // thread alone holds the test.
+        unsafe { self.share.bodies(it, gv.as_ptr(), props.as_ptr(), 0..gv.len()) }
+    }
+
+    /// The test for the members of a team, each on its own bodies ([`VelocityShare`]),
+    /// while this test is not used.
+    pub(super) fn share(&mut self) -> VelocityShare {
+        self.share
+    }
+}
+
+/// [`VelocityTest`] for a thread team: after an iteration's last color, each member
+/// compares and keeps its own range of bodies, and the test holds when it holds on every
+/// range. The same comparisons as on one thread, so the same answer: the ranges' answers
+/// are combined by `and`.
+#[derive(Clone, Copy)]
+pub(super) struct VelocityShare {
+    tol: f64,
+    after: u32,
+    prev: *mut Line,
+    len: usize,
+}
+
+// SAFETY: members touch disjoint ranges of the kept iterate ([`VelocityShare::bodies`]).
+unsafe impl Send for VelocityShare {}
+unsafe impl Sync for VelocityShare {}
+
+impl VelocityShare {
+    /// Whether the test runs after iteration `it`: from iteration `after` (which only
+    /// keeps the iterate) on, when the test is on.
+    pub(super) fn runs_at(&self, it: u32) -> bool {
+        self.tol > 0.0 && it >= self.after
+    }
+
+    /// How many bodies the kept iterate holds.
+    pub(super) fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Compares bodies `range` of the iterate `gv` with the kept one and keeps them: true
+    /// when none changed by more than the tolerance, false after iteration `after`, which
+    /// has nothing to compare with.
+    ///
+    /// # Safety
+    /// `gv` and `props` are valid for `range`, within [`Self::len`]; no other thread
+    /// touches these bodies' kept iterate, or writes their velocities, meanwhile.
+    pub(super) unsafe fn bodies(
+        &self,
+        it: u32,
+        gv: *const Line,
+        props: *const BodyProps,
+        range: std::ops::Range<usize>,
+    ) -> bool {
+        debug_assert!(range.end <= self.len);
+        let tol2 = self.tol * self.tol;
+        // Compared up to the first body that moved, as `Iterator::all` would; kept whole.
+        let mut settled = it > self.after;
+        for k in range {
+            // SAFETY: forwarded from the caller.
+            let (v, kept, b) = unsafe { (*gv.add(k), &mut *self.prev.add(k), &*props.add(k)) };
+            if settled {
+                let d = v.v - kept.v;
+                settled = d.x * d.x + d.y * d.y + (b.lever * d.z).powi(2) <= tol2;
+            }
+            *kept = v;
+        }
         settled
     }
 }
@@ -80,5 +153,71 @@ pub(super) fn relative_change(d2: f64, r2: f64) -> f64 {
         f64::INFINITY
     } else {
         (d2 / r2).sqrt()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+
+    use super::*;
+
+    /// `n` bodies' lines, each coordinate from a simple sequence scaled by `scale`.
+    fn lines(n: usize, scale: f64) -> Vec<Line> {
+        (0..n)
+            .map(|k| {
+                let x = (k as f64 * 0.37).sin();
+                Line::of(DVec3::new(x, 0.5 * x, -2.0 * x) * scale)
+            })
+            .collect()
+    }
+
+    /// The test split into ranges (a team's members) answers as on one thread, and keeps the
+    /// same iterate: a body that moved beyond the tolerance in any range, and only such a
+    /// body, makes it fail.
+    #[test]
+    fn the_velocity_test_split_into_ranges_answers_as_the_whole() {
+        let n = 101;
+        let props: Vec<BodyProps> = (0..n)
+            .map(|k| BodyProps::of(1.0, 2.0, 0.5 + k as f64 * 1e-3))
+            .collect();
+        let params = SolverParams {
+            velocity_tol: 1e-3,
+            ..SolverParams::default()
+        };
+        let after = params.gauss_seidel.relax_after;
+        let tol = params.velocity_tol * params.gauss_seidel.relax;
+        let start = lines(n, 1.0);
+        for (moved, by) in [
+            (None, 0.0),
+            (Some(0), 2.0),
+            (Some(50), 2.0),
+            (Some(100), 2.0),
+            (Some(100), 0.5),
+        ] {
+            let mut next = lines(n, 1.0 + 1e-5);
+            if let Some(k) = moved {
+                next[k].v.x += by * tol;
+            }
+            let expected = moved.is_none() || by < 1.0;
+            for parts in [1, 2, 3, 7] {
+                let mut prev = Vec::new();
+                let mut test = VelocityTest::new(&params, &start, &mut prev);
+                assert!(
+                    !test.settled(after, &start, &props),
+                    "compared before a first keep"
+                );
+                let share = test.share();
+                // Every range runs, as every member does, whatever the others answer.
+                let answer = (0..parts).fold(true, |all, t| {
+                    let range = n * t / parts..n * (t + 1) / parts;
+                    // SAFETY: one thread; the ranges cover the bodies once.
+                    let here = unsafe { share.bodies(after + 1, next.as_ptr(), props.as_ptr(), range) };
+                    all & here
+                });
+                assert_eq!(answer, expected, "moved {moved:?} by {by} x tol, {parts} ranges");
+                assert!(prev == next, "the kept iterate, {parts} ranges");
+            }
+        }
     }
 }

@@ -282,22 +282,21 @@ pub(super) fn solve(
     let start = unsafe { std::slice::from_raw_parts(ctx.gv, n_bodies) };
     let mut velocity = VelocityTest::new(params, start, &mut work.iterate);
     let props = &work.props[..];
-    let mut done = |it: u32, d2: f64, r2: f64| {
+    // `settled`: the velocity test's answer after iteration `it`, from the caller (on a
+    // team each member tests its own bodies).
+    let mut done = |it: u32, d2: f64, r2: f64, settled: bool| {
         // Between two tests (solver.check_every) the sums are recorded, the step goes on.
         let check = params.checks_at(it);
         if stats.record(it, d2, r2, params) && check {
             return true;
         }
-        // SAFETY: called between sweeps, when no thread writes the velocities.
-        let gv = unsafe { std::slice::from_raw_parts(ctx.gv, n_bodies) };
-        // Kept every iteration: a test compares the iterate with the one just before it.
-        let settled = velocity.settled(it, gv, props);
         stats.converged = check && settled;
         stats.converged
     };
     if colored && threads > 1 && contacts.len() >= params.parallel_min {
         let team = work.team.get(threads);
-        team::sweep_iterations(rows, ranges, serial_last, ctx, team, params, done);
+        let velocity = velocity.share();
+        team::sweep_iterations(rows, ranges, serial_last, ctx, team, params, velocity, done);
     } else {
         for it in 1..=params.max_iter {
             let ctx = Ctx {
@@ -305,7 +304,11 @@ pub(super) fn solve(
                 ..ctx
             };
             let (d2, r2) = sweep(rows, ranges, proper_colors, ctx);
-            if done(it, d2, r2) {
+            // SAFETY: between sweeps, when nothing writes the velocities.
+            let gv = unsafe { std::slice::from_raw_parts(ctx.gv, n_bodies) };
+            // Kept every iteration: a test compares the iterate with the one just before it.
+            let settled = velocity.settled(it, gv, props);
+            if done(it, d2, r2, settled) {
                 break;
             }
         }

@@ -14,6 +14,7 @@
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 use super::SolverParams;
+use super::convergence::VelocityShare;
 use super::ctx::Ctx;
 use super::lanes::{proper_colors, sweep_color_chunk};
 use super::resident::{Resident, wait_until};
@@ -82,6 +83,8 @@ impl<T> CallerOnly<T> {
 struct Shared {
     rows: *mut Row,
     partial: *mut (f64, f64),
+    /// Each member's answer to the velocity test on its bodies.
+    settled: *mut bool,
 }
 // SAFETY: see the struct's comment; the barrier orders every write before every read.
 unsafe impl Send for Shared {}
@@ -130,8 +133,11 @@ impl Layout {
 
 /// Sweeps colored Gauss-Seidel iterations on the members of `team` until `done` says stop
 /// after an iteration or `params.max_iter` is reached, each iteration with its relaxation
-/// ([`SolverParams::relax_at`]). `done` receives the iteration number and the sums
-/// (change^2, impulse^2) and is called by the calling thread only.
+/// ([`SolverParams::relax_at`]). `done` receives the iteration number, the sums
+/// (change^2, impulse^2) and the answer of the `velocity` test, which the members run each
+/// on a share of the bodies after the iterations it applies to; it is called by the
+/// calling thread only.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn sweep_iterations(
     rows: &mut [Row],
     ranges: &[u32],
@@ -139,7 +145,8 @@ pub(super) fn sweep_iterations(
     ctx: Ctx,
     team: &Resident,
     params: &SolverParams,
-    done: impl FnMut(u32, f64, f64) -> bool,
+    velocity: VelocityShare,
+    done: impl FnMut(u32, f64, f64, bool) -> bool,
 ) {
     let threads = team.size();
     let max_iter = params.max_iter;
@@ -149,9 +156,11 @@ pub(super) fn sweep_iterations(
     // One slot per chunk: the barrier after the caller has summed an iteration keeps every
     // member from writing the next one's partials before then.
     let mut partial = vec![(0.0, 0.0); layout.chunks.len()];
+    let mut settled = vec![false; threads];
     let shared = Shared {
         rows: rows.as_mut_ptr(),
         partial: partial.as_mut_ptr(),
+        settled: settled.as_mut_ptr(),
     };
     let barrier = SpinBarrier::new(
         std::iter::once(std::thread::current())
@@ -162,7 +171,7 @@ pub(super) fn sweep_iterations(
     let stop = AtomicBool::new(false);
     let n_chunks = layout.chunks.len();
 
-    let member = |t: usize, on_iteration: &mut dyn FnMut(u32, f64, f64) -> bool| {
+    let member = |t: usize, on_iteration: &mut dyn FnMut(u32, f64, f64, bool) -> bool| {
         let (shared, ctx) = (shared, ctx);
         for it in 1..=max_iter {
             let ctx = Ctx {
@@ -187,6 +196,18 @@ pub(super) fn sweep_iterations(
                 }
                 barrier.wait();
             }
+            let tested = velocity.runs_at(it);
+            if tested {
+                let n = velocity.len();
+                // SAFETY: every member passed the last color's barrier, and none writes a
+                // velocity before the barrier after the decision; each member keeps its own
+                // range of bodies, and writes its own answer's slot.
+                unsafe {
+                    let s = velocity.bodies(it, ctx.gv, ctx.props, n * t / threads..n * (t + 1) / threads);
+                    shared.settled.add(t).write(s);
+                }
+                barrier.wait();
+            }
             if t == 0 {
                 let (mut d2, mut r2) = (0.0, 0.0);
                 for k in 0..n_chunks {
@@ -195,7 +216,9 @@ pub(super) fn sweep_iterations(
                     d2 += d;
                     r2 += r;
                 }
-                let finished = on_iteration(it, d2, r2) || it == max_iter;
+                // SAFETY: every member wrote its answer before the barrier just passed.
+                let settled = tested && (0..threads).all(|m| unsafe { shared.settled.add(m).read() });
+                let finished = on_iteration(it, d2, r2, settled) || it == max_iter;
                 stop.store(finished, Ordering::Release);
             }
             barrier.wait();
@@ -210,7 +233,125 @@ pub(super) fn sweep_iterations(
             // Only the caller's share reports: `done` is the caller's.
             done.with(|done| member(0, done));
         } else {
-            member(t, &mut |_, _, _| false);
+            member(t, &mut |_, _, _, _| false);
         }
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+
+    use super::*;
+    use crate::solver::convergence::VelocityTest;
+    use crate::solver::ctx::Line;
+    use crate::solver::rows::BodyProps;
+
+    /// A chain of 40 disks pressed together, the last bodies of 80: the first 40 have no
+    /// contact and never move. Its contacts alternate between two colors.
+    fn chain() -> (Vec<Row>, Vec<u32>, Vec<Line>, Vec<BodyProps>) {
+        let (n, first) = (80, 40);
+        let gv = (0..n)
+            .map(|k| Line::of(DVec3::new((k as f64 * 0.7).sin(), 0.1, 0.0)))
+            .collect();
+        let props = (0..n).map(|_| BodyProps::of(1.0, 0.5, 0.5)).collect();
+        let row = |k: usize| Row {
+            i: (k + 1) as u32,
+            j: k as u32,
+            nx: 1.0,
+            inv_wnn: 0.5,
+            inv_wtt: 0.25,
+            mu: 0.3,
+            ..Default::default()
+        };
+        let even = (first..n - 1).step_by(2).map(row);
+        let odd = (first + 1..n - 1).step_by(2).map(row);
+        let rows: Vec<Row> = even.chain(odd).collect();
+        let ranges = vec![0, 20, rows.len() as u32];
+        (rows, ranges, gv, props)
+    }
+
+    /// The velocity test on a team answers after each iteration as on one thread, though
+    /// only the last member's bodies move (a member that answered for all would stop the
+    /// team at the first test).
+    #[test]
+    fn the_team_s_velocity_test_answers_as_one_thread_s() {
+        let params = SolverParams {
+            velocity_tol: 1e-6,
+            max_iter: 300,
+            ..SolverParams::default()
+        };
+        let params = SolverParams {
+            gauss_seidel: crate::solver::GaussSeidelSettings {
+                relax_after: 2,
+                ..params.gauss_seidel
+            },
+            ..params
+        };
+        let run = |team: Option<&Resident>| {
+            let (mut rows, ranges, mut gv, props) = chain();
+            let ctx = Ctx {
+                gv: gv.as_mut_ptr(),
+                props: props.as_ptr(),
+                contacts: std::ptr::null_mut(),
+                relax: 1.0,
+                quads: false,
+                frictionless: false,
+            };
+            let mut prev = Vec::new();
+            let mut velocity = VelocityTest::new(&params, &gv, &mut prev);
+            let mut answers = Vec::new();
+            match team {
+                Some(team) => {
+                    let share = velocity.share();
+                    sweep_iterations(
+                        &mut rows,
+                        &ranges,
+                        false,
+                        ctx,
+                        team,
+                        &params,
+                        share,
+                        |it, _, _, s| {
+                            answers.push((it, s));
+                            s
+                        },
+                    );
+                }
+                None => {
+                    for it in 1..=params.max_iter {
+                        let ctx = Ctx {
+                            relax: params.relax_at(it),
+                            ..ctx
+                        };
+                        for w in ranges.windows(2) {
+                            // SAFETY: one thread; the chain's bodies are within `gv`.
+                            unsafe { sweep_chunk(&mut rows[w[0] as usize..w[1] as usize], ctx) };
+                        }
+                        // SAFETY: no sweep runs.
+                        let lines = unsafe { std::slice::from_raw_parts(ctx.gv, gv.len()) };
+                        let s = velocity.settled(it, lines, &props);
+                        answers.push((it, s));
+                        if s {
+                            break;
+                        }
+                    }
+                }
+            }
+            let bits: Vec<u64> = gv.iter().flat_map(|l| l.v.to_array()).map(f64::to_bits).collect();
+            (answers, bits)
+        };
+        let (one, one_bits) = run(None);
+        let stop = one.last().unwrap().0;
+        assert!(
+            one.last().unwrap().1 && stop > params.gauss_seidel.relax_after + 3,
+            "the chain settled at iteration {stop}: the test decided too soon to tell"
+        );
+        for n in [2, 3] {
+            let team = Resident::new(n);
+            let (answers, bits) = run(Some(&team));
+            assert_eq!(answers, one, "team of {n}: the answers");
+            assert!(bits == one_bits, "team of {n}: the velocities");
+        }
+    }
 }
