@@ -199,9 +199,10 @@ pub(super) fn sweep_iterations(
             let tested = velocity.runs_at(it);
             if tested {
                 let n = velocity.len();
-                // SAFETY: every member passed the last color's barrier, and none writes a
-                // velocity before the barrier after the decision; each member keeps its own
-                // range of bodies, and writes its own answer's slot.
+                // SAFETY: the test holds one line per body of `ctx` (the caller made it from
+                // the same velocities); every member passed the last color's barrier, and
+                // none writes a velocity before the barrier after the decision; each member
+                // keeps its own range of bodies, and writes its own answer's slot.
                 unsafe {
                     let s = velocity.bodies(it, ctx.gv, ctx.props, n * t / threads..n * (t + 1) / threads);
                     shared.settled.add(t).write(s);
