@@ -44,7 +44,8 @@ macro_rules! law {
     // clamps every trial to +0, relaxed or not), so `dR_t` is +0 and only the normal part
     // is computed; `x + dR_t y` keeps its product with the +0 so that a zero keeps the sign
     // the full law gives it, and the sums drop `dR_t^2` and `R_t^2`, which add +0 to a
-    // square. `rt` comes back as the rows' own (+0), not to be stored.
+    // square. It gives `(rn, drt, px, py, sq, r2)`, `drt` the +0: the rows keep their +0
+    // `R_t`, so nothing is stored for it.
     ($width:tt packed normal; $zero:expr, $relax:expr, ($vix:expr, $viy:expr), ($vjx:expr, $vjy:expr) $(,)?) => {
         law!($width normal; $zero, $relax, ($vix, $viy), ($vjx, $vjy), [
             field!(nx), field!(ny), field!(rn), field!(bias_n), field!(inv_wnn)
