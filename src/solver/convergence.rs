@@ -27,9 +27,9 @@ impl SolveStats {
 /// The velocity test of [`SolverParams::velocity_tol`]: keeps the iterate of the last
 /// iteration and compares the next one with it.
 pub(super) struct VelocityTest<'a> {
-    share: VelocityShare,
-    /// Holds the kept iterate that `share` points into.
-    _prev: &'a mut Vec<Line>,
+    tol: f64,
+    after: u32,
+    prev: &'a mut Vec<Line>,
 }
 
 impl<'a> VelocityTest<'a> {
@@ -50,17 +50,13 @@ impl<'a> VelocityTest<'a> {
             }
         }
         VelocityTest {
-            share: VelocityShare {
-                // The test applies to relaxed iterations only, whose changes are `gs_relax`
-                // of the way to the local solutions: like the impulse test, it bounds the
-                // change divided by the relaxation, so that `velocity_tol` means the same at
-                // any relaxation.
-                tol: tol * params.gauss_seidel.relax,
-                after,
-                prev: prev.as_mut_ptr(),
-                len: prev.len(),
-            },
-            _prev: prev,
+            // The test applies to relaxed iterations only, whose changes are `gs_relax` of
+            // the way to the local solutions: like the impulse test, it bounds the change
+            // divided by the relaxation, so that `velocity_tol` means the same at any
+            // relaxation.
+            tol: tol * params.gauss_seidel.relax,
+            after,
+            prev,
         }
     }
 
@@ -69,19 +65,25 @@ impl<'a> VelocityTest<'a> {
     /// iteration. Bodies no contact can move keep their velocity, so every body may be
     /// compared.
     pub(super) fn settled(&mut self, it: u32, gv: &[Line], props: &[BodyProps]) -> bool {
-        if !self.share.runs_at(it) {
+        let share = self.share();
+        if !share.runs_at(it) {
             return false;
         }
-        assert!(gv.len() == self.share.len && props.len() >= gv.len());
+        assert!(gv.len() == share.len && props.len() >= gv.len());
         // SAFETY: the kept iterate, `gv` and `props` cover every body (checked), and this
         // thread alone holds the test.
-        unsafe { self.share.bodies(it, gv.as_ptr(), props.as_ptr(), 0..gv.len()) }
+        unsafe { share.bodies(it, gv.as_ptr(), props.as_ptr(), 0..gv.len()) }
     }
 
-    /// The test for the members of a team, each on its own bodies ([`VelocityShare`]),
-    /// while this test is not used.
+    /// The test for the members of a team, each on its own bodies ([`VelocityShare`]);
+    /// it points into this test's kept iterate, so serves only while this test is not used.
     pub(super) fn share(&mut self) -> VelocityShare {
-        self.share
+        VelocityShare {
+            tol: self.tol,
+            after: self.after,
+            prev: self.prev.as_mut_ptr(),
+            len: self.prev.len(),
+        }
     }
 }
 

@@ -51,12 +51,6 @@ macro_rules! law {
             field!(nx), field!(ny), field!(rn), field!(bias_n), field!(inv_wnn)
         ])
     };
-    (256 normal; $($rest:tt)*) => {
-        law!([_mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, _mm256_max_pd, _mm256_min_pd, _mm256_set1_pd] normal, $($rest)*)
-    };
-    (512 normal; $($rest:tt)*) => {
-        law!([_mm512_add_pd, _mm512_sub_pd, _mm512_mul_pd, _mm512_max_pd, _mm512_min_pd, _mm512_set1_pd] normal, $($rest)*)
-    };
     (
         [$add:path, $sub:path, $mul:path, $max:path, $min:path, $set1:path] normal,
         $zero:expr, $relax:expr, ($vix:expr, $viy:expr), ($vjx:expr, $vjy:expr),
@@ -76,14 +70,15 @@ macro_rules! law {
         let py = $sub($mul(drn, ny), $mul(zero, nx));
         (rn, zero, px, py, $mul(drn, drn), $mul(rn, rn))
     }};
-    (128; $($rest:tt)*) => {
-        law!([_mm_add_pd, _mm_sub_pd, _mm_mul_pd, _mm_max_pd, _mm_min_pd, _mm_set1_pd], $($rest)*)
+    // Each width's operations, for either form (none, or `normal`).
+    (128 $($form:ident)?; $($rest:tt)*) => {
+        law!([_mm_add_pd, _mm_sub_pd, _mm_mul_pd, _mm_max_pd, _mm_min_pd, _mm_set1_pd] $($form)?, $($rest)*)
     };
-    (256; $($rest:tt)*) => {
-        law!([_mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, _mm256_max_pd, _mm256_min_pd, _mm256_set1_pd], $($rest)*)
+    (256 $($form:ident)?; $($rest:tt)*) => {
+        law!([_mm256_add_pd, _mm256_sub_pd, _mm256_mul_pd, _mm256_max_pd, _mm256_min_pd, _mm256_set1_pd] $($form)?, $($rest)*)
     };
-    (512; $($rest:tt)*) => {
-        law!([_mm512_add_pd, _mm512_sub_pd, _mm512_mul_pd, _mm512_max_pd, _mm512_min_pd, _mm512_set1_pd], $($rest)*)
+    (512 $($form:ident)?; $($rest:tt)*) => {
+        law!([_mm512_add_pd, _mm512_sub_pd, _mm512_mul_pd, _mm512_max_pd, _mm512_min_pd, _mm512_set1_pd] $($form)?, $($rest)*)
     };
     (
         [$add:path, $sub:path, $mul:path, $max:path, $min:path, $set1:path],
