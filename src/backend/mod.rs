@@ -101,8 +101,6 @@ impl Loading {
         let total = self.sigma3 * h;
         let force = &mut scene.disks.force;
         for s in shares {
-            // The operations of the first form of this loop, in its order, so that the
-            // forces are the same bit for bit.
             force[s.disk as usize] = DVec2::new(s.sign * total * s.radius / s.sum_r, 0.0);
         }
     }
