@@ -115,13 +115,12 @@ impl Backend for CpuBackend {
     fn run(&mut self, steps: u32, loading: &Loading) -> Result<Reductions> {
         let mut acc = Accumulator::new(&self.scene);
         // A step changes neither the disks' radii nor their kinds, so the strips' shares
-        // hold for the whole run, and the forces `apply` zeroes stay zero.
+        // hold for the whole run, and the forces cleared at its first step stay zero.
         let shares = loading.strip_shares(&self.scene);
         for step in 0..steps {
+            loading.apply_shares(&mut self.scene, &shares);
             if step == 0 {
-                loading.apply(&mut self.scene);
-            } else {
-                loading.apply_shares(&mut self.scene, &shares);
+                loading.clear_outside_strips(&mut self.scene, &shares);
             }
             let stats = self.engine.step(&mut self.scene)?;
             acc.add_step(&stats, self.engine.wall_impulses());

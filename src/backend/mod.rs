@@ -52,6 +52,13 @@ impl Loading {
     pub fn apply(&self, scene: &mut Scene) {
         let shares = self.strip_shares(scene);
         self.apply_shares(scene, &shares);
+        self.clear_outside_strips(scene, &shares);
+    }
+
+    /// Zeroes the force of every free disk outside the strips while the strips are on
+    /// (`shares` from [`Self::strip_shares`]): the part of [`Self::apply`] that a run of
+    /// steps, which changes no disk's kind, needs once.
+    pub(crate) fn clear_outside_strips(&self, scene: &mut Scene, shares: &[StripShare]) {
         if shares.is_empty() {
             return;
         }
@@ -82,7 +89,6 @@ impl Loading {
             .map(|(k, &s)| StripShare {
                 disk: k as u32,
                 sign: -(s as f64),
-                radius: d.radius[k],
                 sum_r: sum_r[(s > 0) as usize],
             })
             .collect()
@@ -90,8 +96,9 @@ impl Loading {
 
     /// The wall forces and the strip disks' forces for the current height, from `shares`
     /// ([`Self::strip_shares`] of the same disks). Unlike [`Self::apply`] it leaves the
-    /// other disks' forces alone: after one `apply`, the steps of a run need only this
-    /// (a pass over every disk each step cost about 2% of a 5000-disk compression step).
+    /// other disks' forces alone: a run of steps calls it at every step and
+    /// [`Self::clear_outside_strips`] once (a pass over every disk each step cost about 2%
+    /// of a 5000-disk compression step).
     pub(crate) fn apply_shares(&self, scene: &mut Scene, shares: &[StripShare]) {
         self.apply_wall_forces(scene);
         if shares.is_empty() {
@@ -99,21 +106,21 @@ impl Loading {
         }
         let h = scene.walls[self.top].point.y - scene.walls[self.bottom].point.y;
         let total = self.sigma3 * h;
-        let force = &mut scene.disks.force;
+        let d = &mut scene.disks;
         for s in shares {
-            force[s.disk as usize] = DVec2::new(s.sign * total * s.radius / s.sum_r, 0.0);
+            let k = s.disk as usize;
+            d.force[k] = DVec2::new(s.sign * total * d.radius[k] / s.sum_r, 0.0);
         }
     }
 }
 
 /// A strip disk's part of [`Loading::apply`]: its force is `sign * sigma3 * H * radius /
-/// sum_r` along x.
+/// sum_r` along x, `radius` the disk's.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct StripShare {
     disk: u32,
     /// +1 for the left strip (pushed towards +x), -1 for the right one.
     sign: f64,
-    radius: f64,
     /// The sum of the radii of the disk's strip (m).
     sum_r: f64,
 }
