@@ -3,6 +3,7 @@
 //! the velocity test").
 
 use super::ctx::Line;
+use super::single::Line32;
 use super::rows::BodyProps;
 use super::{SolveStats, SolverParams};
 
@@ -129,13 +130,51 @@ impl VelocityShare {
         props: *const BodyProps,
         range: std::ops::Range<usize>,
     ) -> bool {
+        // SAFETY: forwarded from the caller.
+        unsafe { self.compare(it, props, range, |k| *gv.add(k)) }
+    }
+
+    /// [`Self::bodies`] on the `f32` copy of the velocities ([`super::single`]): each
+    /// line compared and kept as its exact `f64` value.
+    ///
+    /// # Safety
+    /// As [`Self::bodies`].
+    pub(super) unsafe fn bodies_f32(
+        &self,
+        it: u32,
+        gv: *const Line32,
+        props: *const BodyProps,
+        range: std::ops::Range<usize>,
+    ) -> bool {
+        // SAFETY: forwarded from the caller.
+        unsafe {
+            self.compare(it, props, range, |k| {
+                let v = (*gv.add(k)).0.map(f64::from);
+                Line::of(glam::DVec3::new(v[0], v[1], v[2]))
+            })
+        }
+    }
+
+    /// [`Self::bodies`] with body `k`'s line read by `line(k)`.
+    ///
+    /// # Safety
+    /// As [`Self::bodies`], `line` reading the iterate.
+    #[inline(always)]
+    unsafe fn compare(
+        &self,
+        it: u32,
+        props: *const BodyProps,
+        range: std::ops::Range<usize>,
+        line: impl Fn(usize) -> Line,
+    ) -> bool {
         debug_assert!(range.end <= self.len);
         let tol2 = self.tol * self.tol;
         // Compared up to the first body that moved, as `Iterator::all` would; kept whole.
         let mut settled = it > self.after;
         for k in range {
+            let v = line(k);
             // SAFETY: forwarded from the caller.
-            let (v, kept, b) = unsafe { (*gv.add(k), &mut *self.prev.add(k), &*props.add(k)) };
+            let (kept, b) = unsafe { (&mut *self.prev.add(k), &*props.add(k)) };
             if settled {
                 let d = v.v - kept.v;
                 settled = d.x * d.x + d.y * d.y + (b.lever * d.z).powi(2) <= tol2;
@@ -143,6 +182,18 @@ impl VelocityShare {
             *kept = v;
         }
         settled
+    }
+
+    /// Keeps the iterate given by `line(k)` for every body, as the reference of the next
+    /// test (the `f32` sweeps start from their copy, not from the `f64` velocities).
+    ///
+    /// # Safety
+    /// No other thread touches the kept iterate meanwhile.
+    pub(super) unsafe fn keep(&self, line: impl Fn(usize) -> Line) {
+        for k in 0..self.len {
+            // SAFETY: forwarded from the caller; k is within the kept iterate.
+            unsafe { *self.prev.add(k) = line(k) };
+        }
     }
 }
 

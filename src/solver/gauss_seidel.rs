@@ -14,6 +14,7 @@ use super::lanes::{avx, proper_colors, sweep_color_chunk};
 use super::quads::{for_each_impulse, gather_packed, row_at, set_impulses};
 use super::resident::Slot;
 use super::rows::{self, BodyProps, FULL, Row, opening};
+use super::single::{self, GROUP_CHUNK, Single};
 use super::sweep::Colors;
 use super::update::{CHUNK, sweep_chunk, update};
 use super::{Method, SolveStats, SolverParams, team};
@@ -72,6 +73,8 @@ pub struct Workspace {
     props_given: bool,
     /// The sweeps' thread team, kept from step to step.
     team: Slot,
+    /// The `f32` sweeps' copy ([`super::single`]), when they run.
+    single: Single,
 }
 
 /// The swept rows of the deep contacts `candidates` (contact indices, ascending) that carry
@@ -200,6 +203,10 @@ pub(super) fn solve(
     );
     // Colored here, and swept from a copy in color order.
     let recolored = colored && given.is_none();
+    // The f32 sweeps take the rows plain and in color order; a serial group keeps the f64
+    // sweeps (given colors say so now; colors made here, once made).
+    let single_asked = colored && single::enabled() && !given.is_some_and(|g| g.serial_last);
+    let avx = avx() && !single_asked;
     let frictionless = rows::build(
         contacts,
         n_bodies,
@@ -211,7 +218,7 @@ pub(super) fn solve(
         given.map(|g| rows::ColorRows {
             ranges: g.ranges,
             // Every color but the serial group, packed for the AVX sweeps.
-            packed: if avx() {
+            packed: if avx {
                 proper_colors(g.ranges, g.serial_last)
             } else {
                 0
@@ -244,7 +251,8 @@ pub(super) fn solve(
     } else {
         0
     };
-    let quads = colored && avx();
+    let single = single_asked && !work.coloring.serial_last;
+    let quads = colored && avx;
     // The color ranges whose rows are packed four at a time, from the copy in color order
     // to the store: the sweeps, the deep updates and the store read them in place.
     let packed = if quads { proper_colors } else { 0 };
@@ -277,10 +285,23 @@ pub(super) fn solve(
         ..Default::default()
     };
     let threads = params.team_size();
+    if single {
+        work.single.fill(rows, ranges, &work.props, &work.lines);
+    }
     let t_sweeps = Instant::now();
     // SAFETY: no sweep runs yet.
     let start = unsafe { std::slice::from_raw_parts(ctx.gv, n_bodies) };
     let mut velocity = VelocityTest::new(params, start, &mut work.iterate);
+    if single && params.gauss_seidel.relax_after == 0 {
+        let lines = &work.single.lines;
+        // SAFETY: nothing else holds the test yet.
+        unsafe {
+            velocity.share().keep(|k| {
+                let v = lines[k].0.map(f64::from);
+                Line::of(DVec3::new(v[0], v[1], v[2]))
+            })
+        };
+    }
     let props = &work.props[..];
     // `settled`: the velocity test's answer after iteration `it`, from the caller (on a
     // team each member tests its own bodies).
@@ -293,10 +314,41 @@ pub(super) fn solve(
         stats.converged = check && settled;
         stats.converged
     };
-    if colored && threads > 1 && contacts.len() >= params.parallel_min {
+    if single {
+        let s = &mut work.single;
+        let lines32 = s.lines.as_mut_ptr();
+        if threads > 1 && contacts.len() >= params.parallel_min {
+            let team = work.team.get(threads);
+            let velocity = velocity.share();
+            let swept = team::Swept::Groups(&mut s.groups, lines32);
+            team::sweep_iterations(swept, &s.ranges, false, ctx, team, params, velocity, done);
+        } else {
+            for it in 1..=params.max_iter {
+                let relax = params.relax_at(it);
+                let (mut d2, mut r2) = (0.0, 0.0);
+                for w in s.ranges.windows(2) {
+                    for ch in s.groups[w[0] as usize..w[1] as usize].chunks_mut(GROUP_CHUNK) {
+                        // SAFETY: one thread; indices checked by `rows::build`; rows of a
+                        // color share no movable body; `single::enabled` checked AVX-512F.
+                        let (d, r) = unsafe { single::sweep_chunk(ch, lines32, relax) };
+                        d2 += d;
+                        r2 += r;
+                    }
+                }
+                let share = velocity.share();
+                let settled = share.runs_at(it)
+                    // SAFETY: between sweeps, one thread; the copy holds every body.
+                    && unsafe { share.bodies_f32(it, lines32, props.as_ptr(), 0..n_bodies) };
+                if done(it, d2, r2, settled) {
+                    break;
+                }
+            }
+        }
+        s.finish(rows, ranges, &mut work.lines);
+    } else if colored && threads > 1 && contacts.len() >= params.parallel_min {
         let team = work.team.get(threads);
         let velocity = velocity.share();
-        team::sweep_iterations(rows, ranges, serial_last, ctx, team, params, velocity, done);
+        team::sweep_iterations(team::Swept::Rows(rows), ranges, serial_last, ctx, team, params, velocity, done);
     } else {
         for it in 1..=params.max_iter {
             let ctx = Ctx {

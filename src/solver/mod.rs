@@ -17,6 +17,7 @@ pub(crate) mod resident;
 mod rows;
 #[cfg(target_arch = "x86_64")]
 mod simd;
+mod single;
 pub mod space;
 pub mod sweep;
 mod team;

@@ -19,6 +19,7 @@ use super::ctx::Ctx;
 use super::lanes::{proper_colors, sweep_color_chunk};
 use super::resident::{Resident, wait_until};
 use super::rows::Row;
+use super::single::{self, GROUP_CHUNK, Group, Line32};
 use super::update::{CHUNK, sweep_chunk};
 
 /// A reusable barrier that spins briefly, then sleeps: the waits between colors are
@@ -82,6 +83,9 @@ impl<T> CallerOnly<T> {
 #[derive(Clone, Copy)]
 struct Shared {
     rows: *mut Row,
+    /// The `f32` sweeps' groups and velocities ([`Swept::Groups`]); null otherwise.
+    groups: *mut Group,
+    lines32: *mut Line32,
     partial: *mut (f64, f64),
     /// Each member's answer to the velocity test on its bodies.
     settled: *mut bool,
@@ -90,8 +94,8 @@ struct Shared {
 unsafe impl Send for Shared {}
 unsafe impl Sync for Shared {}
 
-/// The chunks of every color: `chunks[k]` is a contact range, and color `c` owns chunks
-/// `first[c]..first[c + 1]`.
+/// The chunks of every color: `chunks[k]` is a range of rows (or of groups of rows), and
+/// color `c` owns chunks `first[c]..first[c + 1]`.
 struct Layout {
     chunks: Vec<(usize, usize)>,
     first: Vec<usize>,
@@ -100,15 +104,15 @@ struct Layout {
 }
 
 impl Layout {
-    fn new(ranges: &[u32], serial_last: bool) -> Self {
+    fn new(ranges: &[u32], serial_last: bool, chunk: usize) -> Self {
         let mut chunks = Vec::new();
         let mut first = vec![0];
         for w in ranges.windows(2) {
             let (a, b) = (w[0] as usize, w[1] as usize);
             let mut s = a;
             while s < b {
-                chunks.push((s, (s + CHUNK).min(b)));
-                s += CHUNK;
+                chunks.push((s, (s + chunk).min(b)));
+                s += chunk;
             }
             first.push(chunks.len());
         }
@@ -131,6 +135,14 @@ impl Layout {
     }
 }
 
+/// What a team sweeps: rows of the `f64` sweeps, with the color ranges in rows, or the
+/// groups of the `f32` sweeps ([`super::single`]) and their velocities, with the ranges in
+/// groups.
+pub(super) enum Swept<'a> {
+    Rows(&'a mut [Row]),
+    Groups(&'a mut [Group], *mut Line32),
+}
+
 /// Sweeps colored Gauss-Seidel iterations on the members of `team` until `done` says stop
 /// after an iteration or `params.max_iter` is reached, each iteration with its relaxation
 /// ([`SolverParams::relax_at`]). `done` receives the iteration number, the sums
@@ -139,7 +151,7 @@ impl Layout {
 /// calling thread only.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn sweep_iterations(
-    rows: &mut [Row],
+    swept: Swept,
     ranges: &[u32],
     serial_last: bool,
     ctx: Ctx,
@@ -150,7 +162,11 @@ pub(super) fn sweep_iterations(
 ) {
     let threads = team.size();
     let max_iter = params.max_iter;
-    let layout = Layout::new(ranges, serial_last);
+    let (rows, groups, lines32, chunk) = match swept {
+        Swept::Rows(r) => (r.as_mut_ptr(), std::ptr::null_mut(), std::ptr::null_mut(), CHUNK),
+        Swept::Groups(g, l) => (std::ptr::null_mut(), g.as_mut_ptr(), l, GROUP_CHUNK),
+    };
+    let layout = Layout::new(ranges, serial_last, chunk);
     let n_colors = ranges.len().saturating_sub(1);
     let proper_colors = proper_colors(ranges, serial_last);
     // One slot per chunk: the barrier after the caller has summed an iteration keeps every
@@ -158,7 +174,9 @@ pub(super) fn sweep_iterations(
     let mut partial = vec![(0.0, 0.0); layout.chunks.len()];
     let mut settled = vec![false; threads];
     let shared = Shared {
-        rows: rows.as_mut_ptr(),
+        rows,
+        groups,
+        lines32,
         partial: partial.as_mut_ptr(),
         settled: settled.as_mut_ptr(),
     };
@@ -185,10 +203,14 @@ pub(super) fn sweep_iterations(
                     // contacts of a color share no movable body (coloring), so the
                     // velocity writes of different members never alias.
                     let sums = unsafe {
-                        let chunk = std::slice::from_raw_parts_mut(shared.rows.add(a), b - a);
-                        if c < proper_colors {
+                        if !shared.groups.is_null() {
+                            let chunk = std::slice::from_raw_parts_mut(shared.groups.add(a), b - a);
+                            single::sweep_chunk(chunk, shared.lines32, ctx.relax)
+                        } else if c < proper_colors {
+                            let chunk = std::slice::from_raw_parts_mut(shared.rows.add(a), b - a);
                             sweep_color_chunk(chunk, ctx)
                         } else {
+                            let chunk = std::slice::from_raw_parts_mut(shared.rows.add(a), b - a);
                             sweep_chunk(chunk, ctx)
                         }
                     };
@@ -204,7 +226,12 @@ pub(super) fn sweep_iterations(
                 // none writes a velocity before the barrier after the decision; each member
                 // keeps its own range of bodies, and writes its own answer's slot.
                 unsafe {
-                    let s = velocity.bodies(it, ctx.gv, ctx.props, n * t / threads..n * (t + 1) / threads);
+                    let range = n * t / threads..n * (t + 1) / threads;
+                    let s = if shared.groups.is_null() {
+                        velocity.bodies(it, ctx.gv, ctx.props, range)
+                    } else {
+                        velocity.bodies_f32(it, shared.lines32, ctx.props, range)
+                    };
                     shared.settled.add(t).write(s);
                 }
                 barrier.wait();
@@ -306,7 +333,7 @@ mod tests {
                 Some(team) => {
                     let share = velocity.share();
                     sweep_iterations(
-                        &mut rows,
+                        Swept::Rows(&mut rows),
                         &ranges,
                         false,
                         ctx,
