@@ -3,8 +3,8 @@
 //! the velocity test").
 
 use super::ctx::Line;
-use super::single::Line32;
 use super::rows::BodyProps;
+use super::single::Line32;
 use super::{SolveStats, SolverParams};
 
 impl SolveStats {

@@ -348,7 +348,16 @@ pub(super) fn solve(
     } else if colored && threads > 1 && contacts.len() >= params.parallel_min {
         let team = work.team.get(threads);
         let velocity = velocity.share();
-        team::sweep_iterations(team::Swept::Rows(rows), ranges, serial_last, ctx, team, params, velocity, done);
+        team::sweep_iterations(
+            team::Swept::Rows(rows),
+            ranges,
+            serial_last,
+            ctx,
+            team,
+            params,
+            velocity,
+            done,
+        );
     } else {
         for it in 1..=params.max_iter {
             let ctx = Ctx {
