@@ -92,11 +92,13 @@ impl Single {
         self.ranges.push(0);
         for w in ranges.windows(2) {
             for part in rows[w[0] as usize..w[1] as usize].chunks(LANES) {
-                let mut g = Group::default();
                 // Lanes past the color's rows read body i of its first row, with zero
                 // figures and fields: they move no body and their sums are +0.
-                g.i = [part[0].i; LANES];
-                g.j = [part[0].i; LANES];
+                let mut g = Group {
+                    i: [part[0].i; LANES],
+                    j: [part[0].i; LANES],
+                    ..Group::default()
+                };
                 for (l, r) in part.iter().enumerate() {
                     let (bi, bj) = (props[r.i as usize], props[r.j as usize]);
                     g.i[l] = r.i;
