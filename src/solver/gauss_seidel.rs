@@ -75,6 +75,9 @@ pub struct Workspace {
     team: Slot,
     /// The `f32` sweeps' copy ([`super::single`]), when they run.
     single: Single,
+    /// Each row's bodies' figures for the `f32` sweeps, from the rows' build
+    /// ([`rows::ColorRows::figures`]).
+    figures: Vec<[f32; 6]>,
 }
 
 /// The swept rows of the deep contacts `candidates` (contact indices, ascending) that carry
@@ -224,6 +227,7 @@ pub(super) fn solve(
                 0
             },
             out: &mut work.coloring.ranges,
+            figures: single_asked.then_some(&mut work.figures),
         }),
     );
     let whole = [0, work.rows.len() as u32];
@@ -286,7 +290,10 @@ pub(super) fn solve(
     };
     let threads = params.team_size();
     if single {
-        work.single.fill(rows, ranges, &work.props, &work.lines);
+        // Rows built in color order carry their figures; a copy in color order reads them
+        // from the body table.
+        let figures = (!recolored).then_some(&work.figures[..]);
+        work.single.fill(rows, ranges, &work.props, figures, &work.lines);
     }
     let t_sweeps = Instant::now();
     // SAFETY: no sweep runs yet.

@@ -112,9 +112,19 @@ pub(super) fn build(
         p.parked.clear();
     }
     let whole = [0, contacts.len() as u32];
-    let (ranges, packed, mut row_ranges) = match colors {
-        Some(c) => (c.ranges, c.packed, Some(c.out)),
-        None => (&whole[..], 0, None),
+    let (ranges, packed, mut row_ranges, mut figures) = match colors {
+        Some(c) => (c.ranges, c.packed, Some(c.out), c.figures),
+        None => (&whole[..], 0, None, None),
+    };
+    if let Some(f) = figures.as_mut() {
+        f.clear();
+    }
+    // Both bodies' figures of each row kept, from the record at hand: read from the body
+    // table instead, they would cost a scattered read per row and body.
+    let mut figure = |c: &Contact| {
+        if let Some(f) = figures.as_mut() {
+            f.push([c.mi, c.ki, c.ri, c.mj, c.kj, c.rj].map(|x| x as f32));
+        }
     };
     let mut quad = Quad4::default();
     // Bit patterns, so that -0 (and NaN) count as friction: the sweeps' shortcut rests on
@@ -148,10 +158,12 @@ pub(super) fn build(
                 Some(p) => {
                     p.active.push(k as u32);
                     keep(&r);
+                    figure(c);
                     quad.push(rows, r, pack);
                 }
                 None => {
                     keep(&r);
+                    figure(c);
                     quad.push(rows, r, pack)
                 }
             }
@@ -167,11 +179,14 @@ pub(super) fn build(
 
 /// What [`build`] does with colored contacts: `ranges` are the contacts' color ranges, the
 /// rows' go to `out` (empty colors included), and the rows of the first `packed` colors are
-/// packed four at a time from each color's first row ([`super::quads::Quad`]).
+/// packed four at a time from each color's first row ([`super::quads::Quad`]). With
+/// `figures`, each row kept gets its bodies' inverse mass, `r / I` and lever (body i's, then
+/// body j's) in `f32` there, in row order, for the `f32` sweeps ([`super::single`]).
 pub(super) struct ColorRows<'a> {
     pub(super) ranges: &'a [u32],
     pub(super) packed: usize,
     pub(super) out: &'a mut Vec<u32>,
+    pub(super) figures: Option<&'a mut Vec<[f32; 6]>>,
 }
 
 /// Up to three rows waiting for a fourth, to be packed with it.
@@ -289,6 +304,52 @@ mod tests {
     fn frictionless(contacts: &[Contact]) -> bool {
         let (mut rows, mut deep) = (Vec::new(), Vec::new());
         build(contacts, 4, f64::INFINITY, &mut rows, None, &mut deep, None, None)
+    }
+
+    /// The figures kept beside the rows are, row by row, those of the body table the same
+    /// build fills (what the `f32` sweeps read instead of the table), parked rows left out of
+    /// both.
+    #[test]
+    fn the_rows_figures_are_the_body_table_s() {
+        let mut contacts = contacts();
+        // Each body's own figures, as detection gives every contact of the body.
+        let of = |b: u32| (1.0 + b as f64, 0.5 + b as f64, 0.25 * (b + 1) as f64);
+        for c in contacts.iter_mut() {
+            (c.mi, c.ki, c.ri) = of(c.i);
+            (c.mj, c.kj, c.rj) = of(c.j);
+        }
+        // Contact 1 opens fast: parked.
+        contacts[1].bias_n = 1.0;
+        let gv = vec![DVec3::ZERO; 4];
+        let (mut rows, mut deep, mut props) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut active, mut parked, mut out, mut figures) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        build(
+            &contacts,
+            4,
+            f64::INFINITY,
+            &mut rows,
+            Some(&mut props),
+            &mut deep,
+            Some(Parking {
+                gv: &gv,
+                open_skip: 0.5,
+                active: &mut active,
+                parked: &mut parked,
+            }),
+            Some(ColorRows {
+                ranges: &[0, 3],
+                packed: 0,
+                out: &mut out,
+                figures: Some(&mut figures),
+            }),
+        );
+        assert_eq!((rows.len(), parked.len()), (2, 1), "rows kept and parked");
+        assert_eq!(figures.len(), rows.len());
+        for (r, f) in rows.iter().zip(&figures) {
+            let (bi, bj) = (props[r.i as usize], props[r.j as usize]);
+            let want = [bi.inv_mass, bi.k, bi.lever, bj.inv_mass, bj.k, bj.lever].map(|x| x as f32);
+            assert_eq!(*f, want, "row on bodies {} and {}", r.i, r.j);
+        }
     }
 
     /// The packed sweeps' normal-only form rests on `mu` and `R_t` being +0 in every row

@@ -84,14 +84,34 @@ pub(super) struct Single {
 
 impl Single {
     /// Copies the rows of the colors `ranges` (in rows; every range a color proper, with no
-    /// [`FULL`](super::rows::FULL) row) into groups, with the bodies' figures from `props`,
-    /// and the velocities `lines` into `f32`.
-    pub(super) fn fill(&mut self, rows: &[Row], ranges: &[u32], props: &[BodyProps], lines: &[Line]) {
+    /// [`FULL`](super::rows::FULL) row) into groups, with the bodies' figures from
+    /// `figures` (one entry per row, as [`super::rows::ColorRows::figures`] gives them) or
+    /// else from `props`, and the velocities `lines` into `f32`.
+    pub(super) fn fill(
+        &mut self,
+        rows: &[Row],
+        ranges: &[u32],
+        props: &[BodyProps],
+        figures: Option<&[[f32; 6]]>,
+        lines: &[Line],
+    ) {
+        assert!(
+            figures.is_none_or(|f| f.len() == rows.len()),
+            "figures for other rows"
+        );
+        let figure = |m: usize, r: &Row| match figures {
+            Some(f) => f[m],
+            None => {
+                let (bi, bj) = (props[r.i as usize], props[r.j as usize]);
+                [bi.inv_mass, bi.k, bi.lever, bj.inv_mass, bj.k, bj.lever].map(|x| x as f32)
+            }
+        };
         self.groups.clear();
         self.ranges.clear();
         self.ranges.push(0);
         for w in ranges.windows(2) {
-            for part in rows[w[0] as usize..w[1] as usize].chunks(LANES) {
+            for (p, part) in rows[w[0] as usize..w[1] as usize].chunks(LANES).enumerate() {
+                let first = w[0] as usize + p * LANES;
                 // Lanes past the color's rows read body i of its first row, with zero
                 // figures and fields: they move no body and their sums are +0.
                 let mut g = Group {
@@ -100,15 +120,15 @@ impl Single {
                     ..Group::default()
                 };
                 for (l, r) in part.iter().enumerate() {
-                    let (bi, bj) = (props[r.i as usize], props[r.j as usize]);
+                    let [im_i, k_i, l_i, im_j, k_j, l_j] = figure(first + l, r);
                     g.i[l] = r.i;
                     g.j[l] = r.j;
-                    g.im_i[l] = bi.inv_mass as f32;
-                    g.k_i[l] = bi.k as f32;
-                    g.l_i[l] = bi.lever as f32;
-                    g.im_j[l] = bj.inv_mass as f32;
-                    g.k_j[l] = bj.k as f32;
-                    g.l_j[l] = bj.lever as f32;
+                    g.im_i[l] = im_i;
+                    g.k_i[l] = k_i;
+                    g.l_i[l] = l_i;
+                    g.im_j[l] = im_j;
+                    g.k_j[l] = k_j;
+                    g.l_j[l] = l_j;
                     g.nx[l] = r.nx as f32;
                     g.ny[l] = r.ny as f32;
                     g.inv_wnn[l] = r.inv_wnn as f32;
@@ -472,7 +492,7 @@ mod tests {
                 let (rows, props, lines) = color_of(n, 11 + n as u64);
                 let ranges = [0, n as u32];
                 let mut fast = Single::default();
-                fast.fill(&rows, &ranges, &props, &lines);
+                fast.fill(&rows, &ranges, &props, None, &lines);
                 let mut slow = fast.clone();
                 for sweep in 0..3 {
                     // SAFETY: this processor has AVX-512F (checked); one thread; the rows of
@@ -542,7 +562,7 @@ mod tests {
             };
             let (mut rows32, mut lines32) = (rows.clone(), lines.clone());
             let mut s = Single::default();
-            s.fill(&rows32, &ranges, &props, &lines32);
+            s.fill(&rows32, &ranges, &props, None, &lines32);
             for _ in 0..3 {
                 // SAFETY: one thread; the rows share no movable body and index bodies within
                 // the lines; AVX-512F checked.
@@ -575,7 +595,7 @@ mod tests {
         let (mut rows, props, mut lines) = color_of(37, 5);
         let ranges = [0, 20, 37];
         let mut s = Single::default();
-        s.fill(&rows, &ranges, &props, &lines);
+        s.fill(&rows, &ranges, &props, None, &lines);
         assert_eq!(s.ranges, vec![0, 2, 4], "groups per color");
         let before = lines.clone();
         let want: Vec<(f64, f64)> = rows
