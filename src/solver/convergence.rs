@@ -225,6 +225,50 @@ mod tests {
             .collect()
     }
 
+    /// On the `f32` copy of the velocities the test answers as on the `f64` lines of the
+    /// same values, and a reference kept with `keep` serves the first comparison.
+    #[test]
+    fn the_velocity_test_on_f32_lines_answers_as_on_their_f64_values() {
+        let n = 40;
+        let props: Vec<BodyProps> = (0..n).map(|_| BodyProps::of(1.0, 2.0, 0.5)).collect();
+        let params = SolverParams {
+            velocity_tol: 1e-3,
+            ..SolverParams::default()
+        };
+        let after = params.gauss_seidel.relax_after;
+        let tol = params.velocity_tol * params.gauss_seidel.relax;
+        let single = |l: &[Line]| -> Vec<Line32> {
+            l.iter()
+                .map(|l| Line32([l.v.x as f32, l.v.y as f32, l.v.z as f32, 0.0]))
+                .collect()
+        };
+        let wide = |l: &[Line32]| -> Vec<Line> {
+            l.iter()
+                .map(|l| Line::of(DVec3::new(l.0[0].into(), l.0[1].into(), l.0[2].into())))
+                .collect()
+        };
+        let start = single(&lines(n, 1.0));
+        for by in [0.5, 2.0] {
+            let mut next = start.clone();
+            next[7].0[1] += (by * tol) as f32;
+            let (mut p64, mut p32) = (Vec::new(), Vec::new());
+            let t64 = VelocityTest::new(&params, &wide(&start), &mut p64).share();
+            let t32 = VelocityTest::new(&params, &wide(&start), &mut p32).share();
+            // SAFETY: one thread; the lines, the table and the kept iterates hold n bodies.
+            let (a, b) = unsafe {
+                t64.keep(|k| wide(&start)[k]);
+                t32.keep(|k| wide(&start)[k]);
+                (
+                    t64.bodies(after + 1, wide(&next).as_ptr(), props.as_ptr(), 0..n),
+                    t32.bodies_f32(after + 1, next.as_ptr(), props.as_ptr(), 0..n),
+                )
+            };
+            assert_eq!(a, b, "moved by {by} x tol");
+            assert_eq!(a, by < 1.0, "moved by {by} x tol");
+            assert!(p64 == p32, "the kept iterates");
+        }
+    }
+
     /// The test split into ranges (a team's members) answers as on one thread, and keeps the
     /// same iterate: a body that moved beyond the tolerance in any range, and only such a
     /// body, makes it fail.

@@ -299,7 +299,8 @@ pub(super) fn solve(
     // SAFETY: no sweep runs yet.
     let start = unsafe { std::slice::from_raw_parts(ctx.gv, n_bodies) };
     let mut velocity = VelocityTest::new(params, start, &mut work.iterate);
-    if single && params.gauss_seidel.relax_after == 0 {
+    // The test's first reference, when it applies from the first iteration: the f32 copy.
+    if single && params.velocity_tol > 0.0 && params.gauss_seidel.relax_after == 0 {
         let lines = &work.single.lines;
         // SAFETY: nothing else holds the test yet.
         unsafe {
