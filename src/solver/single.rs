@@ -16,7 +16,7 @@
 use std::arch::x86_64::*;
 
 use super::ctx::Line;
-use super::rows::{BodyProps, Row};
+use super::rows::{BodyProps, FULL, Row};
 use super::update::CHUNK;
 
 /// Rows per [`Group`].
@@ -120,6 +120,9 @@ impl Single {
                     ..Group::default()
                 };
                 for (l, r) in part.iter().enumerate() {
+                    // The sweeps index the lines with `j` unchecked: a full-block row's is
+                    // no body.
+                    assert!(r.j != FULL, "a full-block row among the f32 sweeps' colors");
                     let [im_i, k_i, l_i, im_j, k_j, l_j] = figure(first + l, r);
                     g.i[l] = r.i;
                     g.j[l] = r.j;
