@@ -147,7 +147,7 @@ unsafe fn sweep_widths<const RELAXED: bool>(chunk: &mut [Row], ctx: Ctx, octs: b
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use glam::DVec3;
 
     use super::*;
@@ -178,7 +178,11 @@ mod tests {
     /// shared by some rows, with impulses that are zero, inside the Coulomb interval or on
     /// its edge, and relative velocities that open, close or slide the contacts;
     /// `frictionless`, with `mu` and `R_t` +0 in every row (a frictionless compaction).
-    fn color_of(n: usize, seed: u64, frictionless: bool) -> (Vec<Row>, Vec<Line>, Vec<BodyProps>) {
+    pub(in crate::solver) fn color_of(
+        n: usize,
+        seed: u64,
+        frictionless: bool,
+    ) -> (Vec<Row>, Vec<Line>, Vec<BodyProps>) {
         let mut rng = Rng(seed);
         let bodies = 2 * n + 3;
         let gv: Vec<Line> = (0..bodies)

@@ -28,7 +28,7 @@ unsafe fn write(p: *mut Line, v: DVec3, body: BodyProps, im: f64, px: f64, py: f
 /// order: from the velocities of bodies i and j (x, y, spin), their levers and the rows'
 /// fields, the new impulses, the tangential change, the impulse's x and y components and
 /// the two sums (`(rn, rt, drt, px, py, sq, r2)`). The first argument names the width (128,
-/// 256 or 512 bits: its add, sub, mul, max, min and broadcast); `$neg` flips the sign of
+/// 256 or 512 bits of `f64`, or `512f32`: its add, sub, mul, max, min and broadcast); `$neg` flips the sign of
 /// every lane; `$relax` is `Some(omega)` for a relaxed update.
 macro_rules! law {
     // Packed rows: the nine fields from the caller's `field!`, which loads one of them for
@@ -80,6 +80,10 @@ macro_rules! law {
     (512 $($form:ident)?; $($rest:tt)*) => {
         law!([_mm512_add_pd, _mm512_sub_pd, _mm512_mul_pd, _mm512_max_pd, _mm512_min_pd, _mm512_set1_pd] $($form)?, $($rest)*)
     };
+    // Sixteen f32 lanes ([`super::single`]; its relaxation an `f32`).
+    (512f32 $($form:ident)?; $($rest:tt)*) => {
+        law!([_mm512_add_ps, _mm512_sub_ps, _mm512_mul_ps, _mm512_max_ps, _mm512_min_ps, _mm512_set1_ps] $($form)?, $($rest)*)
+    };
     (
         [$add:path, $sub:path, $mul:path, $max:path, $min:path, $set1:path],
         $neg:expr, $zero:expr, $relax:expr,
@@ -115,6 +119,8 @@ macro_rules! law {
         (rn, rt, drt, px, py, sq, r2)
     }};
 }
+// The f32 sweeps run the same law in other lanes.
+pub(super) use law;
 
 /// The 4x4 transpose of four registers: lane `l` of output `f` is lane `f` of input `l`
 /// (four bodies' lines become their x, y, spin and fourth fields, and back).

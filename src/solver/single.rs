@@ -15,6 +15,9 @@
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
 
+#[cfg(target_arch = "x86_64")]
+use super::simd::law;
+
 use super::ctx::Line;
 use super::rows::{BodyProps, FULL, Row};
 use super::update::CHUNK;
@@ -217,7 +220,7 @@ macro_rules! transpose32 {
 /// Sweeps `groups` (a chunk of one color) in order and returns the sums (change^2,
 /// impulse^2) of their rows in `f64`, lane by lane in a fixed order, so that the result
 /// depends on the chunk, not on the thread that sweeps it. The law is the diagonal update
-/// of [`super::update::update`] in `f32`, operation for operation ([`reference`] in the
+/// of [`super::update::update`] in `f32`, operation for operation (`reference` in the
 /// tests); `relax` 1 is plain Gauss-Seidel.
 ///
 /// # Safety
@@ -230,7 +233,7 @@ pub(super) unsafe fn sweep_groups(groups: &mut [Group], lines: *mut Line32, rela
     let zero = _mm512_setzero_ps();
     let sign = _mm512_set1_epi32(i32::MIN);
     let neg = |x: __m512| _mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(x), sign));
-    let omega = (relax != 1.0).then(|| _mm512_set1_ps(relax as f32));
+    let omega = (relax != 1.0).then_some(relax as f32);
     let mut acc = [_mm512_setzero_pd(); 4];
     for g in groups.iter_mut() {
         // SAFETY: the caller guarantees validity and exclusive access; a group's fields are
@@ -256,49 +259,17 @@ pub(super) unsafe fn sweep_groups(groups: &mut [Group], lines: *mut Line32, rela
             }
             let [vix, viy, viz, _] = transpose32!(lines_of!(i));
             let [vjx, vjy, vjz, _] = transpose32!(lines_of!(j));
-            let (nx, ny, rn0, rt0) = (field!(nx), field!(ny), field!(rn), field!(rt));
-            let dx = _mm512_sub_ps(vix, vjx);
-            let dy = _mm512_sub_ps(viy, vjy);
-            let un = _mm512_add_ps(_mm512_mul_ps(dx, nx), _mm512_mul_ps(dy, ny));
-            let ut = _mm512_add_ps(
-                _mm512_add_ps(
-                    _mm512_sub_ps(_mm512_mul_ps(dx, ny), _mm512_mul_ps(dy, nx)),
-                    _mm512_mul_ps(viz, field!(l_i)),
-                ),
-                _mm512_mul_ps(vjz, field!(l_j)),
-            );
-            let rn = _mm512_max_ps(
-                _mm512_sub_ps(
-                    rn0,
-                    _mm512_mul_ps(_mm512_add_ps(un, field!(bias_n)), field!(inv_wnn)),
-                ),
+            // The f64 sweeps' law, operation for operation, in sixteen f32 lanes.
+            let (rn, rt, drt, px, py, sq, r2) = law!(512f32 packed;
+                neg,
                 zero,
+                omega,
+                (vix, viy, viz),
+                (vjx, vjy, vjz),
+                (field!(l_i), field!(l_j)),
             );
-            let lim = _mm512_mul_ps(field!(mu), rn);
-            let rt = _mm512_min_ps(
-                _mm512_max_ps(
-                    _mm512_sub_ps(
-                        rt0,
-                        _mm512_mul_ps(_mm512_add_ps(ut, field!(bias_t)), field!(inv_wtt)),
-                    ),
-                    neg(lim),
-                ),
-                lim,
-            );
-            let (rn, rt) = match omega {
-                Some(w) => (
-                    _mm512_add_ps(rn0, _mm512_mul_ps(w, _mm512_sub_ps(rn, rn0))),
-                    _mm512_add_ps(rt0, _mm512_mul_ps(w, _mm512_sub_ps(rt, rt0))),
-                ),
-                None => (rn, rt),
-            };
             _mm512_store_ps(g.rn.as_mut_ptr(), rn);
             _mm512_store_ps(g.rt.as_mut_ptr(), rt);
-            let (drn, drt) = (_mm512_sub_ps(rn, rn0), _mm512_sub_ps(rt, rt0));
-            let px = _mm512_add_ps(_mm512_mul_ps(drn, nx), _mm512_mul_ps(drt, ny));
-            let py = _mm512_sub_ps(_mm512_mul_ps(drn, ny), _mm512_mul_ps(drt, nx));
-            let sq = _mm512_add_ps(_mm512_mul_ps(drn, drn), _mm512_mul_ps(drt, drt));
-            let r2 = _mm512_add_ps(_mm512_mul_ps(rn, rn), _mm512_mul_ps(rt, rt));
             let (imi, ki, imj, kj) = (field!(im_i), field!(k_i), field!(im_j), field!(k_j));
             // A body moves when its inverse mass or its r / I is not zero (`BodyProps::movable`).
             let moves = |im: __m512, k: __m512| {
@@ -362,8 +333,6 @@ pub(super) unsafe fn sweep_groups(groups: &mut [Group], lines: *mut Line32, rela
 
 #[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
-    use glam::DVec3;
-
     use super::*;
 
     /// The diagonal law of [`super::super::update::update`] in `f32`, one row at a time,
@@ -410,70 +379,11 @@ mod tests {
         (drn * drn + drt * drt, rn * rn + rt * rt)
     }
 
-    /// A small xorshift generator: variety and reproducibility, no statistical quality.
-    struct Rng(u64);
-
-    impl Rng {
-        fn next(&mut self) -> f64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            (self.0 >> 11) as f64 / (1u64 << 53) as f64
-        }
-        fn signed(&mut self) -> f64 {
-            2.0 * self.next() - 1.0
-        }
-    }
-
-    /// One color of `n` rows on `2n` disks (some that only spin, some fixed) and three
-    /// walls shared by some rows, with impulses at zero, inside the Coulomb interval and
-    /// on its edge; its groups filled by [`Single::fill`].
+    /// One color of `n` rows ([`super::super::lanes::tests::color_of`]: disks that move,
+    /// disks that only spin, and walls shared by some rows; impulses at zero, inside the
+    /// Coulomb interval and on its edge), as rows, body table and lines.
     fn color_of(n: usize, seed: u64) -> (Vec<Row>, Vec<BodyProps>, Vec<Line>) {
-        let mut rng = Rng(seed);
-        let bodies = 2 * n + 3;
-        let lines = (0..bodies)
-            .map(|_| Line::of(DVec3::new(rng.signed(), rng.signed(), 3.0 * rng.signed())))
-            .collect();
-        let props = (0..bodies)
-            .map(|b| {
-                let (im, k, lever) = (0.5 + rng.next(), 2.0 * rng.next(), 0.1 + rng.next());
-                match b {
-                    _ if b >= 2 * n => BodyProps::of(0.0, 0.0, lever),
-                    _ if b % 13 == 5 => BodyProps::of(0.0, k, lever),
-                    _ if b % 17 == 3 => BodyProps::of(0.0, 0.0, lever),
-                    _ => BodyProps::of(im, k, lever),
-                }
-            })
-            .collect();
-        let rows = (0..n)
-            .map(|m| {
-                let a = rng.next() * std::f64::consts::TAU;
-                let mu = [0.0, 0.01, 0.3, 12.0][m % 4];
-                let rn = if m % 3 == 0 { 0.0 } else { rng.next() };
-                let rt = match m % 5 {
-                    0 => mu * rn,
-                    1 => -mu * rn,
-                    _ => mu * rn * rng.signed(),
-                };
-                Row {
-                    i: (2 * m) as u32,
-                    j: if m % 7 == 0 {
-                        (2 * n + m % 3) as u32
-                    } else {
-                        (2 * m + 1) as u32
-                    },
-                    nx: a.cos(),
-                    ny: a.sin(),
-                    inv_wnn: 0.2 + rng.next(),
-                    inv_wtt: if m % 11 == 0 { 0.0 } else { 0.3 + rng.next() },
-                    mu,
-                    bias_n: 0.5 * rng.signed(),
-                    bias_t: 0.1 * rng.signed(),
-                    rn,
-                    rt,
-                }
-            })
-            .collect();
+        let (rows, lines, props) = super::super::lanes::tests::color_of(n, seed, false);
         (rows, props, lines)
     }
 
