@@ -49,9 +49,10 @@ pub(super) fn avx512() -> bool {
 
 /// How the colored sweeps of this process update a color: "AVX-512, 8 contacts at a
 /// time", "AVX, 4 contacts at a time", "SSE2, 2 contacts at a time" or "1 contact at a
-/// time", or in single precision when asked ([`super::single`]; its results differ from the
-/// others'). Named in the CPU backend's description, which the runs record, so that
-/// timings from different processors can be read side by side and a run says how it swept.
+/// time", or in single precision when asked (`CDLAB_SWEEPS_F32=1`,
+/// `src/solver/single.rs`; its results differ from the others'). Named in the CPU
+/// backend's description, which the runs record, so that timings from different
+/// processors can be read side by side and a run says how it swept.
 pub fn colored_lanes() -> &'static str {
     if super::single::enabled() {
         return "AVX-512 in f32 (CDLAB_SWEEPS_F32=1), 16 contacts at a time";
