@@ -147,12 +147,7 @@ impl VelocityShare {
         range: std::ops::Range<usize>,
     ) -> bool {
         // SAFETY: forwarded from the caller.
-        unsafe {
-            self.compare(it, props, range, |k| {
-                let v = (*gv.add(k)).0.map(f64::from);
-                Line::of(glam::DVec3::new(v[0], v[1], v[2]))
-            })
-        }
+        unsafe { self.compare(it, props, range, |k| (*gv.add(k)).wide()) }
     }
 
     /// [`Self::bodies`] with body `k`'s line read by `line(k)`.
@@ -237,17 +232,8 @@ mod tests {
         };
         let after = params.gauss_seidel.relax_after;
         let tol = params.velocity_tol * params.gauss_seidel.relax;
-        let single = |l: &[Line]| -> Vec<Line32> {
-            l.iter()
-                .map(|l| Line32([l.v.x as f32, l.v.y as f32, l.v.z as f32, 0.0]))
-                .collect()
-        };
-        let wide = |l: &[Line32]| -> Vec<Line> {
-            l.iter()
-                .map(|l| Line::of(DVec3::new(l.0[0].into(), l.0[1].into(), l.0[2].into())))
-                .collect()
-        };
-        let start = single(&lines(n, 1.0));
+        let wide = |l: &[Line32]| -> Vec<Line> { l.iter().map(Line32::wide).collect() };
+        let start: Vec<Line32> = lines(n, 1.0).iter().map(Line32::of).collect();
         for by in [0.5, 2.0] {
             let mut next = start.clone();
             next[7].0[1] += (by * tol) as f32;

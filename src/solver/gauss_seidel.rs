@@ -14,7 +14,7 @@ use super::lanes::{avx, proper_colors, sweep_color_chunk};
 use super::quads::{for_each_impulse, gather_packed, row_at, set_impulses};
 use super::resident::Slot;
 use super::rows::{self, BodyProps, FULL, Row, opening};
-use super::single::{self, GROUP_CHUNK, Single};
+use super::single::{self, Single};
 use super::sweep::Colors;
 use super::update::{CHUNK, sweep_chunk, update};
 use super::{Method, SolveStats, SolverParams, team};
@@ -303,12 +303,7 @@ pub(super) fn solve(
     if single && params.velocity_tol > 0.0 && params.gauss_seidel.relax_after == 0 {
         let lines = &work.single.lines;
         // SAFETY: nothing else holds the test yet.
-        unsafe {
-            velocity.share().keep(|k| {
-                let v = lines[k].0.map(f64::from);
-                Line::of(DVec3::new(v[0], v[1], v[2]))
-            })
-        };
+        unsafe { velocity.share().keep(|k| lines[k].wide()) };
     }
     let props = &work.props[..];
     // `settled`: the velocity test's answer after iteration `it`, from the caller (on a
@@ -332,17 +327,9 @@ pub(super) fn solve(
             team::sweep_iterations(swept, &s.ranges, false, ctx, team, params, velocity, done);
         } else {
             for it in 1..=params.max_iter {
-                let relax = params.relax_at(it);
-                let (mut d2, mut r2) = (0.0, 0.0);
-                for w in s.ranges.windows(2) {
-                    for ch in s.groups[w[0] as usize..w[1] as usize].chunks_mut(GROUP_CHUNK) {
-                        // SAFETY: one thread; indices checked by `rows::build`; rows of a
-                        // color share no movable body; `single::enabled` checked AVX-512F.
-                        let (d, r) = unsafe { single::sweep_chunk(ch, lines32, relax) };
-                        d2 += d;
-                        r2 += r;
-                    }
-                }
+                // SAFETY: one thread; indices checked by `rows::build`; rows of a color share
+                // no movable body; `single::enabled` checked AVX-512F.
+                let (d2, r2) = unsafe { s.sweep(params.relax_at(it)) };
                 let share = velocity.share();
                 let settled = share.runs_at(it)
                     // SAFETY: between sweeps, one thread; the copy holds every body.

@@ -51,6 +51,19 @@ pub(super) fn enabled() -> bool {
 #[repr(C, align(16))]
 pub(super) struct Line32(pub(super) [f32; 4]);
 
+impl Line32 {
+    /// The line of `l`'s velocity rounded to `f32`.
+    pub(super) fn of(l: &Line) -> Self {
+        Line32([l.v.x as f32, l.v.y as f32, l.v.z as f32, 0.0])
+    }
+
+    /// This line's velocity in `f64`, exactly.
+    pub(super) fn wide(&self) -> Line {
+        let [x, y, z, _] = self.0.map(f64::from);
+        Line::of(glam::DVec3::new(x, y, z))
+    }
+}
+
 /// Sixteen rows of one color field by field in `f32`, with their bodies' figures: inverse
 /// mass, `r / I` and lever of body i and of body j (0 for a body that cannot move, as in
 /// [`BodyProps`]).
@@ -150,8 +163,27 @@ impl Single {
             self.ranges.push(self.groups.len() as u32);
         }
         self.lines.clear();
-        self.lines
-            .extend(lines.iter().map(|l| Line32(single(l.v.to_array()))));
+        self.lines.extend(lines.iter().map(Line32::of));
+    }
+
+    /// One sweep over every color on the calling thread, chunk by chunk as a team sweeps
+    /// them, the chunks' sums added in order: the same sums as a team's.
+    ///
+    /// # Safety
+    /// As [`sweep_chunk`] for every chunk: the groups' bodies lie within `self.lines`, and
+    /// nothing else touches them meanwhile.
+    pub(super) unsafe fn sweep(&mut self, relax: f64) -> (f64, f64) {
+        let lines = self.lines.as_mut_ptr();
+        let mut total = (0.0, 0.0);
+        for w in self.ranges.windows(2) {
+            for ch in self.groups[w[0] as usize..w[1] as usize].chunks_mut(GROUP_CHUNK) {
+                // SAFETY: forwarded from the caller.
+                let (d, r) = unsafe { sweep_chunk(ch, lines, relax) };
+                total.0 += d;
+                total.1 += r;
+            }
+        }
+        total
     }
 
     /// Gives the rows of the colors `ranges` (as given to [`Single::fill`]) their new
@@ -168,11 +200,10 @@ impl Single {
             }
         }
         for (l, s) in lines.iter_mut().zip(&self.lines) {
-            let start = single(l.v.to_array());
-            if s.0 != start {
+            let start = Line32::of(l);
+            if *s != start {
                 // The change in `f64`: the `f32` values are exact in it.
-                let d = |k: usize| f64::from(s.0[k]) - f64::from(start[k]);
-                l.v += glam::DVec3::new(d(0), d(1), d(2));
+                l.v += s.wide().v - start.wide().v;
             }
         }
     }
@@ -191,11 +222,6 @@ pub(super) unsafe fn sweep_chunk(groups: &mut [Group], lines: *mut Line32, relax
         let _ = (groups, lines, relax);
         unreachable!("the f32 sweeps need AVX-512F (`single::enabled`)")
     }
-}
-
-/// A velocity's `f32` line.
-fn single(v: [f64; 3]) -> [f32; 4] {
-    [v[0] as f32, v[1] as f32, v[2] as f32, 0.0]
 }
 
 /// The 4x4 transposes of 32-bit elements within each 128-bit lane of four registers: lane
@@ -379,6 +405,17 @@ mod tests {
         (drn * drn + drt * drt, rn * rn + rt * rt)
     }
 
+    /// Whether this processor has AVX-512F; when not, says which comparison did not run,
+    /// past the test harness's capture (so a plain `cargo test` shows it).
+    fn avx512_here(what: &str) -> bool {
+        let here = std::arch::is_x86_feature_detected!("avx512f");
+        if !here {
+            let note = format!("NOTE: no AVX-512F here: {what}\n");
+            let _ = std::io::Write::write_all(&mut std::io::stderr(), note.as_bytes());
+        }
+        here
+    }
+
     /// One color of `n` rows ([`super::super::lanes::tests::color_of`]: disks that move,
     /// disks that only spin, and walls shared by some rows; impulses at zero, inside the
     /// Coulomb interval and on its edge), as rows, body table and lines.
@@ -393,11 +430,7 @@ mod tests {
     /// not.
     #[test]
     fn sixteen_lanes_equal_the_scalar_f32_law_bit_for_bit() {
-        if !std::arch::is_x86_feature_detected!("avx512f") {
-            let _ = std::io::Write::write_all(
-                &mut std::io::stderr(),
-                b"NOTE: no AVX-512F here: the f32 sweeps not compared\n",
-            );
+        if !avx512_here("the f32 sweeps not compared with the scalar f32 law") {
             return;
         }
         for n in [1, 2, 15, 16, 17, 31, 64, 67, 130] {
@@ -454,11 +487,7 @@ mod tests {
     /// order 1; `f32` keeps about 6e-8 of a value, and three sweeps compound it a little).
     #[test]
     fn f32_sweeps_follow_the_f64_update() {
-        if !std::arch::is_x86_feature_detected!("avx512f") {
-            let _ = std::io::Write::write_all(
-                &mut std::io::stderr(),
-                b"NOTE: no AVX-512F here: the f32 sweeps not compared with the f64 update\n",
-            );
+        if !avx512_here("the f32 sweeps not compared with the f64 update") {
             return;
         }
         for relax in [1.0, 0.5] {

@@ -82,10 +82,7 @@ impl<T> CallerOnly<T> {
 /// rows, disjoint partial-sum slots) between two barriers.
 #[derive(Clone, Copy)]
 struct Shared {
-    rows: *mut Row,
-    /// The `f32` sweeps' groups and velocities ([`Swept::Groups`]); null otherwise.
-    groups: *mut Group,
-    lines32: *mut Line32,
+    swept: SweptAt,
     partial: *mut (f64, f64),
     /// Each member's answer to the velocity test on its bodies.
     settled: *mut bool,
@@ -143,6 +140,13 @@ pub(super) enum Swept<'a> {
     Groups(&'a mut [Group], *mut Line32),
 }
 
+/// [`Swept`] as the members share it: where its rows, or groups and velocities, start.
+#[derive(Clone, Copy)]
+enum SweptAt {
+    Rows(*mut Row),
+    Groups(*mut Group, *mut Line32),
+}
+
 /// Sweeps colored Gauss-Seidel iterations on the members of `team` until `done` says stop
 /// after an iteration or `params.max_iter` is reached, each iteration with its relaxation
 /// ([`SolverParams::relax_at`]). `done` receives the iteration number, the sums
@@ -162,9 +166,9 @@ pub(super) fn sweep_iterations(
 ) {
     let threads = team.size();
     let max_iter = params.max_iter;
-    let (rows, groups, lines32, chunk) = match swept {
-        Swept::Rows(r) => (r.as_mut_ptr(), std::ptr::null_mut(), std::ptr::null_mut(), CHUNK),
-        Swept::Groups(g, l) => (std::ptr::null_mut(), g.as_mut_ptr(), l, GROUP_CHUNK),
+    let (swept, chunk) = match swept {
+        Swept::Rows(r) => (SweptAt::Rows(r.as_mut_ptr()), CHUNK),
+        Swept::Groups(g, l) => (SweptAt::Groups(g.as_mut_ptr(), l), GROUP_CHUNK),
     };
     let layout = Layout::new(ranges, serial_last, chunk);
     let n_colors = ranges.len().saturating_sub(1);
@@ -174,9 +178,7 @@ pub(super) fn sweep_iterations(
     let mut partial = vec![(0.0, 0.0); layout.chunks.len()];
     let mut settled = vec![false; threads];
     let shared = Shared {
-        rows,
-        groups,
-        lines32,
+        swept,
         partial: partial.as_mut_ptr(),
         settled: settled.as_mut_ptr(),
     };
@@ -203,15 +205,19 @@ pub(super) fn sweep_iterations(
                     // contacts of a color share no movable body (coloring), so the
                     // velocity writes of different members never alias.
                     let sums = unsafe {
-                        if !shared.groups.is_null() {
-                            let chunk = std::slice::from_raw_parts_mut(shared.groups.add(a), b - a);
-                            single::sweep_chunk(chunk, shared.lines32, ctx.relax)
-                        } else if c < proper_colors {
-                            let chunk = std::slice::from_raw_parts_mut(shared.rows.add(a), b - a);
-                            sweep_color_chunk(chunk, ctx)
-                        } else {
-                            let chunk = std::slice::from_raw_parts_mut(shared.rows.add(a), b - a);
-                            sweep_chunk(chunk, ctx)
+                        match shared.swept {
+                            SweptAt::Groups(groups, lines) => {
+                                let chunk = std::slice::from_raw_parts_mut(groups.add(a), b - a);
+                                single::sweep_chunk(chunk, lines, ctx.relax)
+                            }
+                            SweptAt::Rows(rows) => {
+                                let chunk = std::slice::from_raw_parts_mut(rows.add(a), b - a);
+                                if c < proper_colors {
+                                    sweep_color_chunk(chunk, ctx)
+                                } else {
+                                    sweep_chunk(chunk, ctx)
+                                }
+                            }
                         }
                     };
                     unsafe { shared.partial.add(k).write(sums) };
@@ -227,10 +233,9 @@ pub(super) fn sweep_iterations(
                 // keeps its own range of bodies, and writes its own answer's slot.
                 unsafe {
                     let range = n * t / threads..n * (t + 1) / threads;
-                    let s = if shared.groups.is_null() {
-                        velocity.bodies(it, ctx.gv, ctx.props, range)
-                    } else {
-                        velocity.bodies_f32(it, shared.lines32, ctx.props, range)
+                    let s = match shared.swept {
+                        SweptAt::Rows(_) => velocity.bodies(it, ctx.gv, ctx.props, range),
+                        SweptAt::Groups(_, lines) => velocity.bodies_f32(it, lines, ctx.props, range),
                     };
                     shared.settled.add(t).write(s);
                 }
